@@ -1,0 +1,1 @@
+"""Input and output: atomic writes, stereo sequences, bags and tables."""

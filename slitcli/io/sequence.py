@@ -1,0 +1,163 @@
+"""Stereo sequences on disk (DESIGN §12): ``left/`` and ``right/`` with the same file names.
+
+A sequence folder holds ``left/`` and ``right/`` (PNG or JPEG, same names, frames in
+name order), an optional ``times.csv`` (``frame,time_s``) and an optional
+``rig.yaml``. Frames are numbered 0, 1, ... in name order; that index is the
+``frame`` column of every table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from slitcli.errors import SlitcliError
+from slitcli.rig import Rig, load_rig, paper_rig
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+@dataclass(frozen=True)
+class StereoFrame:
+    """One stereo pair. Images are BGR uint8, shape (height, width, 3)."""
+
+    index: int
+    name: str
+    time_s: float
+    left_bgr: np.ndarray
+    right_bgr: np.ndarray
+
+
+@dataclass(frozen=True)
+class FrameRef:
+    """Where one frame lives on disk (cheap to pass to worker processes)."""
+
+    index: int
+    name: str
+    time_s: float
+    left_path: Path
+    right_path: Path
+
+
+class StereoSequence:
+    """A sequence folder; frames are read lazily, one at a time.
+
+    Parameters
+    ----------
+    folder : path
+        The sequence folder (``left/``, ``right/``, optional ``times.csv``, ``rig.yaml``).
+    """
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = Path(folder)
+        if not self.folder.is_dir():
+            raise SlitcliError(f"{self.folder}: sequence folder not found; give a folder "
+                               "with left/ and right/ image folders")
+        left_dir, right_dir = self.folder / "left", self.folder / "right"
+        for d in (left_dir, right_dir):
+            if not d.is_dir():
+                raise SlitcliError(f"{d}: folder missing; a sequence needs left/ and right/ "
+                                   "holding images with the same file names")
+        lefts = _images(left_dir)
+        rights = _images(right_dir)
+        if not lefts:
+            raise SlitcliError(f"{left_dir}: no images (.png, .jpg) found; the sequence is empty")
+        right_by_stem = {p.stem: p for p in rights}
+        missing = [p for p in lefts if p.stem not in right_by_stem]
+        if missing:
+            raise SlitcliError(f"{right_dir / missing[0].name}: missing right frame for "
+                               f"left/{missing[0].name} ({len(missing)} unpaired); every left "
+                               "image needs a right image with the same name")
+        extra = sorted(set(right_by_stem) - {p.stem for p in lefts})
+        if extra:
+            raise SlitcliError(f"{left_dir / extra[0]}: missing left frame for right/{extra[0]}"
+                               f" ({len(extra)} unpaired); every right image needs a left image "
+                               "with the same name")
+        times = _read_times(self.folder / "times.csv", len(lefts))
+        self.refs = [
+            FrameRef(i, p.stem, float(times[i]), p, right_by_stem[p.stem])
+            for i, p in enumerate(lefts)
+        ]
+
+    def __len__(self) -> int:
+        return len(self.refs)
+
+    def rig(self, rig_path: str | Path | None = None) -> Rig:
+        """The rig to use: ``rig_path`` if given, else ``rig.yaml`` in the folder, else the
+        paper rig."""
+        if rig_path is not None:
+            return load_rig(rig_path)
+        own = self.folder / "rig.yaml"
+        return load_rig(own) if own.exists() else paper_rig()
+
+    def frames(self, rig: Rig | None = None) -> Iterator[StereoFrame]:
+        """Read the frames in order (one pair in memory at a time)."""
+        for ref in self.refs:
+            yield read_frame(ref, rig)
+
+
+def read_frame(ref: FrameRef, rig: Rig | None = None) -> StereoFrame:
+    """Read one stereo pair and check its sizes against each other and the rig.
+
+    With a rig that carries a ``raw`` calibration the images must have the raw size;
+    otherwise they must have the rig's (rectified) ``image_size_px``.
+    """
+    left = read_image(ref.left_path)
+    right = read_image(ref.right_path)
+    if left.shape != right.shape:
+        raise SlitcliError(f"{ref.right_path}: size {right.shape[1]}x{right.shape[0]} differs "
+                           f"from the left image's {left.shape[1]}x{left.shape[0]}; left and "
+                           "right images must have the same size")
+    if rig is not None:
+        want = rig.raw.image_size_px if rig.raw is not None else rig.image_size_px
+        if (left.shape[1], left.shape[0]) != tuple(want):
+            which = "raw.image_size_px" if rig.raw is not None else "image_size_px"
+            raise SlitcliError(f"{ref.left_path}: size {left.shape[1]}x{left.shape[0]} does "
+                               f"not match the rig's {which} {want[0]}x{want[1]}; use the rig "
+                               "these images were taken with (--rig)")
+    return StereoFrame(ref.index, ref.name, ref.time_s, left, right)
+
+
+def read_image(path: Path) -> np.ndarray:
+    """Read a colour image as BGR uint8 (grey images are replicated to 3 channels)."""
+    if not path.exists():
+        raise SlitcliError(f"{path}: image not found; check the sequence folder")
+    data = np.fromfile(path, dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if img is None:
+        raise SlitcliError(f"{path}: unreadable image (not a valid PNG or JPEG); re-export or "
+                           "remove it")
+    return img
+
+
+def _images(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.iterdir()
+                  if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
+                  p.name.startswith("."))
+
+
+def _read_times(path: Path, n: int) -> np.ndarray:
+    """Frame times from ``times.csv``; NaN for every frame when the file is absent."""
+    if not path.exists():
+        return np.full(n, np.nan)
+    try:
+        t = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
+        raise SlitcliError(f"{path}: not a CSV with columns frame,time_s; fix or delete it") \
+            from None
+    if list(t.columns) != ["frame", "time_s"]:
+        raise SlitcliError(f"{path}: columns are {list(t.columns)}, expected frame,time_s; "
+                           "fix the header or delete the file")
+    times = np.full(n, np.nan)
+    frames = t["frame"].to_numpy()
+    if not np.issubdtype(frames.dtype, np.integer) or frames.min(initial=0) < 0 \
+            or frames.max(initial=0) >= n:
+        raise SlitcliError(f"{path}: frame numbers must be whole numbers 0..{n - 1} (one per "
+                           "image pair, in name order); fix the file")
+    times[frames] = t["time_s"].to_numpy(dtype=float)
+    return times
