@@ -1,0 +1,293 @@
+"""Closed-loop simulation: sense -> modified DWA -> unicycle motion (DESIGN §8, §10).
+
+Each control period T the robot senses a per-bearing range table from its pose,
+adds the points to a short-term obstacle memory (world frame), runs one DWA step
+(:func:`slitcli.dwa.plan_step`) and holds the command for T, integrated exactly as
+a unicycle. Collisions are checked against the true obstacle outlines at
+``substeps`` instants per period.
+
+Sensing is any :class:`Sensor`: a callable ``(pose, step) -> RangeScan``.
+``perfect`` (:class:`PerfectSensor`) returns the true ranges per bearing bin over the
+camera's field of view, cut at the sensing range: the paper's Matlab simulation.
+The vision pipeline (render -> detect -> fuse) is another Sensor with the same call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from slitcli.dwa import DwaParams, PointMemory, plan_step, scan_points, to_robot, to_world, unicycle
+from slitcli.errors import SlitcliError
+from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.rig import Rig
+from slitcli.sim.clearance import clearance_m, obstacle_geometry
+from slitcli.sim.scene import (
+    Footprints,
+    Pose2D,
+    Scene,
+    bearing_bins,
+    footprints,
+    sensor_origin_xy,
+    wedge_min_range,
+)
+from slitcli.sim.worlds import World
+
+TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
+METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
+                   "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
+
+
+@dataclass(frozen=True)
+class RangeScan:
+    """One sensed frame: a per-bearing range table (DESIGN §6) in the sensor frame.
+
+    ``bearing_deg`` (B,) bin centres, positive left; ``range_m`` (B,) horizontal range
+    from the sensor origin, NaN = no return; the sensor origin is ``forward_m`` ahead
+    of the robot's rotation centre.
+    """
+
+    bearing_deg: np.ndarray
+    range_m: np.ndarray
+    forward_m: float
+
+
+class Sensor(Protocol):
+    """What the closed loop senses with: the range table seen from ``pose`` at ``step``."""
+
+    def __call__(self, pose: Pose2D, step: int) -> RangeScan: ...
+
+
+@dataclass(frozen=True)
+class PerfectSensor:
+    """True nearest range per bearing bin (exact, from the scene), cut at ``sensing_range_m``.
+
+    Bins cover the rig's horizontal field of view (``bin_deg`` wide); obstacles count
+    when they reach between the floor margin (2 cm) and the robot's height, as in
+    :func:`slitcli.sim.scene.true_ranges`, whose outlines are computed once here.
+    """
+
+    outlines: Footprints
+    bearing_deg: np.ndarray
+    bin_lo_deg: np.ndarray
+    bin_hi_deg: np.ndarray
+    forward_m: float
+    sensing_range_m: float
+
+    def __call__(self, pose: Pose2D, step: int) -> RangeScan:
+        r = wedge_min_range(self.outlines, sensor_origin_xy(pose, self.forward_m), pose.yaw_rad,
+                            self.bin_lo_deg, self.bin_hi_deg)
+        return RangeScan(self.bearing_deg, np.where(r <= self.sensing_range_m, r, np.nan),
+                         self.forward_m)
+
+
+def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
+                   bin_deg: float = 1.0) -> PerfectSensor:
+    """The ``perfect`` sensing mode for a scene seen through ``rig``'s field of view."""
+    if not sensing_range_m > 0:
+        raise SlitcliError(f"--sensing-range {sensing_range_m:g} must be > 0 m")
+    centres, lo, hi = bearing_bins(rig.bearing_limits_deg(), bin_deg)
+    outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
+    return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimParams:
+    """Closed-loop settings.
+
+    Attributes
+    ----------
+    safety_margin_m : float
+        Added to the robot radius to give the planner's footprint radius.
+    memory_s : float
+        How long sensed points are remembered (world frame); 0 = no memory.
+    memory_cell_m : float
+        One remembered point per grid cell of this size.
+    substeps : int
+        Collision checks per control period (0.2 m/s x 0.2 s / 10 = 4 mm apart).
+    max_time_s : float
+        Give up (outcome ``timeout``) after this simulated time.
+    stuck_timeout_s, stuck_progress_m : float
+        Outcome ``stuck`` when the best distance to the goal so far has not improved by
+        ``stuck_progress_m`` within ``stuck_timeout_s``.
+    """
+
+    safety_margin_m: float = 0.05
+    memory_s: float = 10.0
+    memory_cell_m: float = 0.05
+    substeps: int = 10
+    max_time_s: float = 300.0
+    stuck_timeout_s: float = 30.0
+    stuck_progress_m: float = 0.05
+
+    def __post_init__(self) -> None:
+        checks = {"safety_margin_m": self.safety_margin_m >= 0, "memory_s": self.memory_s >= 0,
+                  "memory_cell_m": self.memory_cell_m > 0, "substeps": self.substeps >= 1,
+                  "max_time_s": self.max_time_s > 0, "stuck_timeout_s": self.stuck_timeout_s > 0,
+                  "stuck_progress_m": self.stuck_progress_m > 0}
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not ok or isinstance(value, bool) or not math.isfinite(value):
+                raise SlitcliError(f"simulation parameter {name} (--{name.replace('_', '-')}) "
+                                   f"= {value!r} is out of range; see slitcli simulate-dwa "
+                                   "--help")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One closed-loop run: the trajectory table (TRAJECTORY_COLUMNS plus ``status``,
+
+    the planner's status per step) and its metrics (METRICS_COLUMNS without ``case``).
+    """
+
+    trajectory: pd.DataFrame
+    metrics: dict[str, float | bool | str]
+
+
+def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
+    """Drive the robot from the world's start towards its goal until it arrives, collides,
+
+    gets stuck or runs out of time.
+
+    The planner's footprint radius is the robot radius plus ``sim.safety_margin_m``
+    (``dwa.footprint_radius_m`` is replaced). Each trajectory row holds the pose at
+    ``t_s``, the command chosen there and held until the next row, and the true
+    clearance between the robot's disc and the nearest obstacle.
+    """
+    scene = world.scene
+    radius = scene.robot.radius_m
+    dwa = replace(dwa, footprint_radius_m=radius + sim.safety_margin_m)
+    geom = obstacle_geometry(scene)
+    goal = np.asarray(scene.goal_xy_m, dtype=float)
+    s0 = scene.robot.start
+    pose = (s0.x_m, s0.y_m, s0.yaw_rad)
+    v = w = 0.0
+    memory = PointMemory.empty()
+    steps = math.ceil(sim.max_time_s / dwa.dt_s)
+    sub_t = np.arange(1, sim.substeps + 1) * (dwa.dt_s / sim.substeps)
+    rows: list[tuple[float, ...]] = []
+    statuses: list[str] = []
+    here = float(clearance_m(geom, np.array([pose[:2]]))[0] - radius)
+    min_clear = initial = here
+    path = 0.0
+    best_goal = math.inf
+    best_t = 0.0
+    t_goal = math.nan
+    outcome = "timeout"
+    for k in range(steps + 1):
+        t = k * dwa.dt_s
+        dist = float(math.hypot(*(goal - pose[:2])))
+        if dist <= dwa.goal_close_m and math.isnan(t_goal):
+            t_goal = t
+        if here <= 0:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("collided")
+            outcome = "collided"
+            break
+        if dist <= dwa.goal_close_m and v <= 1e-12:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("goal")
+            outcome = "reached"
+            break
+        if dist < best_goal - sim.stuck_progress_m:
+            best_goal, best_t = dist, t
+        if t - best_t > sim.stuck_timeout_s:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("stuck")
+            outcome = "stuck"
+            break
+        if k == steps:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("timeout")
+            break
+        p2 = Pose2D(*pose)
+        scan = sensor(p2, k)
+        seen = to_world(pose, scan_points(scan.bearing_deg, scan.range_m, scan.forward_m))
+        memory = memory.update(seen, t, keep_s=sim.memory_s, cell_m=sim.memory_cell_m)
+        cmd = plan_step(v, w, to_robot(pose, goal[None])[0], to_robot(pose, memory.points_xy),
+                        dwa)
+        rows.append((t, *pose[:2], math.degrees(pose[2]), cmd.v_mps, cmd.w_dps, here))
+        statuses.append(cmd.status)
+        along = unicycle(pose, cmd.v_mps, cmd.w_rps, sub_t)
+        clear = clearance_m(geom, along[:, :2]) - radius
+        min_clear = min(min_clear, float(clear.min()))
+        hit = np.flatnonzero(clear <= 0)
+        if len(hit):  # stop at the first contact
+            along, clear = along[: hit[0] + 1], clear[: hit[0] + 1]
+        here = float(clear[-1])
+        path += cmd.v_mps * (len(along) * dwa.dt_s / sim.substeps)
+        pose = tuple(float(x) for x in along[-1])
+        v, w = cmd.v_mps, cmd.w_rps
+    traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
+    traj["status"] = statuses
+    metrics = {
+        "initial_distance_m": initial,
+        "reached_goal": outcome == "reached",
+        "collided": outcome == "collided",
+        "min_clearance_m": min_clear,
+        "time_to_goal_s": t_goal if outcome == "reached" else math.nan,
+        "path_length_m": path,
+        "outcome": outcome,
+    }
+    return RunResult(traj, metrics)
+
+
+# ------------------------------------------------------------------ batches and output
+@dataclass(frozen=True)
+class Case:
+    """One run of a batch: a name (the ``case`` column), a world and a sensing range."""
+
+    name: str
+    world: World
+    sensing_range_m: float
+
+
+def run_cases(cases: Sequence[Case], rig: Rig, dwa: DwaParams, sim: SimParams, *,
+              bin_deg: float = 1.0) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
+    """Run every case with ``perfect`` sensing; the metrics table and trajectory per case."""
+    rows = []
+    trajs: dict[str, pd.DataFrame] = {}
+    for c in cases:
+        sensor = perfect_sensor(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
+        res = run_world(c.world, sensor, dwa, sim)
+        rows.append({"case": c.name, "sensing_range_m": c.sensing_range_m, **res.metrics})
+        trajs[c.name] = res.trajectory
+    return pd.DataFrame(rows, columns=list(METRICS_COLUMNS)), trajs
+
+
+def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
+                       sim: SimParams, *, overwrite: bool = False,
+                       bin_deg: float = 1.0) -> pd.DataFrame:
+    """Run the cases and write OUT/ atomically (docs/dwa.md): ``trajectory_<case>.csv``,
+
+    ``metrics.csv``, the world(s) (``world.yaml``, or ``world_<name>.yaml`` for several)
+    and ``params.yaml`` (every planner and simulation parameter used). Returns the
+    metrics table.
+    """
+    if not cases:
+        raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
+    metrics, trajs = run_cases(cases, rig, dwa, sim, bin_deg=bin_deg)
+    worlds = {c.world.name: c.world for c in cases}
+    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+        for name, traj in trajs.items():
+            write_csv_atomic(tmp / f"trajectory_{name}.csv", traj[list(TRAJECTORY_COLUMNS)])
+        out = metrics.copy()
+        out["reached_goal"] = out["reached_goal"].astype(int)
+        out["collided"] = out["collided"].astype(int)
+        write_csv_atomic(tmp / "metrics.csv", out)
+        for name, w in worlds.items():
+            fname = "world.yaml" if len(worlds) == 1 else f"world_{name}.yaml"
+            write_text_atomic(tmp / fname, w.yaml_text)
+        params = {"slitcli_dwa_run": 1, "sensing": "perfect", "bin_deg": bin_deg,
+                  "dwa": asdict(dwa), "sim": asdict(sim),
+                  "cases": [{"case": c.name, "world": c.world.name,
+                             "sensing_range_m": c.sensing_range_m} for c in cases]}
+        write_text_atomic(tmp / "params.yaml", yaml.safe_dump(params, sort_keys=False))
+    return metrics
