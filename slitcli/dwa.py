@@ -40,6 +40,8 @@ _OPTION = {
     "w_res_dps": "--w-res-dps", "heading_horizon_s": "--heading-horizon-s",
     "goal_close_m": "--goal-close-m", "footprint_radius_m": "--footprint-radius-m",
     "d_max_m": "--d-max-m", "alpha": "--alpha", "beta": "--beta", "gamma": "--gamma",
+    "turn_circle_close": "--turn-circle-close/--no-turn-circle-close",
+    "discrete_braking": "--discrete-braking/--no-discrete-braking",
 }
 
 
@@ -82,6 +84,12 @@ class DwaParams:
         meet nothing within d_max_m of travel score 1.
     alpha, beta, gamma : float
         Weights of the heading, clearance and velocity terms of Eq. 12.
+    turn_circle_close : bool
+        Also count the robot as close to the goal (Eq. 13's braking branch) while the
+        goal lies inside its current turning circle; see :func:`goal_is_close`.
+    discrete_braking : bool
+        Admissibility counts the distance covered while a command is held for T; see
+        :func:`admissible`.
     """
 
     v_max_mps: float = 0.2
@@ -99,10 +107,16 @@ class DwaParams:
     alpha: float = 1.0
     beta: float = 1.0
     gamma: float = 1.0
+    turn_circle_close: bool = True
+    discrete_braking: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            if f.type in ("bool", bool):
+                if not isinstance(value, bool):
+                    raise _bad(f.name, value, "must be true or false")
+                continue
             if isinstance(value, bool) or not isinstance(value, int | float) \
                     or not math.isfinite(value):
                 raise _bad(f.name, value, "must be a finite number")
@@ -282,11 +296,22 @@ def admissible(v_mps: np.ndarray, w_rps: np.ndarray, d_collision_m: np.ndarray,
                params: DwaParams) -> np.ndarray:
     """Pairs that can stop before the obstacle on their arc (DESIGN §8).
 
-    Translation: v <= sqrt(2 D_collision acc). Rotation, "likewise for w": braking w
-    at ang_acc turns the robot by w^2 / (2 ang_acc), which must not exceed the heading
-    change Theta_c = |w| D_collision / v the arc allows before contact, i.e.
-    |w| <= sqrt(2 Theta_c ang_acc). Both together mean the robot can brake on the
-    arc it is on. Rotation in place (v = 0) is always admissible.
+    Translation: v <= sqrt(2 D acc). Rotation, "likewise for w": braking w at ang_acc
+    turns the robot by w^2 / (2 ang_acc), which must not exceed the heading change
+    Theta_c = |w| D / v the arc allows before contact, i.e. |w| <= sqrt(2 Theta_c
+    ang_acc). Both together mean the robot can brake on the arc it is on. Rotation in
+    place (v = 0) is always admissible.
+
+    With ``discrete_braking`` (default), D is first reduced by v T / 2: the chosen pair
+    is held for a whole period T before the next step can brake, and braking then goes
+    down in steps of acc T, so the robot's real stopping distance is
+    v^2 / (2 acc) + v T / 2 (2 cm at 0.2 m/s), not the continuous v^2 / (2 acc) of the
+    paper's condition, which lets the robot end up to that much inside its margin.
+
+    Parameters
+    ----------
+    v_mps, w_rps, d_collision_m : ndarray, shape (P,)
+    params : DwaParams
 
     Returns
     -------
@@ -295,6 +320,8 @@ def admissible(v_mps: np.ndarray, w_rps: np.ndarray, d_collision_m: np.ndarray,
     v = np.asarray(v_mps, dtype=float)
     aw = np.abs(np.asarray(w_rps, dtype=float))
     d = np.asarray(d_collision_m, dtype=float)
+    if params.discrete_braking:
+        d = np.maximum(d - 0.5 * params.dt_s * v, 0.0)
     tol = 1e-12
     stop_v = v <= np.sqrt(2.0 * d * params.acc_mps2) + tol
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -333,10 +360,27 @@ def clearance_term(d_collision_m: np.ndarray, params: DwaParams) -> np.ndarray:
     return np.asarray(d_collision_m, dtype=float) / params.d_max_m
 
 
-def velocity_term(v_mps: np.ndarray, goal_distance_m: float, params: DwaParams) -> np.ndarray:
-    """Eq. 13: v / v_max far from the goal, 1 - v / v_max within ``goal_close_m``."""
+def goal_is_close(goal_distance_m: float, theta_rad: float, v_mps: float,
+                  params: DwaParams) -> bool:
+    """Eq. 13's switch: is the robot "close to the goal"?
+
+    Close when the goal is within ``goal_close_m``. With ``turn_circle_close`` the
+    robot is also close when the goal lies inside the circle it would drive at its
+    current speed and full turn rate, d < 2 (v / w_max) |sin theta|: it cannot turn
+    into the goal without slowing down, and a DWA that keeps full speed there orbits
+    the goal for ever (the robot's 7.5 deg/s gives a 1.5 m turn radius at 0.2 m/s).
+    """
+    if goal_distance_m <= params.goal_close_m:
+        return True
+    if not params.turn_circle_close:
+        return False
+    return goal_distance_m < 2.0 * (v_mps / params.w_max_rps) * abs(math.sin(theta_rad))
+
+
+def velocity_term(v_mps: np.ndarray, close: bool, params: DwaParams) -> np.ndarray:
+    """Eq. 13: v / v_max far from the goal, 1 - v / v_max close to it (:func:`goal_is_close`)."""
     ratio = np.asarray(v_mps, dtype=float) / params.v_max_mps
-    return 1.0 - ratio if goal_distance_m <= params.goal_close_m else ratio
+    return 1.0 - ratio if close else ratio
 
 
 # ------------------------------------------------------------------ one step
@@ -378,7 +422,7 @@ def evaluate_pairs(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np
     theta, dist = goal_bearing(goal_xy)
     h = heading_term(theta, w, params)
     c = clearance_term(d, params)
-    vel = velocity_term(v, dist, params)
+    vel = velocity_term(v, goal_is_close(dist, theta, v_mps, params), params)
     s = params.alpha * h + params.beta * c + params.gamma * vel
     return PairScores(v, w, d, ok, h, c, vel, np.where(ok, s, -np.inf))
 

@@ -103,23 +103,27 @@ def choose(v0: float, w0: float, goal: tuple[float, float], points: list[tuple[f
            p: DwaParams) -> tuple[float, float, float]:
     """Best admissible (v, w) by Eq. 12 (first maximum in v-major order) and its score."""
     vs, ws = window(v0, w0, p)
-    theta = math.atan2(goal[1], goal[0])
+    theta_raw = math.atan2(goal[1], goal[0])
     dist = math.hypot(goal[0], goal[1])
     clamp = math.radians(p.heading_clamp_deg)
-    theta = min(max(theta, -clamp), clamp)
+    theta = min(max(theta_raw, -clamp), clamp)
+    close = dist <= p.goal_close_m or (
+        p.turn_circle_close
+        and dist < 2 * v0 / math.radians(p.w_max_dps) * abs(math.sin(theta_raw)))
     best = (-math.inf, math.nan, math.nan)
     for v in vs:
         for w in ws:
             d = d_collision(v, w, points, p)
             if v > 0:
-                if v > math.sqrt(2 * d * p.acc_mps2) + 1e-12:
+                d_brake = max(d - 0.5 * p.dt_s * v, 0.0) if p.discrete_braking else d
+                if v > math.sqrt(2 * d_brake * p.acc_mps2) + 1e-12:
                     continue
-                theta_c = abs(w) * d / v
+                theta_c = abs(w) * d_brake / v
                 if abs(w) > math.sqrt(2 * theta_c * math.radians(p.ang_acc_dps2)) + 1e-12:
                     continue
             h = 1 - abs(theta - w * p.heading_horizon_s) / math.pi
             vel = v / p.v_max_mps
-            if dist <= p.goal_close_m:
+            if close:
                 vel = 1 - vel
             s = p.alpha * h + p.beta * d / p.d_max_m + p.gamma * vel
             if s > best[0]:

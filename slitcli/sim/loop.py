@@ -27,6 +27,7 @@ import yaml
 from slitcli.dwa import DwaParams, PointMemory, plan_step, scan_points, to_robot, to_world, unicycle
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.io.progress import progress_bar
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import (
@@ -38,9 +39,17 @@ from slitcli.sim.scene import (
     sensor_origin_xy,
     wedge_min_range,
 )
-from slitcli.sim.worlds import World
+from slitcli.sim.worlds import (
+    PAPER_SENSING_RANGES_M,
+    World,
+    load_world,
+    paper_world,
+    random_world,
+)
 
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
+RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
+                  "stereo_has_features", "fused_range_m", "fused_source")
 METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
                    "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
 
@@ -144,11 +153,14 @@ class SimParams:
 class RunResult:
     """One closed-loop run: the trajectory table (TRAJECTORY_COLUMNS plus ``status``,
 
-    the planner's status per step) and its metrics (METRICS_COLUMNS without ``case``).
+    the planner's status per step), its metrics (METRICS_COLUMNS without ``case``) and
+    what was sensed, as a range table (RANGES_COLUMNS, DESIGN §12; fused_source
+    ``truth`` for perfect sensing) that ``slitcli dwa`` can replay.
     """
 
     trajectory: pd.DataFrame
     metrics: dict[str, float | bool | str]
+    ranges: pd.DataFrame
 
 
 def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
@@ -174,6 +186,7 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
     sub_t = np.arange(1, sim.substeps + 1) * (dwa.dt_s / sim.substeps)
     rows: list[tuple[float, ...]] = []
     statuses: list[str] = []
+    scans: list[RangeScan] = []
     here = float(clearance_m(geom, np.array([pose[:2]]))[0] - radius)
     min_clear = initial = here
     path = 0.0
@@ -209,6 +222,7 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
             break
         p2 = Pose2D(*pose)
         scan = sensor(p2, k)
+        scans.append(scan)
         seen = to_world(pose, scan_points(scan.bearing_deg, scan.range_m, scan.forward_m))
         memory = memory.update(seen, t, keep_s=sim.memory_s, cell_m=sim.memory_cell_m)
         cmd = plan_step(v, w, to_robot(pose, goal[None])[0], to_robot(pose, memory.points_xy),
@@ -227,6 +241,7 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
         v, w = cmd.v_mps, cmd.w_rps
     traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
     traj["status"] = statuses
+    ranges = _range_table(scans, dwa.dt_s)
     metrics = {
         "initial_distance_m": initial,
         "reached_goal": outcome == "reached",
@@ -236,7 +251,22 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
         "path_length_m": path,
         "outcome": outcome,
     }
-    return RunResult(traj, metrics)
+    return RunResult(traj, metrics, ranges)
+
+
+def _range_table(scans: list[RangeScan], dt_s: float) -> pd.DataFrame:
+    """The scans of one run as a DESIGN §12 range table (sensed truth in fused_range_m)."""
+    if not scans:
+        return pd.DataFrame(columns=list(RANGES_COLUMNS))
+    n = np.array([len(s.bearing_deg) for s in scans])
+    frame = np.repeat(np.arange(len(scans)), n)
+    rng = np.concatenate([s.range_m for s in scans])
+    return pd.DataFrame({
+        "frame": frame, "time_s": frame * dt_s,
+        "bearing_deg": np.concatenate([s.bearing_deg for s in scans]),
+        "laser_range_m": np.nan, "stereo_range_m": np.nan, "stereo_has_features": np.nan,
+        "fused_range_m": rng, "fused_source": np.where(np.isfinite(rng), "truth", "none"),
+    }, columns=list(RANGES_COLUMNS))
 
 
 # ------------------------------------------------------------------ batches and output
@@ -250,34 +280,99 @@ class Case:
 
 
 def run_cases(cases: Sequence[Case], rig: Rig, dwa: DwaParams, sim: SimParams, *,
-              bin_deg: float = 1.0) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
-    """Run every case with ``perfect`` sensing; the metrics table and trajectory per case."""
+              bin_deg: float = 1.0) -> tuple[pd.DataFrame, dict[str, RunResult]]:
+    """Run every case with ``perfect`` sensing; the metrics table and each case's result."""
     rows = []
-    trajs: dict[str, pd.DataFrame] = {}
-    for c in cases:
-        sensor = perfect_sensor(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
-        res = run_world(c.world, sensor, dwa, sim)
-        rows.append({"case": c.name, "sensing_range_m": c.sensing_range_m, **res.metrics})
-        trajs[c.name] = res.trajectory
+    trajs: dict[str, RunResult] = {}
+    with progress_bar(len(cases), "simulate-dwa", unit="run") as bar:
+        for c in cases:
+            sensor = perfect_sensor(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
+            res = run_world(c.world, sensor, dwa, sim)
+            rows.append({"case": c.name, "sensing_range_m": c.sensing_range_m, **res.metrics})
+            trajs[c.name] = res
+            bar.update()
     return pd.DataFrame(rows, columns=list(METRICS_COLUMNS)), trajs
 
 
+def build_cases(*, world_path: str | Path | None = None, scenario: str | None = None,
+                sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
+                seed: int = 0, start: tuple[float, float, float] | None = None,
+                goal_xy_m: tuple[float, float] | None = None) -> list[Case]:
+    """The runs of one ``simulate-dwa`` call.
+
+    Exactly one of ``world_path`` (a world file) and ``scenario`` (``paper``: the paper's
+    scenario, default sensing ranges 0.6, 1, 1.5, 2 m; ``random``: ``worlds`` seeded
+    random worlds from ``seed`` on, default sensing range 3 m). A world file's default
+    sensing range is 3 m. Case names: ``range_<r>m`` per sensing range, ``random_<seed>``
+    per random world (with ``_range_<r>m`` appended when several ranges are given).
+    """
+    if (world_path is None) == (scenario is None):
+        raise SlitcliError("simulate-dwa: give either a WORLD.yaml file or --scenario "
+                           "(paper or random), not both and not neither")
+    if scenario is not None and (start is not None or goal_xy_m is not None):
+        raise SlitcliError("--start and --goal apply to a WORLD.yaml file, not to --scenario")
+    ranges = list(sensing_ranges_m) if sensing_ranges_m else None
+    for r in ranges or []:
+        if not (r > 0 and math.isfinite(r)):
+            raise SlitcliError(f"--sensing-range {r:g} must be > 0 m")
+
+    def tag(r: float) -> str:
+        return f"range_{r:g}m"
+
+    if scenario == "paper":
+        w = paper_world()
+        return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
+    if scenario == "random":
+        if worlds < 1:
+            raise SlitcliError(f"--worlds {worlds} must be at least 1")
+        ranges = ranges or [3.0]
+        out = []
+        for s in range(seed, seed + worlds):
+            w = random_world(s)
+            out.extend(Case(w.name if len(ranges) == 1 else f"{w.name}_{tag(r)}", w, r)
+                       for r in ranges)
+        return out
+    if scenario is not None:
+        raise SlitcliError(f"--scenario {scenario!r} is unknown; use paper or random")
+    w = load_world(world_path, start=start, goal_xy_m=goal_xy_m)
+    return [Case(tag(r), w, r) for r in (ranges or [3.0])]
+
+
+def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, *,
+                 world_path: str | Path | None = None, scenario: str | None = None,
+                 sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
+                 seed: int = 0, start: tuple[float, float, float] | None = None,
+                 goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
+                 overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
+    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
+    if not (0 < bin_deg <= 10):
+        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in (0, 10] degrees")
+    cases = build_cases(world_path=world_path, scenario=scenario,
+                        sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
+                        start=start, goal_xy_m=goal_xy_m)
+    return simulate_to_folder(cases, out_dir, rig, dwa, sim, overwrite=overwrite,
+                              bin_deg=bin_deg, save_ranges=save_ranges)
+
+
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
-                       sim: SimParams, *, overwrite: bool = False,
-                       bin_deg: float = 1.0) -> pd.DataFrame:
+                       sim: SimParams, *, overwrite: bool = False, bin_deg: float = 1.0,
+                       save_ranges: bool = False) -> pd.DataFrame:
     """Run the cases and write OUT/ atomically (docs/dwa.md): ``trajectory_<case>.csv``,
 
-    ``metrics.csv``, the world(s) (``world.yaml``, or ``world_<name>.yaml`` for several)
-    and ``params.yaml`` (every planner and simulation parameter used). Returns the
-    metrics table.
+    ``metrics.csv``, the world(s) (``world.yaml``, or ``world_<name>.yaml`` for several),
+    ``params.yaml`` (every planner and simulation parameter used) and, with
+    ``save_ranges``, ``ranges_<case>.csv`` (what was sensed). Returns the metrics table.
     """
     if not cases:
         raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
     metrics, trajs = run_cases(cases, rig, dwa, sim, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}
     with atomic_directory(out_dir, overwrite=overwrite) as tmp:
-        for name, traj in trajs.items():
-            write_csv_atomic(tmp / f"trajectory_{name}.csv", traj[list(TRAJECTORY_COLUMNS)])
+        for name, res in trajs.items():
+            write_csv_atomic(tmp / f"trajectory_{name}.csv",
+                             res.trajectory[list(TRAJECTORY_COLUMNS)])
+            if save_ranges:
+                write_csv_atomic(tmp / f"ranges_{name}.csv", res.ranges)
         out = metrics.copy()
         out["reached_goal"] = out["reached_goal"].astype(int)
         out["collided"] = out["collided"].astype(int)
