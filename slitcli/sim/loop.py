@@ -372,7 +372,8 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
             write_csv_atomic(tmp / f"trajectory_{name}.csv",
                              res.trajectory[list(TRAJECTORY_COLUMNS)])
             if save_ranges:
-                write_csv_atomic(tmp / f"ranges_{name}.csv", res.ranges)
+                # ten digits: a replay with `slitcli dwa` then makes the same choices
+                write_csv_atomic(tmp / f"ranges_{name}.csv", res.ranges, float_format="%.10g")
         out = metrics.copy()
         out["reached_goal"] = out["reached_goal"].astype(int)
         out["collided"] = out["collided"].astype(int)
