@@ -306,10 +306,10 @@ def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensin
                     memory_cell_m=memory_cell_m, max_time_s=max_time_s,
                     stuck_timeout_s=stuck_timeout_s)
     the_rig = load_rig(rig) if rig is not None else paper_rig()
-    metrics = simulate_dwa(out, the_rig, params, sim, world_path=world, scenario=scenario,
-                           sensing_ranges_m=sensing_range, worlds=worlds, seed=seed,
-                           start=start, goal_xy_m=goal, bin_deg=bin_deg, overwrite=overwrite,
-                           save_ranges=save_ranges)
+    metrics = simulate_dwa(out, the_rig, params, sim, sensing=sensing, world_path=world,
+                           scenario=scenario, sensing_ranges_m=sensing_range, worlds=worlds,
+                           seed=seed, start=start, goal_xy_m=goal, bin_deg=bin_deg,
+                           overwrite=overwrite, save_ranges=save_ranges)
     n = len(metrics)
     reached = int(metrics["reached_goal"].sum())
     collided = int(metrics["collided"].sum())

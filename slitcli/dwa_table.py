@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from slitcli.dwa import DwaParams, PointMemory, plan_step, scan_points, to_robot, to_world, unicycle
+from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_csv_atomic
+from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 
 CMDS_COLUMNS = ("frame", "time_s", "x_m", "y_m", "heading_deg", "goal_distance_m", "v_mps",
                 "w_dps", "status", "d_collision_m", "n_points")

@@ -9,21 +9,17 @@ import pytest
 
 from slitcli.dwa import (
     DwaParams,
-    PointMemory,
     admissible,
     collision_distance,
     dynamic_window,
     evaluate_pairs,
     goal_is_close,
     plan_step,
-    scan_points,
-    to_robot,
-    to_world,
-    unicycle,
     velocity_term,
     window_pairs,
 )
 from slitcli.errors import SlitcliError
+from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 
 P = DwaParams()
 R = P.footprint_radius_m  # 0.3 m

@@ -15,19 +15,21 @@ The vision pipeline (render -> detect -> fuse) is another Sensor with the same c
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Protocol
 
 import numpy as np
 import pandas as pd
 import yaml
 
-from slitcli.dwa import DwaParams, PointMemory, plan_step, scan_points, to_robot, to_world, unicycle
+from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
 from slitcli.io.progress import progress_bar
+from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import (
@@ -74,6 +76,13 @@ class Sensor(Protocol):
     def __call__(self, pose: Pose2D, step: int) -> RangeScan: ...
 
 
+class SensorFactory(Protocol):
+    """Builds the sensor of one run: ``(scene, rig, sensing_range_m, bin_deg=...) -> Sensor``."""
+
+    def __call__(self, scene: Scene, rig: Rig, sensing_range_m: float, *,
+                 bin_deg: float = 1.0) -> Sensor: ...
+
+
 @dataclass(frozen=True)
 class PerfectSensor:
     """True nearest range per bearing bin (exact, from the scene), cut at ``sensing_range_m``.
@@ -105,6 +114,11 @@ def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
     centres, lo, hi = bearing_bins(rig.bearing_limits_deg(), bin_deg)
     outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
     return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
+
+
+# The sensing modes of ``simulate-dwa --sensing``. The vision mode (render -> detect ->
+# fuse) joins here as a second factory once the per-frame detect API exists.
+SENSING_MODES: Mapping[str, SensorFactory] = MappingProxyType({"perfect": perfect_sensor})
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -280,18 +294,27 @@ class Case:
 
 
 def run_cases(cases: Sequence[Case], rig: Rig, dwa: DwaParams, sim: SimParams, *,
-              bin_deg: float = 1.0) -> tuple[pd.DataFrame, dict[str, RunResult]]:
-    """Run every case with ``perfect`` sensing; the metrics table and each case's result."""
+              sensing: str = "perfect", bin_deg: float = 1.0
+              ) -> tuple[pd.DataFrame, dict[str, RunResult]]:
+    """Run every case with the ``sensing`` mode; the metrics table and each case's result."""
+    factory = _sensor_factory(sensing)
     rows = []
     trajs: dict[str, RunResult] = {}
     with progress_bar(len(cases), "simulate-dwa", unit="run") as bar:
         for c in cases:
-            sensor = perfect_sensor(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
+            sensor = factory(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
             res = run_world(c.world, sensor, dwa, sim)
             rows.append({"case": c.name, "sensing_range_m": c.sensing_range_m, **res.metrics})
             trajs[c.name] = res
             bar.update()
     return pd.DataFrame(rows, columns=list(METRICS_COLUMNS)), trajs
+
+
+def _sensor_factory(sensing: str) -> SensorFactory:
+    if sensing not in SENSING_MODES:
+        raise SlitcliError(f"--sensing {sensing!r} is not available; use one of "
+                           f"{', '.join(SENSING_MODES)}")
+    return SENSING_MODES[sensing]
 
 
 def build_cases(*, world_path: str | Path | None = None, scenario: str | None = None,
@@ -339,7 +362,8 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
 
 
 def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, *,
-                 world_path: str | Path | None = None, scenario: str | None = None,
+                 sensing: str = "perfect", world_path: str | Path | None = None,
+                 scenario: str | None = None,
                  sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
                  seed: int = 0, start: tuple[float, float, float] | None = None,
                  goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
@@ -350,13 +374,13 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
     cases = build_cases(world_path=world_path, scenario=scenario,
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)
-    return simulate_to_folder(cases, out_dir, rig, dwa, sim, overwrite=overwrite,
-                              bin_deg=bin_deg, save_ranges=save_ranges)
+    return simulate_to_folder(cases, out_dir, rig, dwa, sim, sensing=sensing,
+                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges)
 
 
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
-                       sim: SimParams, *, overwrite: bool = False, bin_deg: float = 1.0,
-                       save_ranges: bool = False) -> pd.DataFrame:
+                       sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
+                       bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
     """Run the cases and write OUT/ atomically (docs/dwa.md): ``trajectory_<case>.csv``,
 
     ``metrics.csv``, the world(s) (``world.yaml``, or ``world_<name>.yaml`` for several),
@@ -365,7 +389,8 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     """
     if not cases:
         raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
-    metrics, trajs = run_cases(cases, rig, dwa, sim, bin_deg=bin_deg)
+    _sensor_factory(sensing)
+    metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}
     with atomic_directory(out_dir, overwrite=overwrite) as tmp:
         for name, res in trajs.items():
@@ -381,7 +406,7 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
         for name, w in worlds.items():
             fname = "world.yaml" if len(worlds) == 1 else f"world_{name}.yaml"
             write_text_atomic(tmp / fname, w.yaml_text)
-        params = {"slitcli_dwa_run": 1, "sensing": "perfect", "bin_deg": bin_deg,
+        params = {"slitcli_dwa_run": 1, "sensing": sensing, "bin_deg": bin_deg,
                   "dwa": asdict(dwa), "sim": asdict(sim),
                   "cases": [{"case": c.name, "world": c.world.name,
                              "sensing_range_m": c.sensing_range_m} for c in cases]}
