@@ -15,7 +15,6 @@ import time
 from dataclasses import replace
 
 import numpy as np
-import pandas as pd
 
 from slitcli.dwa import DwaParams
 from slitcli.rig import paper_rig
@@ -67,7 +66,6 @@ def main() -> None:
               f"{ok['path_length_m'].mean():.2f} m (reached runs); "
               f"not reached: {', '.join(mr.loc[~mr['reached_goal'], 'case']) or '-'} "
               f"({time.perf_counter() - t0:.0f} s)", flush=True)
-        pd.set_option("display.width", 200)
 
 
 if __name__ == "__main__":

@@ -178,6 +178,14 @@ def _dwa_options(f: Any) -> Any:
     ]
     for name, default, text in reversed(opts):
         f = click.option(name, type=float, default=default, show_default=True, help=text)(f)
+    f = click.option("--discrete-braking/--no-discrete-braking", default=d.discrete_braking,
+                     show_default=True,
+                     help="Admissibility counts the v*T/2 driven while a command is held "
+                          "(off: the paper's v <= sqrt(2 D acc)).")(f)
+    f = click.option("--turn-circle-close/--no-turn-circle-close", default=d.turn_circle_close,
+                     show_default=True,
+                     help="Eq. 13 also brakes while the goal is inside the current turning "
+                          "circle (off: only within --goal-close-m).")(f)
     return f
 
 
@@ -186,14 +194,15 @@ def _dwa_params(kw: dict[str, Any], footprint_radius_m: float | None = None) -> 
 
     names = ("v_max_mps", "w_max_dps", "acc_mps2", "ang_acc_dps2", "dt_s", "heading_clamp_deg",
              "v_res_mps", "w_res_dps", "heading_horizon_s", "goal_close_m", "d_max_m", "alpha",
-             "beta", "gamma")
+             "beta", "gamma", "turn_circle_close", "discrete_braking")
     extra = {} if footprint_radius_m is None else {"footprint_radius_m": footprint_radius_m}
     return DwaParams(**{k: kw.pop(k) for k in names}, **extra)
 
 
 @cli.command("dwa")
 @click.argument("ranges", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--goal", required=True, callback=_floats(2, "two numbers X,Y in metres"),
+@click.option("--goal", required=True, metavar="X,Y",
+              callback=_floats(2, "two numbers X,Y in metres"),
               help="Goal X,Y in metres, in the robot frame at the first frame "
                    "(x forward, y left).")
 @click.option("-o", "--out", "out", required=True,
@@ -247,7 +256,7 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
 @click.option("--sensing", type=click.Choice(["perfect"]), default="perfect", show_default=True,
               help="Sensing mode: 'perfect' = true ranges per 1-deg bearing bin over the "
                    "camera's field of view, cut at the sensing range.")
-@click.option("--sensing-range", "sensing_range",
+@click.option("--sensing-range", "sensing_range", metavar="R[,R...]",
               callback=_floats(None, "comma-separated ranges in metres"), default=None,
               help="Sensing range(s), m, one run each, e.g. 0.6,1,1.5,2. Default: the "
                    "scenario's, 3 for a WORLD file.")
@@ -255,9 +264,11 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Number of random worlds (--scenario random).")
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Seed of the first random world.")
-@click.option("--start", callback=_floats(3, "three numbers X,Y,YAW_DEG"), default=None,
+@click.option("--start", metavar="X,Y,YAW_DEG", default=None,
+              callback=_floats(3, "three numbers X,Y,YAW_DEG"),
               help="Override the world's start: X,Y in m, heading in deg.")
-@click.option("--goal", callback=_floats(2, "two numbers X,Y in metres"), default=None,
+@click.option("--goal", metavar="X,Y", callback=_floats(2, "two numbers X,Y in metres"),
+              default=None,
               help="Override the world's goal X,Y, m.")
 @click.option("--rig", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig file (field of view, mount.forward_m). Default: the paper rig.")

@@ -266,9 +266,10 @@ def collision_distance(v_mps: np.ndarray, w_rps: np.ndarray, points_xy: np.ndarr
 
 
 def _arc_contact(r: np.ndarray, x: np.ndarray, y: np.ndarray, radius_m: float) -> np.ndarray:
-    """(P,) travel along counter-clockwise arcs of radius ``r`` (P,) to the first contact
+    """Travel along counter-clockwise arcs to the first contact with any point, shape (P,).
 
-    with any of the points (x, y) (n,) (all outside the footprint); inf where none.
+    ``r`` (P,) are the turn radii, (x, y) (n,) the points (all outside the footprint);
+    inf where an arc touches none.
 
     The turn centre is (0, r). With q = |P|^2 - R^2 - 2 r y = rho^2 - r^2 - R^2, the
     point is touched iff |rho - r| <= R, i.e. |q| <= 2 r R, and then

@@ -1,6 +1,6 @@
-"""The planner's local view: robot and world frames, unicycle motion, range-table points
+"""The planner's local view: frames, unicycle motion, range-table points, obstacle memory.
 
-and the short-term obstacle memory used by the closed loop and the offline planner.
+Shared by the closed loop and the offline planner.
 
 Frames: the robot frame has its origin at the rotation centre, x forward, y left;
 the world frame is fixed (in the offline planner, the robot frame at the first

@@ -165,10 +165,11 @@ class SimParams:
 
 @dataclass(frozen=True)
 class RunResult:
-    """One closed-loop run: the trajectory table (TRAJECTORY_COLUMNS plus ``status``,
+    """One closed-loop run: trajectory, metrics and what was sensed.
 
-    the planner's status per step), its metrics (METRICS_COLUMNS without ``case``) and
-    what was sensed, as a range table (RANGES_COLUMNS, DESIGN §12; fused_source
+    ``trajectory`` has TRAJECTORY_COLUMNS plus ``status`` (the planner's status per
+    step), ``metrics`` the METRICS_COLUMNS without ``case``, and ``ranges`` is what was
+    sensed, as a range table (RANGES_COLUMNS, DESIGN §12; fused_source
     ``truth`` for perfect sensing) that ``slitcli dwa`` can replay.
     """
 
@@ -178,9 +179,10 @@ class RunResult:
 
 
 def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
-    """Drive the robot from the world's start towards its goal until it arrives, collides,
+    """Drive the robot from the world's start towards its goal (one closed-loop run).
 
-    gets stuck or runs out of time.
+    The run ends when the robot stands inside the goal radius, collides, gets stuck
+    or runs out of time.
 
     The planner's footprint radius is the robot radius plus ``sim.safety_margin_m``
     (``dwa.footprint_radius_m`` is replaced). Each trajectory row holds the pose at
@@ -381,11 +383,12 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
                        sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
                        bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
-    """Run the cases and write OUT/ atomically (docs/dwa.md): ``trajectory_<case>.csv``,
+    """Run the cases and write OUT/ atomically (docs/dwa.md).
 
-    ``metrics.csv``, the world(s) (``world.yaml``, or ``world_<name>.yaml`` for several),
-    ``params.yaml`` (every planner and simulation parameter used) and, with
-    ``save_ranges``, ``ranges_<case>.csv`` (what was sensed). Returns the metrics table.
+    Files: ``trajectory_<case>.csv``, ``metrics.csv``, the world(s) (``world.yaml``, or
+    ``world_<name>.yaml`` for several), ``params.yaml`` (every planner and simulation
+    parameter used) and, with ``save_ranges``, ``ranges_<case>.csv`` (what was sensed).
+    Returns the metrics table.
     """
     if not cases:
         raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
@@ -406,9 +409,12 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
         for name, w in worlds.items():
             fname = "world.yaml" if len(worlds) == 1 else f"world_{name}.yaml"
             write_text_atomic(tmp / fname, w.yaml_text)
+        planner = {k: v for k, v in asdict(dwa).items() if k != "footprint_radius_m"}
         params = {"slitcli_dwa_run": 1, "sensing": sensing, "bin_deg": bin_deg,
-                  "dwa": asdict(dwa), "sim": asdict(sim),
+                  "dwa": planner, "sim": asdict(sim),
                   "cases": [{"case": c.name, "world": c.world.name,
-                             "sensing_range_m": c.sensing_range_m} for c in cases]}
+                             "sensing_range_m": c.sensing_range_m,
+                             "footprint_radius_m": c.world.scene.robot.radius_m
+                             + sim.safety_margin_m} for c in cases]}
         write_text_atomic(tmp / "params.yaml", yaml.safe_dump(params, sort_keys=False))
     return metrics

@@ -24,10 +24,11 @@ from slitcli.sim.scene import Scene, scene_from_dict
 
 @dataclass(frozen=True)
 class World:
-    """A validated world: ``scene`` (start = scene.robot.start, goal = scene.goal_xy_m)
+    """A validated world: a scene with its start and goal.
 
-    and ``yaml_text``, the scene file it came from (with overrides applied), written next
-    to the results so that the obstacle geometry can be redrawn (Fig. 8).
+    The start is ``scene.robot.start``, the goal ``scene.goal_xy_m``. ``yaml_text`` is
+    the scene file it came from (with overrides applied), written next to the results
+    so that the obstacle geometry can be redrawn (Fig. 8).
     """
 
     name: str
@@ -38,10 +39,11 @@ class World:
 def world_from_dict(data: dict[str, Any], source: str, *,
                     start: tuple[float, float, float] | None = None,
                     goal_xy_m: tuple[float, float] | None = None) -> World:
-    """Validate a scene mapping as a world; ``start`` (x_m, y_m, yaw_deg) and ``goal_xy_m``
+    """Validate a scene mapping as a world.
 
-    override the file's. Raises :class:`SlitcliError` for a missing goal, a start in
-    collision or a goal inside an obstacle.
+    ``start`` (x_m, y_m, yaw_deg) and ``goal_xy_m`` override the file's. Raises
+    :class:`SlitcliError` for a missing goal, a start in collision or a goal inside an
+    obstacle.
     """
     d = dict(data) if isinstance(data, dict) else data
     if isinstance(d, dict):
@@ -76,9 +78,10 @@ def load_world(path: str | Path, *, start: tuple[float, float, float] | None = N
 
 
 def check_world(scene: Scene, source: str) -> None:
-    """Refuse a world without a goal, with the robot overlapping an obstacle at the start,
+    """Refuse an impossible world (:class:`SlitcliError`, naming the object).
 
-    or with the goal inside an obstacle.
+    Impossible: no goal, the robot overlapping an obstacle at the start, or the goal
+    inside an obstacle.
     """
     if scene.goal_xy_m is None:
         raise SlitcliError(f"{source}: no goal; add 'goal_xy_m: [x, y]' to the world file or "
