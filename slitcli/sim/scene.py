@@ -113,7 +113,7 @@ class LaserLook:
 
     enabled: bool = True
     width_m: float = 0.004
-    power_dn: float = 220.0
+    power_dn: float = 500.0
     ref_range_m: float = 0.6
     falloff_exponent: float = 4.0
     crosstalk: float = 0.12
