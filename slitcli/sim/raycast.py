@@ -154,8 +154,9 @@ def hit_object(ob: Obstacle, o: np.ndarray, d: np.ndarray
     return hit_wall(ob, o, d)
 
 
-def object_aabb(ob: Obstacle) -> np.ndarray:
-    """The 8 corners of an axis-aligned bounding box of the obstacle, world frame (8, 3)."""
+def object_hull(ob: Obstacle) -> np.ndarray:
+    """8 corners of a convex hull of the obstacle, world frame (8, 3): a ring of 4 at its
+    bottom, then the same ring at its top (a wall is a flat, degenerate ring)."""
     if isinstance(ob, Box):
         from slitcli.sim.scene import box_corners_xy
 
@@ -164,7 +165,7 @@ def object_aabb(ob: Obstacle) -> np.ndarray:
         cx, cy, r = ob.centre_xy_m[0], ob.centre_xy_m[1], ob.radius_m
         xy = np.array([[cx - r, cy - r], [cx + r, cy - r], [cx + r, cy + r], [cx - r, cy + r]])
     else:
-        xy = np.array([ob.from_xy_m, ob.to_xy_m, ob.from_xy_m, ob.to_xy_m], dtype=float)
+        xy = np.array([ob.from_xy_m, ob.to_xy_m, ob.to_xy_m, ob.from_xy_m], dtype=float)
     lo = np.column_stack([xy, np.full(4, ob.z_min_m)])
     hi = np.column_stack([xy, np.full(4, ob.z_max_m)])
     return np.vstack([lo, hi])

@@ -25,7 +25,7 @@ from slitcli.sim.raycast import (
     cast,
     hit_floor,
     hit_object,
-    object_aabb,
+    object_hull,
 )
 from slitcli.sim.scene import Pose2D, Scene, Surface, bearing_bins, true_ranges
 from slitcli.sim.texture import value_noise
@@ -141,7 +141,7 @@ def _cast_grid(scene: Scene, rig: Rig, cam: CameraPose, ss: int) -> tuple[Hits, 
     obj = np.where(np.isfinite(t), FLOOR_ID, -1)
     t, obj, n, st = (a.reshape(hs, ws, *a.shape[1:]) for a in (t, obj, n, st))
     for k, ob in enumerate(scene.objects):
-        win = _image_window(rig, cam, object_aabb(ob), ss)
+        win = _image_window(rig, cam, object_hull(ob), ss)
         if win is None:
             continue
         r0, r1, c0, c1 = win
@@ -157,20 +157,35 @@ def _cast_grid(scene: Scene, rig: Rig, cam: CameraPose, ss: int) -> tuple[Hits, 
     return Hits(t.ravel(), obj.ravel(), n.reshape(-1, 3), st.reshape(-1, 2)), flat
 
 
+_HULL_EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4],
+                        [0, 4], [1, 5], [2, 6], [3, 7]])
+
+
 def _image_window(rig: Rig, cam: CameraPose, corners_xyz: np.ndarray, ss: int
                   ) -> tuple[int, int, int, int] | None:
-    """Supersampled-grid rows/cols that can see a world box; None if it is out of view."""
+    """Supersampled-grid rows/cols that can see a convex hull (8 corners, two rings of 4);
+    None if it is out of view.
+
+    The hull is clipped against a near plane in front of the camera first, so an object
+    that reaches behind the camera (a corridor wall beside the robot) is bounded by the
+    part in front of it instead of falling back to the whole image.
+    """
     w, h = rig.image_size_px
+    near = 1e-3
     pc = (corners_xyz - cam.origin_xyz) @ cam.R_world_from_cam
-    if np.all(pc[:, 2] <= 1e-6):
+    front = pc[pc[:, 2] > near]
+    a, b = pc[_HULL_EDGES[:, 0]], pc[_HULL_EDGES[:, 1]]
+    cross = (a[:, 2] - near) * (b[:, 2] - near) < 0
+    if np.any(cross):
+        s = (near - a[cross, 2]) / (b[cross, 2] - a[cross, 2])
+        front = np.vstack([front, a[cross] + s[:, None] * (b[cross] - a[cross])])
+    if len(front) == 0:
         return None
-    if np.any(pc[:, 2] <= 1e-6):
-        return 0, h * ss, 0, w * ss  # straddles the camera plane: test every ray
-    u, v = rig.project_cam(pc)
-    c0 = int(np.floor((u.min() + 0.5) * ss)) - 2
-    c1 = int(np.ceil((u.max() + 0.5) * ss)) + 2
-    r0 = int(np.floor((v.min() + 0.5) * ss)) - 2
-    r1 = int(np.ceil((v.max() + 0.5) * ss)) + 2
+    u, v = rig.project_cam(front)
+    c0 = int(np.floor(max((u.min() + 0.5) * ss, -1.0))) - 2
+    c1 = int(np.ceil(min((u.max() + 0.5) * ss, w * ss + 1.0))) + 2
+    r0 = int(np.floor(max((v.min() + 0.5) * ss, -1.0))) - 2
+    r1 = int(np.ceil(min((v.max() + 0.5) * ss, h * ss + 1.0))) + 2
     c0, c1 = max(c0, 0), min(c1, w * ss)
     r0, r1 = max(r0, 0), min(r1, h * ss)
     if c0 >= c1 or r0 >= r1:
