@@ -39,7 +39,7 @@ def run(out: Path) -> None:
         scene = load_scene(ROOT / "sample_data" / f"{name}.yaml")
         target = out / "sequences" / name
 
-        def render(scene=scene, target=target) -> str:  # noqa: ANN001
+        def render(scene=scene, target=target) -> str:
             s = render_sequence(scene, rig, target)
             return (f"{s['frames']} frames -> {target} ({s['stripe_columns']} stripe columns, "
                     f"{s['obstacle_bins']} obstacle bins in the truth)")
