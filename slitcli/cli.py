@@ -79,7 +79,7 @@ def cli(debug: bool) -> None:
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point (also ``python -m slitcli``)."""
     cli.main()
 
 
