@@ -122,7 +122,7 @@ def find_corners(image: np.ndarray, board: BoardSpec) -> np.ndarray | None:
                              _SUBPIX_CRITERIA)
     else:
         ok, c = cv2.findChessboardCornersSB(gray, board.pattern_size,
-                                            flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+                                            flags=cv2.CALIB_CB_ACCURACY)
         if not ok:
             return None
     pts = c.reshape(-1, 2).astype(np.float64)

@@ -95,7 +95,7 @@ def fit_plane_svd(points_xyz: np.ndarray, *, reject_sigma: float = 2.0,
     ----------
     points_xyz : ndarray, shape (N, 3), metres, camera frame.
     reject_sigma : points with ``|residual| > reject_sigma * sigma`` are outliers; sigma
-        is ``1.4826 * median |residual|`` of the current fit.
+        is ``1.4826 * median |residual|`` over all points for the current fit.
     max_iterations : rejection rounds (stops early when the inlier set is stable).
     min_spread_ratio : refuse when ``s2 / s1 < min_spread_ratio`` (``s`` the singular
         values of the centred inliers): the points are (nearly) on a line.
@@ -126,7 +126,7 @@ def fit_plane_svd(points_xyz: np.ndarray, *, reject_sigma: float = 2.0,
                                "distances")
         normal = vt[2]
         r = (p - centroid) @ normal
-        sigma = 1.4826 * float(np.median(np.abs(r[keep])))
+        sigma = 1.4826 * float(np.median(np.abs(r)))
         new_keep = np.abs(r) <= reject_sigma * max(sigma, 1e-12)
         if new_keep.sum() < 3:
             break
@@ -226,7 +226,7 @@ class LaserCalibration:
 
 def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: Rig,
                            params: LaserPlaneParams, *,
-                           extractor: StripeExtractor = extract_stripe_rows,
+                           extractor: StripeExtractor | None = None,
                            source: str = "views") -> LaserCalibration:
     """Fit the laser plane from left-camera board views (raw if ``rig.raw`` is set).
 
@@ -236,9 +236,11 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
     images_bgr : (H, W, 3) uint8 images of the left camera.
     rig : the stereo-calibrated rig; its laser plane is replaced.
     params : LaserPlaneParams
-    extractor : stripe rows per column of a rectified image (the laser module).
+    extractor : stripe rows per column of a rectified image; default
+        :func:`extract_stripe_rows` (the laser module).
     source : named in errors.
     """
+    extract = extractor if extractor is not None else extract_stripe_rows
     board = params.board
     want = rig.raw.image_size_px if rig.raw is not None else rig.image_size_px
     reports: list[LaserViewReport] = []
@@ -255,7 +257,7 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
             continue
         R_b, t_b = board_pose_rectified(corners, rig, board)
         rect, _ = rectify_pair(rig, img)
-        v = extractor(rect, rig)
+        v = extract(rect, rig)
         pts = stripe_points_on_board(v, rig, R_b, t_b, board,
                                      inset_m=params.inset_squares * board.square_m)
         if pts.shape[0] < params.min_points_per_view:

@@ -130,7 +130,7 @@ class LaserSheet:
 
     normal: tuple[float, float, float]
     offset_m: float
-    width_m: float = 0.0015
+    width_m: float = 0.003
     power_dn: float = 110.0
 
     @property
@@ -203,8 +203,9 @@ class TargetRenderer:
         rays_cam = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
         R = np.asarray(camera.R_from_left, dtype=float)
         T = np.asarray(camera.T_from_left_m, dtype=float).ravel()
-        # rays and centre of this camera expressed in the left frame
-        self._rays_left_xyz = rays_cam @ R
+        # rays (3, N) and centre of this camera in the left frame; rows kept separate
+        # because (N, 3) @ (3, 3) products are far slower than three axpy-style sums
+        self._rays_left_xyz = np.ascontiguousarray((rays_cam @ R).T)
         self._origin_left_xyz = -R.T @ T
         self._shape = (h, w, s * s)
 
@@ -214,29 +215,29 @@ class TargetRenderer:
         """A raw BGR uint8 image (H, W, 3) of ``board`` at ``pose``, with the laser stripe."""
         o, d = self._origin_left_xyz, self._rays_left_xyz
         R, t = pose.R, pose.t
-        m = R[:, 2]
-        denom = d @ m
+        # work in the board frame, where the board is z = 0
+        o_b = R.T @ (o - t)
         with np.errstate(divide="ignore", invalid="ignore"):
-            s = (m @ (t - o)) / denom
-        hit = (np.abs(denom) > 1e-12) & (s > 0)
-        s = np.where(hit, s, 0.0)
-        x_left = o + s[:, None] * d
-        b = (x_left - t) @ R
-        sq = board.square_m
-        in_checker = ((b[:, 0] >= -sq) & (b[:, 0] < board.cols * sq)
-                      & (b[:, 1] >= -sq) & (b[:, 1] < board.rows * sq))
-        mg = board.margin_m
-        on_board = hit & (b[:, 0] >= -sq - mg) & (b[:, 0] < board.cols * sq + mg) \
-            & (b[:, 1] >= -sq - mg) & (b[:, 1] < board.rows * sq + mg)
-        parity = (np.floor(b[:, 0] / sq) + np.floor(b[:, 1] / sq)) % 2 == 0
+            s = -o_b[2] / _dot3(R[:, 2], d)
+        hit = np.isfinite(s) & (s > 0)
+        bx = o_b[0] + s * _dot3(R[:, 0], d)
+        by = o_b[1] + s * _dot3(R[:, 1], d)
+        sq, mg = board.square_m, board.margin_m
+        wx, wy = board.cols * sq, board.rows * sq
+        in_checker = (bx >= -sq) & (bx < wx) & (by >= -sq) & (by < wy)
+        on_board = hit & (bx >= -sq - mg) & (bx < wx + mg) & (by >= -sq - mg) & (by < wy + mg)
+        with np.errstate(invalid="ignore"):
+            parity = (np.floor(bx / sq) + np.floor(by / sq)) % 2 == 0
         albedo = np.where(in_checker & parity, board.dark_albedo, board.light_albedo)
         p = self.params
         grey = np.where(on_board, albedo * p.illumination_dn, p.background_dn)
-        red = grey.copy()
+        red = grey
         if laser is not None:
-            dist = x_left @ laser.unit_normal - laser.unit_offset_m
+            n = laser.unit_normal
+            with np.errstate(invalid="ignore"):
+                dist = (n @ o - laser.unit_offset_m) + s * _dot3(n, d)
             glow = laser.power_dn * np.exp(-0.5 * (dist / laser.width_m) ** 2)
-            red = red + np.where(on_board, albedo * glow, 0.0)
+            red = grey + np.where(on_board, albedo * glow, 0.0)
         return self._finish(grey, grey, red, seed)
 
     def render_floor(self, floor: Floor, *, seed: int = 0) -> np.ndarray:
@@ -245,19 +246,18 @@ class TargetRenderer:
         o, d = self._origin_left_xyz, self._rays_left_xyz
         up = np.asarray(floor.up_left, dtype=float)
         up = up / np.linalg.norm(up)
-        denom = d @ up
+        denom = _dot3(up, d)
         with np.errstate(divide="ignore", invalid="ignore"):
             s = (-floor.height_m - o @ up) / denom
         hit = (denom < -1e-12) & (s > 0)
         s = np.where(hit, s, 0.0)
-        x_left = o + s[:, None] * d
-        hit &= np.linalg.norm(x_left, axis=1) < self.params.far_limit_m
+        hit &= s * np.sqrt(_dot3(np.ones(3), d * d)) < self.params.far_limit_m
         e1 = np.cross(up, [0.0, 0.0, 1.0])
         if np.linalg.norm(e1) < 1e-6:
             e1 = np.cross(up, [1.0, 0.0, 0.0])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(up, e1)
-        xy = np.stack([x_left @ e1, x_left @ e2], axis=-1)
+        xy = np.stack([o @ e1 + s * _dot3(e1, d), o @ e2 + s * _dot3(e2, d)], axis=-1)
         tex = value_noise(xy, floor.texture_m, seed=floor.seed)
         albedo = floor.albedo * (1.0 + floor.contrast * (tex - 0.5))
         grey = np.where(hit, albedo * self.params.illumination_dn, self.params.background_dn)
@@ -270,6 +270,11 @@ class TargetRenderer:
         rng = np.random.default_rng(seed)
         img = img + rng.normal(0.0, self.params.noise_sigma_dn, size=img.shape)
         return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _dot3(a: np.ndarray, rows_xyz: np.ndarray) -> np.ndarray:
+    """``a . r`` for every column r of a (3, N) array."""
+    return a[0] * rows_xyz[0] + a[1] * rows_xyz[1] + a[2] * rows_xyz[2]
 
 
 # ---------------------------------------------------------------------- truth
@@ -421,3 +426,22 @@ def random_board_poses(cameras: tuple[RawCamera, ...], board: Chessboard, count:
         raise ValueError(f"found only {len(poses)} of {count} board poses in view; widen "
                          "distance_m or reduce max_angle_deg")
     return poses
+
+
+def demo_raw_calibration() -> RawCalibration:
+    """A distorted, slightly misaligned 480x360 stereo camera (for tests and examples).
+
+    Left: f = (380, 381) px, barrel distortion k1 = -0.22; right: f = (383, 384) px,
+    k1 = -0.20; right camera 0.088 m to the right (the paper's baseline), rotated by
+    (0.5, -1.0, 0.3) deg (Rodrigues). Rectification by :func:`cv2.stereoRectify`
+    (``CALIB_ZERO_DISPARITY``, alpha 0).
+    """
+    from slitcli.calibrate.rectify import rectify_raw
+
+    K1 = np.array([[380.0, 0.0, 241.0], [0.0, 381.0, 178.0], [0.0, 0.0, 1.0]])
+    D1 = np.array([-0.22, 0.06, 0.0008, -0.0004, 0.0])
+    K2 = np.array([[383.0, 0.0, 238.0], [0.0, 384.0, 182.0], [0.0, 0.0, 1.0]])
+    D2 = np.array([-0.20, 0.05, -0.0005, 0.0006, 0.0])
+    R = cv2.Rodrigues(np.radians([0.5, -1.0, 0.3]))[0]
+    T = np.array([-0.088, 0.001, 0.0005])
+    return rectify_raw(K1, D1, K2, D2, (480, 360), R, T)
