@@ -113,7 +113,7 @@ class LaserLook:
 
     enabled: bool = True
     width_m: float = 0.004
-    power_dn: float = 220.0
+    power_dn: float = 500.0
     ref_range_m: float = 0.6
     falloff_exponent: float = 4.0
     crosstalk: float = 0.12
@@ -126,7 +126,7 @@ class ImageLook:
     """Camera and lighting: sensor noise, anti-aliasing, exposure and light direction."""
 
     noise_sigma_dn: float = 2.0
-    supersample: int = 4
+    supersample: int = 3
     exposure: float = 0.85
     ambient: float = 0.55
     light_dir_xyz: tuple[float, float, float] = (0.3, 0.2, 1.0)
