@@ -50,11 +50,11 @@ def scene():
     return {"rig": rig, "poses": poses, "images": images}
 
 
-def red_centroid_rows(rectified_bgr: np.ndarray, rig) -> np.ndarray:
+def red_centroid_rows(rectified_bgr: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Test stand-in for the laser module: per column, the centroid of the red excess
     ``r - max(g, b)`` around its peak (NaN where the peak is weak)."""
     img = rectified_bgr.astype(float)
-    excess = img[..., 2] - np.maximum(img[..., 0], img[..., 1])
+    excess = np.where(mask, img[..., 2] - np.maximum(img[..., 0], img[..., 1]), 0.0)
     peak = excess.max(axis=0)
     w = np.where(excess >= 0.3 * peak[None, :], excess, 0.0)
     rows = np.arange(img.shape[0], dtype=float)[:, None]
@@ -76,7 +76,7 @@ def test_plane_from_true_stripe_rows_with_noise_and_outliers(scene):
     truth_rows = iter([stripe_rows_on_board(rig.left.K, rig.raw.array("R1"), rig.image_size_px,
                                             BOARD, p, LASER) for p in scene["poses"]])
 
-    def rows(_img, _rig):
+    def rows(_img, _mask):
         v = next(truth_rows)
         v = v + rng.normal(0.0, 0.3, v.shape)
         wild = rng.random(v.shape) < 0.05

@@ -33,21 +33,40 @@ from slitcli.errors import SlitcliError
 from slitcli.io.sequence import read_image
 from slitcli.rig import Rig, load_rig, save_rig
 
-#: (rectified BGR image (H, W, 3) uint8, rig) -> stripe row per column (W,), NaN = none
-StripeExtractor = Callable[[np.ndarray, Rig], np.ndarray]
+#: (rectified BGR image (H, W, 3) uint8, search mask (H, W) bool: the board) ->
+#: stripe row per column (W,), NaN where none
+StripeExtractor = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def extract_stripe_rows(rectified_bgr: np.ndarray, rig: Rig) -> np.ndarray:
+def extract_stripe_rows(rectified_bgr: np.ndarray, search_mask: np.ndarray) -> np.ndarray:
     """Per-column subpixel stripe rows of a rectified left image (the laser module).
 
     This is the one place where calibration calls the laser extraction (paper Eqs. 1-4).
+    The search is limited to the board (``search_mask``): the rig's own laser plane,
+    which the detector would otherwise use to bound its search, is what is being
+    calibrated.
     """
     try:
         from slitcli import laser  # type: ignore[attr-defined]
     except ImportError:
         raise SlitcliError("this slitcli has no laser extraction module (slitcli.laser); "
                            "`calibrate laser` needs it: update slitcli") from None
-    return np.asarray(laser.extract_stripe_rows(rectified_bgr, rig), dtype=float)
+    found = laser.extract_stripe(rectified_bgr, laser.LaserParams(), search_mask=search_mask)
+    return np.asarray(found.v_px, dtype=float)
+
+
+def board_mask(rig: Rig, R_board: np.ndarray, t_board: np.ndarray, board: BoardSpec, *,
+               inset_m: float = 0.0) -> np.ndarray:
+    """Pixels (H, W) bool of the rectified left image covered by the checker area."""
+    sq = board.square_m
+    x0, x1 = -sq + inset_m, board.cols * sq - inset_m
+    y0, y1 = -sq + inset_m, board.rows * sq - inset_m
+    quad = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+    u, v = rig.project_cam(quad @ R_board.T + t_board)
+    mask = np.zeros((rig.height_px, rig.width_px), dtype=np.uint8)
+    if np.all(np.isfinite(u)) and np.all(np.isfinite(v)):
+        cv2.fillConvexPoly(mask, np.round(np.stack([u, v], axis=-1)).astype(np.int32), 1)
+    return mask.astype(bool)
 
 
 @dataclass(frozen=True)
@@ -236,7 +255,7 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
     images_bgr : (H, W, 3) uint8 images of the left camera.
     rig : the stereo-calibrated rig; its laser plane is replaced.
     params : LaserPlaneParams
-    extractor : stripe rows per column of a rectified image; default
+    extractor : stripe rows per column of a rectified image within a mask; default
         :func:`extract_stripe_rows` (the laser module).
     source : named in errors.
     """
@@ -257,7 +276,7 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
             continue
         R_b, t_b = board_pose_rectified(corners, rig, board)
         rect, _ = rectify_pair(rig, img)
-        v = extract(rect, rig)
+        v = extract(rect, board_mask(rig, R_b, t_b, board))
         pts = stripe_points_on_board(v, rig, R_b, t_b, board,
                                      inset_m=params.inset_squares * board.square_m)
         if pts.shape[0] < params.min_points_per_view:
