@@ -10,13 +10,15 @@ import pytest
 from click.testing import CliRunner
 
 from slitcli.calibrate import laser_plane
-from slitcli.calibrate.board import BoardSpec
+from slitcli.calibrate.board import BoardSpec, find_corners
 from slitcli.calibrate.laser_plane import (
     LaserPlaneParams,
+    board_mask,
+    board_pose_rectified,
     calibrate_laser_images,
     fit_plane_svd,
 )
-from slitcli.calibrate.rectify import rig_with_raw
+from slitcli.calibrate.rectify import rectify_pair, rig_with_raw
 from slitcli.cli import cli
 from slitcli.errors import SlitcliError
 from slitcli.rig import load_rig, save_rig
@@ -100,6 +102,31 @@ def test_plane_from_rendered_images_three_poses(scene):
     assert all(v.used and v.points > 30 for v in res.views)
     np.testing.assert_allclose(res.rig.laser.normal, res.fit.normal)
     assert "residual_std_mm" in "\n".join(res.report_lines())
+
+
+def test_plane_from_rendered_images_with_the_laser_module(scene):
+    # the production path: stripe rows from slitcli.laser (paper Eqs. 1-4) on the board
+    pytest.importorskip("slitcli.laser")
+    rig = scene["rig"]
+    res = calibrate_laser_images(["a", "b", "c"], scene["images"][:3], rig,
+                                 LaserPlaneParams(board=SPEC))
+    ang, off = _angle_and_offset_error(res, rig)
+    assert ang < 0.3 and off < 0.003
+    assert res.fit.residual_std_m < 0.002
+
+
+def test_rendered_stripe_matches_its_truth_rows(scene):
+    # the renderer's stripe (Gaussian sheet on the board) is centred on the true line
+    rig = scene["rig"]
+    for img, pose in zip(scene["images"][:2], scene["poses"][:2], strict=True):
+        R_b, t_b = board_pose_rectified(find_corners(img, SPEC), rig, SPEC)
+        rect, _ = rectify_pair(rig, img)
+        found = red_centroid_rows(rect, board_mask(rig, R_b, t_b, SPEC, inset_m=0.01))
+        truth = stripe_rows_on_board(rig.left.K, rig.raw.array("R1"), rig.image_size_px, BOARD,
+                                     pose, LASER, inset_m=0.01)
+        both = np.isfinite(found) & np.isfinite(truth)
+        assert both.sum() > 40
+        assert np.median(np.abs(found[both] - truth[both])) < 0.3
 
 
 def test_single_pose_refused(scene):
