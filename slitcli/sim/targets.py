@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from slitcli.rig import RawCalibration
+from slitcli.sim.texture import value_noise
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-8)
 
@@ -147,7 +148,8 @@ class LaserSheet:
 class Floor:
     """The floor ``up . X = -height_m`` seen from the raw left camera (``up`` unit, metres).
 
-    Textured with seeded multi-octave value noise of feature size ``texture_m``.
+    Textured with the renderer's seeded multi-octave value noise
+    (:func:`slitcli.sim.texture.value_noise`) of feature size ``texture_m``.
     """
 
     up_left: tuple[float, float, float]
@@ -257,8 +259,8 @@ class TargetRenderer:
             e1 = np.cross(up, [1.0, 0.0, 0.0])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(up, e1)
-        xy = np.stack([o @ e1 + s * _dot3(e1, d), o @ e2 + s * _dot3(e2, d)], axis=-1)
-        tex = value_noise(xy, floor.texture_m, seed=floor.seed)
+        tex = value_noise(o @ e1 + s * _dot3(e1, d), o @ e2 + s * _dot3(e2, d),
+                          seed=floor.seed, scale_m=floor.texture_m)
         albedo = floor.albedo * (1.0 + floor.contrast * (tex - 0.5))
         grey = np.where(hit, albedo * self.params.illumination_dn, self.params.background_dn)
         return self._finish(grey, grey, grey, seed)
@@ -325,46 +327,6 @@ def stripe_rows_on_board(K_rect: np.ndarray, R_rect_from_left: np.ndarray,
           & (bxy[:, 0] <= board.cols * sq - inset_m) & (bxy[:, 1] >= -sq + inset_m)
           & (bxy[:, 1] <= board.rows * sq - inset_m) & (v >= 0) & (v <= h - 1))
     return np.where(ok, v, np.nan)
-
-
-# ---------------------------------------------------------------------- texture
-def value_noise(xy_m: np.ndarray, feature_m: float, *, seed: int = 0,
-                octaves: int = 3) -> np.ndarray:
-    """Seeded multi-octave value noise in [0, 1] at planar points ``xy_m`` (..., 2).
-
-    Lattice values come from an integer hash of (cell, octave, seed), so the texture
-    is unbounded and identical wherever it is sampled; cells are blended with a
-    smoothstep. Octave k has cells ``feature_m / 2**k`` and weight ``1 / 2**k``.
-    """
-    p = np.asarray(xy_m, dtype=float)
-    total = np.zeros(p.shape[:-1])
-    weight = 0.0
-    for k in range(octaves):
-        q = p / (feature_m / 2**k)
-        i0 = np.floor(q).astype(np.int64)
-        f = q - i0
-        f = f * f * (3.0 - 2.0 * f)
-        ix, iy = i0[..., 0], i0[..., 1]
-        c00 = _hash01(ix, iy, k, seed)
-        c10 = _hash01(ix + 1, iy, k, seed)
-        c01 = _hash01(ix, iy + 1, k, seed)
-        c11 = _hash01(ix + 1, iy + 1, k, seed)
-        fx, fy = f[..., 0], f[..., 1]
-        val = (c00 * (1 - fx) + c10 * fx) * (1 - fy) + (c01 * (1 - fx) + c11 * fx) * fy
-        total += val / 2**k
-        weight += 1.0 / 2**k
-    return total / weight
-
-
-def _hash01(ix: np.ndarray, iy: np.ndarray, octave: int, seed: int) -> np.ndarray:
-    """Uniform [0, 1) pseudo-random value per integer lattice point (splitmix-style)."""
-    h = (ix.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)
-         ^ iy.astype(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F)
-         ^ np.uint64((octave * 0x165667B1 + seed * 0x27D4EB2F) & 0xFFFFFFFFFFFFFFFF))
-    h ^= h >> np.uint64(31)
-    h *= np.uint64(0xBF58476D1CE4E5B9)
-    h ^= h >> np.uint64(29)
-    return (h >> np.uint64(11)).astype(np.float64) / float(2**53)
 
 
 def random_board_poses(cameras: tuple[RawCamera, ...], board: Chessboard, count: int, *,
