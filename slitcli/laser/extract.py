@@ -1,0 +1,407 @@
+"""Laser slit extraction from one colour image (paper §2.1.1, Eqs. 1-4).
+
+Pipeline, all array code (no Python loop over pixels or columns):
+
+1. Local contrast. A vertical morphological top-hat (``x - opening(x)``, window
+   ``background_window_px``) of the red channel and of the white brightness
+   ``max(g, b)`` gives the light a pixel adds above its local background. A wide
+   red object is background at this scale, so the stripe crossing it stands out
+   as a narrow bright run while the object itself does not.
+2. Candidates (Eqs. 1-3) among pixels whose red contrast passes a seed level:
+   chromaticity (Eq. 1), red chromaticity tests (Eq. 2) and white-brightness
+   rejection on the contrast (Eq. 3). Saturated red pixels are exempt from
+   Eqs. 2-3 (a clipped laser core turns white); a run made only of exempt
+   pixels is rejected (a saturated white highlight).
+3. Vertical runs of candidates per column, each scored by Eq. 4 (red peak +
+   beta f(y) continuity + gamma g(I) narrowness); the best run of each column
+   is chosen in two passes (the second knows the neighbouring columns' choice).
+4. Sub-pixel centre: Gaussian (weighted log-parabola) fit where the peak is
+   unsaturated, background-subtracted centre of gravity over the run where it
+   is saturated.
+5. Segments: chosen rows joined across columns with row steps up to
+   ``max_jump_px``; segments shorter than ``min_segment_cols`` are noise.
+
+Images are processed transposed (one image column per array row) so that every
+column's pixels are contiguous.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from slitcli.laser.params import LaserParams
+
+_FIT_HALF = 2  # half-width of the Gaussian fit window, pixels (5 samples)
+_COG_MARGIN = 3  # pixels beyond the saturated plateau in the centre of gravity
+_WIN_HALF = 8  # half-height of the per-column window around the stripe, pixels
+_BG_INNER = 5  # window rows at least this far from the stripe are background, pixels
+
+
+@dataclass(frozen=True)
+class StripeColumns:
+    """The stripe found in one image, per column.
+
+    Attributes
+    ----------
+    v_px : ndarray, shape (W,)
+        Sub-pixel stripe row (pixel centres at integers); NaN where there is no stripe.
+    strength_dn : ndarray, shape (W,)
+        Red contrast of the stripe above its local background, DN; NaN where none.
+    saturated : ndarray, shape (W,) bool
+        The stripe's red core is clipped (centre of gravity used).
+    noise_sigma_dn : float
+        Image noise standard deviation estimated for the acceptance threshold, DN.
+    threshold_dn : float
+        The red-contrast acceptance threshold used, DN.
+    """
+
+    v_px: np.ndarray
+    strength_dn: np.ndarray
+    saturated: np.ndarray
+    noise_sigma_dn: float
+    threshold_dn: float
+
+
+def chromaticity(bgr: np.ndarray) -> np.ndarray:
+    """Relative intensities R, G, B of paper Eq. 1.
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (..., 3), BGR order
+        Absolute intensities b, g, r (any numeric type).
+
+    Returns
+    -------
+    rgb_chroma : ndarray, shape (..., 3), float64, RGB order
+        ``R = r / (r + g + b)`` etc.; all zero where ``r + g + b = 0`` (black).
+    """
+    x = np.asarray(bgr, dtype=np.float64)[..., ::-1]
+    s = x.sum(axis=-1, keepdims=True)
+    return np.divide(x, s, out=np.zeros_like(x), where=s > 0)
+
+
+def candidate_mask(bgr: np.ndarray, red_contrast_dn: np.ndarray, white_contrast_dn: np.ndarray,
+                   params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel laser candidates, paper Eqs. 2-3 (any shape of pixel set).
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (..., 3)
+        Absolute intensities (DN), BGR order.
+    red_contrast_dn, white_contrast_dn : ndarray, shape (...)
+        Red and white-brightness (``max(g, b)``) contrast above the local background, DN.
+    params : LaserParams
+
+    Returns
+    -------
+    red : ndarray of bool
+        Eq. 2 (``R > min_th`` and ``R - max(G, B) > min_delta_th``) and Eq. 3
+        (``r^ - w^ > alpha r^`` on the contrasts) both hold.
+    saturated : ndarray of bool
+        Red at or above ``saturation_dn`` (exempt from Eqs. 2-3, see module notes).
+    """
+    chroma = chromaticity(bgr)
+    rr, gg, bb = chroma[..., 0], chroma[..., 1], chroma[..., 2]
+    eq2 = (rr > params.min_th) & (rr - np.maximum(gg, bb) > params.min_delta_th)
+    rc = np.asarray(red_contrast_dn, dtype=np.float64)
+    wc = np.asarray(white_contrast_dn, dtype=np.float64)
+    eq3 = (rc - wc) > params.alpha * rc
+    saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
+    return eq2 & eq3, saturated
+
+
+def estimate_noise_dn(green_t: np.ndarray, blue_t: np.ndarray) -> float:
+    """Robust sensor-noise sigma (DN) from the green-minus-blue vertical high-pass.
+
+    Grey and red surfaces have (nearly) equal green and blue albedo, so their
+    texture cancels in ``g - b`` while independent channel noise adds up: the
+    second difference ``2 d[v] - d[v-1] - d[v+1]`` of ``d = g - b`` has variance
+    ``12 sigma^2``. Inputs are transposed images (one image column per row); every
+    eighth column is used.
+    """
+    d = green_t[::8].astype(np.int16) - blue_t[::8].astype(np.int16)
+    hp = np.abs(2 * d[:, 1:-1] - d[:, :-2] - d[:, 2:]).ravel()
+    if hp.size == 0:
+        return 0.0
+    med = float(np.partition(hp, hp.size // 2)[hp.size // 2])
+    return 1.4826 * med / np.sqrt(12.0)
+
+
+def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
+                   search_mask: np.ndarray | None = None,
+                   previous_v_px: np.ndarray | None = None) -> StripeColumns:
+    """Find the laser stripe in a colour image, one sub-pixel row per column (Eqs. 1-4).
+
+    Parameters
+    ----------
+    left_bgr : ndarray, shape (H, W, 3), uint8, BGR
+        The (rectified) left image.
+    params : LaserParams
+    search_mask : ndarray, shape (H, W) bool, optional
+        Pixels where the stripe may lie (from the rig geometry, see
+        :func:`slitcli.laser.frame.search_mask`); default everywhere.
+    previous_v_px : ndarray, shape (W,), optional
+        The previous frame's stripe rows (NaN none), used by the continuity term.
+
+    Returns
+    -------
+    StripeColumns
+    """
+    img = np.asarray(left_bgr)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    h, w = img.shape[:2]
+    bgr_t = cv2.transpose(img)  # (W, H, 3): one image column per row
+    b_t, g_t, r_t = cv2.split(bgr_t)
+    white_t = cv2.max(g_t, b_t)
+    se = np.ones((1, params.background_window_px), np.uint8)
+    rc_t = cv2.morphologyEx(r_t, cv2.MORPH_TOPHAT, se)
+    wc_t = cv2.morphologyEx(white_t, cv2.MORPH_TOPHAT, se)
+
+
+    sigma = estimate_noise_dn(g_t, b_t)
+    thr = max(params.min_peak_dn, params.noise_k * sigma)
+    # cheap whole-image pre-selection; Eqs. 2-3 are evaluated exactly on the survivors
+    eq3_margin = cv2.addWeighted(rc_t, 1.0 - params.alpha, wc_t, -1.0, 0.0, dtype=cv2.CV_32F)
+    seed = (rc_t >= params.seed_fraction * thr) & ((eq3_margin > 0) |
+                                                   (r_t >= params.saturation_dn))
+    if search_mask is not None:
+        seed &= np.asarray(search_mask, dtype=bool).T
+    idx = np.flatnonzero(seed)
+
+    empty = StripeColumns(np.full(w, np.nan), np.full(w, np.nan), np.zeros(w, bool), sigma, thr)
+    if idx.size == 0:
+        return empty
+    flat_bgr = bgr_t.reshape(-1, 3)
+    rc = rc_t.ravel()[idx].astype(np.float64)
+    red, sat = candidate_mask(flat_bgr[idx], rc, wc_t.ravel()[idx], params)
+    cand = red | sat
+    pos = idx[cand]
+    if pos.size == 0:
+        return empty
+    runs = _runs(pos, rc[cand], red[cand], sat[cand], h)
+    keep = runs.has_red & (runs.peak >= thr) & (runs.width_eq <= params.max_width_px)
+    runs = runs.select(keep)
+    if runs.col.size == 0:
+        return empty
+
+    best = _rank(runs, w, params, previous_v_px)
+    chosen = runs.select(best)
+    v, ok = _subpixel(bgr_t, chosen, sigma, params)
+    chosen = chosen.select(ok)
+    v = v[ok]
+
+    v_px = np.full(w, np.nan)
+    strength = np.full(w, np.nan)
+    saturated = np.zeros(w, bool)
+    v_px[chosen.col] = v
+    strength[chosen.col] = chosen.peak
+    saturated[chosen.col] = chosen.n_sat > 0
+    keep_cols = _segments(v_px, params)
+    v_px[~keep_cols] = np.nan
+    strength[~keep_cols] = np.nan
+    saturated &= keep_cols
+    return StripeColumns(v_px, strength, saturated, sigma, thr)
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """Vertical candidate runs (one entry per run), all arrays of equal length."""
+
+    col: np.ndarray  # image column u
+    v0: np.ndarray  # first row
+    n: np.ndarray  # length, pixels
+    peak: np.ndarray  # max red contrast, DN
+    total: np.ndarray  # summed red contrast, DN px
+    peak_v: np.ndarray  # row of the peak (first maximum)
+    n_sat: np.ndarray  # saturated pixels
+    sat_v: np.ndarray  # mean row of the saturated pixels (NaN if none)
+    has_red: np.ndarray  # holds at least one pixel passing Eqs. 2-3
+
+    @property
+    def width_eq(self) -> np.ndarray:
+        """Equivalent width: summed / peak red contrast, pixels (2.5 sigma for a Gaussian)."""
+        return self.total / self.peak
+
+    @property
+    def centre_v(self) -> np.ndarray:
+        """Integer-accuracy row of the run: plateau centre if saturated, else the peak."""
+        return np.where(self.n_sat > 0, self.sat_v, self.peak_v)
+
+    def select(self, which: np.ndarray) -> _Runs:
+        return _Runs(**{k: getattr(self, k)[which] for k in self.__dataclass_fields__})
+
+
+def _runs(pos: np.ndarray, rc: np.ndarray, red: np.ndarray, sat: np.ndarray, h: int) -> _Runs:
+    """Group sorted flat positions (transposed layout) into vertical runs."""
+    new = np.ones(pos.size, bool)
+    new[1:] = (np.diff(pos) != 1) | (pos[1:] % h == 0)
+    starts = np.flatnonzero(new)
+    rid = np.cumsum(new) - 1
+    n = np.diff(np.append(starts, pos.size))
+    peak = np.maximum.reduceat(rc, starts)
+    total = np.add.reduceat(rc, starts)
+    rows = (pos % h).astype(np.float64)
+    at_peak = np.flatnonzero(rc == peak[rid])
+    first = at_peak[np.r_[True, rid[at_peak][1:] != rid[at_peak][:-1]]]
+    n_sat = np.add.reduceat(sat.astype(np.int64), starts)
+    sat_sum = np.add.reduceat(np.where(sat, rows, 0.0), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sat_v = np.where(n_sat > 0, sat_sum / np.maximum(n_sat, 1), np.nan)
+    return _Runs(col=pos[starts] // h, v0=pos[starts] % h, n=n, peak=peak, total=total,
+                 peak_v=rows[first], n_sat=n_sat, sat_v=sat_v,
+                 has_red=np.maximum.reduceat(red.astype(np.uint8), starts) > 0)
+
+
+def _best_per_column(col: np.ndarray, score: np.ndarray) -> np.ndarray:
+    """Index of the highest-scoring entry of each column present (sorted by column)."""
+    order = np.lexsort((score, col))
+    c = col[order]
+    last = np.r_[c[1:] != c[:-1], True]
+    return order[last]
+
+
+def _closeness(v: np.ndarray, ref: np.ndarray, scale_px: float) -> np.ndarray:
+    """exp(-dv^2 / 2 s^2), 0 where the reference is NaN."""
+    with np.errstate(invalid="ignore"):
+        f = np.exp(-0.5 * ((v - ref) / scale_px) ** 2)
+    return np.nan_to_num(f)
+
+
+def _rank(runs: _Runs, w: int, params: LaserParams,
+          previous_v_px: np.ndarray | None) -> np.ndarray:
+    """Eq. 4: choose each column's run by red peak + beta f(y) + gamma g(I).
+
+    Normalisation (docs/laser.md): red peak divided by the column's strongest
+    run (1 for the strongest); g(I) = 1 - width_eq / max_width_px in [0, 1];
+    f(y) = max of the agreement with the previous frame's row and the mean
+    agreement with the rows chosen in columns u-2..u+2 by a first pass, each
+    ``exp(-dv^2 / (2 continuity_px^2))``.
+    """
+    colmax = np.zeros(w)
+    np.maximum.at(colmax, runs.col, runs.peak)
+    red_peak = runs.peak / colmax[runs.col]
+    narrow = np.clip(1.0 - runs.width_eq / params.max_width_px, 0.0, 1.0)
+    v = runs.centre_v
+    if previous_v_px is not None:
+        prev = np.asarray(previous_v_px, dtype=np.float64)
+        f_prev = _closeness(v, prev[runs.col], params.continuity_px)
+    else:
+        f_prev = np.zeros(v.size)
+    base = red_peak + params.gamma * narrow
+    first = _best_per_column(runs.col, base + params.beta * f_prev)
+    v1 = np.full(w + 4, np.nan)  # padded by 2 columns on each side
+    v1[runs.col[first] + 2] = v[first]
+    f_nbr = np.zeros(v.size)
+    for d in (-2, -1, 1, 2):  # four fixed neighbour offsets, vectorised over runs
+        f_nbr += _closeness(v, v1[runs.col + 2 + d], params.continuity_px)
+    f = np.maximum(f_nbr / 4.0, f_prev)
+    return _best_per_column(runs.col, base + params.beta * f)
+
+
+def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
+              params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-pixel row per chosen run: Gaussian fit, or centre of gravity if saturated.
+
+    The fitted signal is the red channel divided by a relative albedo estimate
+    and minus its background level. The surface texture under the stripe
+    modulates the reflected laser light; the white brightness ``(g + b) / 2``
+    carries the same texture (nearly free of laser light), so ``w / mean(w)``
+    estimates the relative albedo. Its noise is shrunk away Wiener-style: the
+    estimate is ``1 + lambda (w / mean(w) - 1)`` with ``lambda`` the share of the
+    white variance around the stripe that is texture rather than noise. Plain
+    surfaces get lambda ~ 0 (plain background subtraction), textured ones ~ 1.
+    Saturated runs use no albedo correction (a clipped core is flat).
+    """
+    w, h = bgr_t.shape[:2]
+    k = np.arange(-_WIN_HALF, _WIN_HALF + 1)
+    outer = np.abs(k) >= _BG_INNER
+    centre = np.rint(runs.centre_v).astype(np.int64)
+    rows = centre[:, None] + k[None, :]
+    inside = (rows >= 0) & (rows < h)
+    px = bgr_t[runs.col[:, None], np.clip(rows, 0, h - 1)].astype(np.float64)
+    red = px[..., 2]
+    white = 0.5 * (px[..., 0] + px[..., 1])
+    bg_use = outer[None, :] & inside
+    n_bg = np.maximum(bg_use.sum(1), 1)
+    w_mean = np.maximum(np.where(bg_use, white, 0.0).sum(1) / n_bg, 1.0)
+    rel = white / w_mean[:, None]
+    tex_var = np.where(bg_use, (rel - 1.0) ** 2, 0.0).sum(1) / np.maximum(n_bg - 1, 1)
+    noise_var = 0.5 * (noise_dn / w_mean) ** 2
+    sat = runs.n_sat > 0
+    lam = np.where(sat | (tex_var <= noise_var), 0.0,
+                   1.0 - noise_var / np.maximum(tex_var, 1e-12))
+    albedo = np.maximum(1.0 + lam[:, None] * (rel - 1.0), 0.2)
+    flat = red / albedo
+    bg = np.where(bg_use, flat, 0.0).sum(1) / n_bg
+    sig = np.where(inside, flat - bg[:, None], 0.0)
+
+    v = np.full(runs.col.size, np.nan)
+    ok = np.zeros(runs.col.size, bool)
+    # Gaussian: 5 samples around the signal's maximum near the run's peak
+    core = sig[:, _WIN_HALF - 2:_WIN_HALF + 3]
+    p = np.argmax(core, axis=1) - 2
+    kf = np.arange(-_FIT_HALF, _FIT_HALF + 1)
+    y = np.take_along_axis(sig, (p + _WIN_HALF)[:, None] + kf[None, :], axis=1)
+    off, good = _log_parabola(y, kf)
+    v[~sat] = (centre + p + off)[~sat]
+    ok[~sat] = good[~sat]
+    if np.any(sat):
+        half = np.minimum(np.ceil(0.5 * runs.n + _COG_MARGIN), _WIN_HALF)
+        use = (np.abs(k)[None, :] <= half[:, None]) & inside
+        wts = np.where(use, np.maximum(sig, 0.0), 0.0)
+        tot = wts.sum(1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cog = (wts * rows).sum(1) / tot
+        v[sat] = cog[sat]
+        ok[sat] = tot[sat] > 0
+    return v, ok
+
+
+def _log_parabola(y: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre offset of a Gaussian through samples ``y`` (n, m) at offsets ``k`` (m,).
+
+    Least squares on ``ln y = a + b k + c k^2`` weighted by ``y^2`` (the weight that
+    makes the log-domain fit equivalent to an intensity-domain fit for small noise);
+    samples below a fifth of the peak are left out. Returns the offset ``-b / 2c``
+    and whether the fit is a valid maximum within half a pixel... (clipped to +-1).
+    """
+    peak = y.max(axis=1, keepdims=True)
+    use = y > 0.2 * peak
+    ly = np.log(np.where(use, y, 1.0))
+    wt = np.where(use, y * y, 0.0)
+    kk = k.astype(np.float64)[None, :]
+    s0 = wt.sum(1)
+    s1 = (wt * kk).sum(1)
+    s2 = (wt * kk**2).sum(1)
+    s3 = (wt * kk**3).sum(1)
+    s4 = (wt * kk**4).sum(1)
+    t0 = (wt * ly).sum(1)
+    t1 = (wt * ly * kk).sum(1)
+    t2 = (wt * ly * kk**2).sum(1)
+    a = np.stack([np.stack([s0, s1, s2], -1), np.stack([s1, s2, s3], -1),
+                  np.stack([s2, s3, s4], -1)], -2)
+    rhs = np.stack([t0, t1, t2], -1)
+    det = np.linalg.det(a)
+    good = (np.abs(det) > 1e-9 * np.maximum(s0, 1.0) ** 3) & (use.sum(1) >= 3)
+    a_safe = np.where(good[:, None, None], a, np.eye(3))
+    coef = np.linalg.solve(a_safe, rhs[..., None])[..., 0]
+    b, c = coef[:, 1], coef[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        off = -b / (2.0 * c)
+    good &= (c < 0) & (np.abs(off) <= 1.0)
+    return np.where(good, off, 0.0), good
+
+
+def _segments(v_px: np.ndarray, params: LaserParams) -> np.ndarray:
+    """Columns belonging to stripe segments of at least ``min_segment_cols`` columns."""
+    found = np.isfinite(v_px)
+    step = np.abs(np.diff(v_px))
+    joined = found[1:] & found[:-1] & (step <= params.max_jump_px)
+    new = np.r_[True, ~joined]
+    seg = np.cumsum(new) - 1
+    counts = np.bincount(seg, weights=found.astype(np.float64))
+    return found & (counts[seg] >= params.min_segment_cols)
