@@ -85,32 +85,42 @@ def chromaticity(bgr: np.ndarray) -> np.ndarray:
 
 def candidate_mask(bgr: np.ndarray, red_contrast_dn: np.ndarray, white_contrast_dn: np.ndarray,
                    params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel laser candidates, paper Eqs. 2-3 (any shape of pixel set).
+    """Per-pixel laser candidates, paper Eqs. 1-3.
 
     Parameters
     ----------
-    bgr : ndarray, shape (..., 3)
-        Absolute intensities (DN), BGR order.
+    bgr : ndarray, shape (..., 3), uint8
+        Absolute intensities b, g, r (DN).
     red_contrast_dn, white_contrast_dn : ndarray, shape (...)
         Red and white-brightness (``max(g, b)``) contrast above the local background, DN.
     params : LaserParams
 
     Returns
     -------
-    red : ndarray of bool
-        Eq. 2 (``R > min_th`` and ``R - max(G, B) > min_delta_th``) and Eq. 3
-        (``r^ - w^ > alpha r^`` on the contrasts) both hold.
-    saturated : ndarray of bool
+    red : ndarray of bool, shape (...)
+        Eq. 2 on the chromaticities of Eq. 1, ``R > min_th`` and
+        ``R - max(G, B) > min_delta_th`` (false where ``r + g + b = 0``), and Eq. 3
+        on the contrasts, ``r^ - w^ > alpha r^``, both hold.
+    saturated : ndarray of bool, shape (...)
         Red at or above ``saturation_dn`` (exempt from Eqs. 2-3, see module notes).
+
+    Notes
+    -----
+    Eq. 2 is evaluated multiplied through by ``s = r + g + b`` (``r > min_th s``,
+    ``r - max(g, b) > min_delta_th s``), which equals the chromaticity form for
+    ``s > 0`` and is false for black pixels, in float32 over whole images.
     """
-    chroma = chromaticity(bgr)
-    rr, gg, bb = chroma[..., 0], chroma[..., 1], chroma[..., 2]
-    eq2 = (rr > params.min_th) & (rr - np.maximum(gg, bb) > params.min_delta_th)
-    rc = np.asarray(red_contrast_dn, dtype=np.float64)
-    wc = np.asarray(white_contrast_dn, dtype=np.float64)
-    eq3 = (rc - wc) > params.alpha * rc
-    saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
-    return eq2 & eq3, saturated
+    x = np.asarray(bgr)
+    b = x[..., 0].astype(np.float32)
+    g = x[..., 1].astype(np.float32)
+    r = x[..., 2].astype(np.float32)
+    s = r + g + b
+    eq2 = (r > np.float32(params.min_th) * s) & \
+        ((r - np.maximum(g, b)) > np.float32(params.min_delta_th) * s) & (s > 0)
+    rc = np.asarray(red_contrast_dn, dtype=np.float32)
+    wc = np.asarray(white_contrast_dn, dtype=np.float32)
+    eq3 = (np.float32(1.0 - params.alpha) * rc) > wc
+    return eq2 & eq3, x[..., 2] >= params.saturation_dn
 
 
 def estimate_noise_dn(green_t: np.ndarray, blue_t: np.ndarray) -> float:
@@ -160,29 +170,17 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     se = np.ones((1, params.background_window_px), np.uint8)
     rc_t = cv2.morphologyEx(r_t, cv2.MORPH_TOPHAT, se)
     wc_t = cv2.morphologyEx(white_t, cv2.MORPH_TOPHAT, se)
-
-
     sigma = estimate_noise_dn(g_t, b_t)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
-    # cheap whole-image pre-selection; Eqs. 2-3 are evaluated exactly on the survivors
-    eq3_margin = cv2.addWeighted(rc_t, 1.0 - params.alpha, wc_t, -1.0, 0.0, dtype=cv2.CV_32F)
-    seed = (rc_t >= params.seed_fraction * thr) & ((eq3_margin > 0) |
-                                                   (r_t >= params.saturation_dn))
+    red, sat = candidate_mask(bgr_t, rc_t, wc_t, params)
+    cand = (red | sat) & (rc_t >= params.seed_fraction * thr)
     if search_mask is not None:
-        seed &= np.asarray(search_mask, dtype=bool).T
-    idx = np.flatnonzero(seed)
-
+        cand &= np.asarray(search_mask, dtype=bool).T
+    pos = np.flatnonzero(cand)
     empty = StripeColumns(np.full(w, np.nan), np.full(w, np.nan), np.zeros(w, bool), sigma, thr)
-    if idx.size == 0:
-        return empty
-    flat_bgr = bgr_t.reshape(-1, 3)
-    rc = rc_t.ravel()[idx].astype(np.float64)
-    red, sat = candidate_mask(flat_bgr[idx], rc, wc_t.ravel()[idx], params)
-    cand = red | sat
-    pos = idx[cand]
     if pos.size == 0:
         return empty
-    runs = _runs(pos, rc[cand], red[cand], sat[cand], h)
+    runs = _runs(pos, rc_t.ravel()[pos].astype(np.float64), red.ravel()[pos], sat.ravel()[pos], h)
     keep = runs.has_red & (runs.peak >= thr) & (runs.width_eq <= params.max_width_px)
     runs = runs.select(keep)
     if runs.col.size == 0:
@@ -304,95 +302,116 @@ def _rank(runs: _Runs, w: int, params: LaserParams,
 
 def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
               params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
-    """Sub-pixel row per chosen run: Gaussian fit, or centre of gravity if saturated.
+    """Sub-pixel row per chosen run: Gaussian fit (on the flanks if saturated).
 
-    The fitted signal is the red channel divided by a relative albedo estimate
-    and minus its background level. The surface texture under the stripe
-    modulates the reflected laser light; the white brightness ``(g + b) / 2``
-    carries the same texture (nearly free of laser light), so ``w / mean(w)``
-    estimates the relative albedo. Its noise is shrunk away Wiener-style: the
-    estimate is ``1 + lambda (w / mean(w) - 1)`` with ``lambda`` the share of the
-    white variance around the stripe that is texture rather than noise. Plain
-    surfaces get lambda ~ 0 (plain background subtraction), textured ones ~ 1.
-    Saturated runs use no albedo correction (a clipped core is flat).
+    The fitted signal is the red channel divided by a relative albedo estimate,
+    minus its background (a line through the mean levels of the window rows at
+    least ``_BG_INNER`` above and below). Surface texture under the stripe
+    modulates the reflected laser light and would pull the centre; the darker of
+    green and blue carries the same texture and little laser light, so
+    ``x / mean(x)`` estimates the relative albedo. Its noise is shrunk away
+    Wiener-style: the estimate is ``1 + lambda (x / mean(x) - 1)`` with ``lambda``
+    the share of that channel's variance around the stripe that is texture rather
+    than noise (plain surfaces: lambda ~ 0, textured: ~ 1).
+
+    Unsaturated runs: weighted log-parabola (Gaussian) fit to the 5 rows around the
+    maximum. Saturated runs: the same fit to the unsaturated flank rows only (the
+    clipped core carries no shape); where that fails, the centre of gravity of
+    the signal over the run and ``_COG_MARGIN`` rows either side.
     """
-    w, h = bgr_t.shape[:2]
+    h = bgr_t.shape[1]
     k = np.arange(-_WIN_HALF, _WIN_HALF + 1)
-    outer = np.abs(k) >= _BG_INNER
     centre = np.rint(runs.centre_v).astype(np.int64)
     rows = centre[:, None] + k[None, :]
     inside = (rows >= 0) & (rows < h)
     px = bgr_t[runs.col[:, None], np.clip(rows, 0, h - 1)].astype(np.float64)
     red = px[..., 2]
-    white = 0.5 * (px[..., 0] + px[..., 1])
-    bg_use = outer[None, :] & inside
+    proxy = np.minimum(px[..., 0], px[..., 1])
+    upper = (k <= -_BG_INNER)[None, :] & inside
+    lower = (k >= _BG_INNER)[None, :] & inside
+    bg_use = upper | lower
     n_bg = np.maximum(bg_use.sum(1), 1)
-    w_mean = np.maximum(np.where(bg_use, white, 0.0).sum(1) / n_bg, 1.0)
-    rel = white / w_mean[:, None]
+    p_mean = np.maximum(np.where(bg_use, proxy, 0.0).sum(1) / n_bg, 1.0)
+    rel = proxy / p_mean[:, None]
     tex_var = np.where(bg_use, (rel - 1.0) ** 2, 0.0).sum(1) / np.maximum(n_bg - 1, 1)
-    noise_var = 0.5 * (noise_dn / w_mean) ** 2
-    sat = runs.n_sat > 0
-    lam = np.where(sat | (tex_var <= noise_var), 0.0,
-                   1.0 - noise_var / np.maximum(tex_var, 1e-12))
+    noise_var = (noise_dn / p_mean) ** 2
+    lam = np.where(tex_var <= noise_var, 0.0, 1.0 - noise_var / np.maximum(tex_var, 1e-12))
+    clipped = red >= params.saturation_dn
     albedo = np.maximum(1.0 + lam[:, None] * (rel - 1.0), 0.2)
-    flat = red / albedo
-    bg = np.where(bg_use, flat, 0.0).sum(1) / n_bg
-    sig = np.where(inside, flat - bg[:, None], 0.0)
+    flat = np.where(clipped, red, red / albedo)
+
+    def side_mean(sel: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = sel.sum(1)
+        nn = np.maximum(n, 1)
+        return np.where(sel, vals, 0.0).sum(1) / nn, n
+
+    m_up, n_up = side_mean(upper, flat)
+    m_lo, n_lo = side_mean(lower, flat)
+    k_up, _ = side_mean(upper, np.broadcast_to(k.astype(np.float64), flat.shape))
+    k_lo, _ = side_mean(lower, np.broadcast_to(k.astype(np.float64), flat.shape))
+    both = (n_up > 0) & (n_lo > 0)
+    one = np.where(n_up > 0, m_up, m_lo)
+    slope = np.where(both, (m_lo - m_up) / np.maximum(k_lo - k_up, 1.0), 0.0)
+    level = np.where(both, m_up - slope * k_up, one)
+    sig = np.where(inside, flat - (level[:, None] + slope[:, None] * k[None, :]), 0.0)
 
     v = np.full(runs.col.size, np.nan)
-    ok = np.zeros(runs.col.size, bool)
-    # Gaussian: 5 samples around the signal's maximum near the run's peak
+    sat = runs.n_sat > 0
+    # unsaturated: 5 samples around the signal's maximum near the run's peak
     core = sig[:, _WIN_HALF - 2:_WIN_HALF + 3]
     p = np.argmax(core, axis=1) - 2
     kf = np.arange(-_FIT_HALF, _FIT_HALF + 1)
     y = np.take_along_axis(sig, (p + _WIN_HALF)[:, None] + kf[None, :], axis=1)
-    off, good = _log_parabola(y, kf)
+    off, good = _log_parabola(y, kf, np.ones(y.shape, bool))
     v[~sat] = (centre + p + off)[~sat]
-    ok[~sat] = good[~sat]
+    ok = ~sat & good
     if np.any(sat):
-        half = np.minimum(np.ceil(0.5 * runs.n + _COG_MARGIN), _WIN_HALF)
-        use = (np.abs(k)[None, :] <= half[:, None]) & inside
-        wts = np.where(use, np.maximum(sig, 0.0), 0.0)
+        s = np.flatnonzero(sat)
+        ys, cl, ins = sig[s], clipped[s], inside[s]
+        off_s, good_s = _log_parabola(ys, k, ins & ~cl, max_offset=_WIN_HALF / 2)
+        half = np.minimum(np.ceil(0.5 * runs.n[s] + _COG_MARGIN), _WIN_HALF)
+        use = (np.abs(k)[None, :] <= half[:, None]) & ins
+        wts = np.where(use, np.maximum(ys, 0.0), 0.0)
         tot = wts.sum(1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            cog = (wts * rows).sum(1) / tot
-        v[sat] = cog[sat]
-        ok[sat] = tot[sat] > 0
+            cog = (wts * k[None, :]).sum(1) / tot
+        v[s] = centre[s] + np.where(good_s, off_s, cog)
+        ok[s] = good_s | (tot > 0)
     return v, ok
 
 
-def _log_parabola(y: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _log_parabola(y: np.ndarray, k: np.ndarray, valid: np.ndarray, *,
+                  max_offset: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Centre offset of a Gaussian through samples ``y`` (n, m) at offsets ``k`` (m,).
 
-    Least squares on ``ln y = a + b k + c k^2`` weighted by ``y^2`` (the weight that
-    makes the log-domain fit equivalent to an intensity-domain fit for small noise);
-    samples below a fifth of the peak are left out. Returns the offset ``-b / 2c``
-    and whether the fit is a valid maximum within half a pixel... (clipped to +-1).
+    Least squares on ``ln y = a + b k + c k^2`` over the ``valid`` samples above a
+    fifth of their maximum, weighted by ``y^2`` (which makes the log-domain fit
+    close to an intensity-domain fit). Returns the offset ``-b / 2c`` and whether
+    the fit is a maximum (c < 0) within ``max_offset`` of k = 0.
     """
-    peak = y.max(axis=1, keepdims=True)
-    use = y > 0.2 * peak
+    ymax = np.where(valid, y, -np.inf).max(axis=1, keepdims=True)
+    use = valid & (y > 0.2 * ymax) & (y > 0)
     ly = np.log(np.where(use, y, 1.0))
     wt = np.where(use, y * y, 0.0)
     kk = k.astype(np.float64)[None, :]
-    s0 = wt.sum(1)
-    s1 = (wt * kk).sum(1)
-    s2 = (wt * kk**2).sum(1)
-    s3 = (wt * kk**3).sum(1)
-    s4 = (wt * kk**4).sum(1)
-    t0 = (wt * ly).sum(1)
-    t1 = (wt * ly * kk).sum(1)
-    t2 = (wt * ly * kk**2).sum(1)
-    a = np.stack([np.stack([s0, s1, s2], -1), np.stack([s1, s2, s3], -1),
-                  np.stack([s2, s3, s4], -1)], -2)
-    rhs = np.stack([t0, t1, t2], -1)
-    det = np.linalg.det(a)
-    good = (np.abs(det) > 1e-9 * np.maximum(s0, 1.0) ** 3) & (use.sum(1) >= 3)
-    a_safe = np.where(good[:, None, None], a, np.eye(3))
-    coef = np.linalg.solve(a_safe, rhs[..., None])[..., 0]
-    b, c = coef[:, 1], coef[:, 2]
+    wk = wt * kk
+    wk2 = wk * kk
+    s0, s1, s2 = wt.sum(1), wk.sum(1), wk2.sum(1)
+    s3, s4 = (wk2 * kk).sum(1), (wk2 * kk * kk).sum(1)
+    t0, t1, t2 = (wt * ly).sum(1), (wk * ly).sum(1), (wk2 * ly).sum(1)
+    # cofactors of the symmetric normal matrix: c ~ num_c / det, b ~ num_b / det
+    c01 = s2 * s3 - s1 * s4
+    c02 = s1 * s3 - s2 * s2
+    c11 = s0 * s4 - s2 * s2
+    c12 = s1 * s2 - s0 * s3
+    c22 = s0 * s2 - s1 * s1
+    det = s0 * (s2 * s4 - s3 * s3) + s1 * c01 + s2 * c02
+    num_b = c01 * t0 + c11 * t1 + c12 * t2
+    num_c = c02 * t0 + c12 * t1 + c22 * t2
+    good = (use.sum(1) >= 3) & (det > 1e-9 * np.maximum(s0, 1e-12) ** 3) & (num_c < 0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        off = -b / (2.0 * c)
-    good &= (c < 0) & (np.abs(off) <= 1.0)
+        off = -num_b / (2.0 * num_c)
+    good &= np.abs(off) <= max_offset
     return np.where(good, off, 0.0), good
 
 
