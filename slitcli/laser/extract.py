@@ -36,6 +36,8 @@ from slitcli.laser.params import LaserParams
 
 _FIT_HALF = 2  # half-width of the Gaussian fit window, pixels (5 samples)
 _COG_MARGIN = 3  # pixels beyond the saturated plateau in the centre of gravity
+_RATIO_WINDOW_PX = 15  # box window of the local red/white ratio, pixels
+_MU_MAX = 2.0  # largest red/white ratio removed (see red_excess)
 _WIN_HALF = 8  # half-height of the per-column window around the stripe, pixels
 _BG_INNER = 5  # window rows at least this far from the stripe are background, pixels
 
@@ -92,7 +94,8 @@ def candidate_mask(bgr: np.ndarray, red_contrast_dn: np.ndarray, white_contrast_
     bgr : ndarray, shape (..., 3), uint8
         Absolute intensities b, g, r (DN).
     red_contrast_dn, white_contrast_dn : ndarray, shape (...)
-        Red and white-brightness (``max(g, b)``) contrast above the local background, DN.
+        Red excess (:func:`red_excess`) and white-brightness (``max(g, b)``) contrast
+        above the local background, DN.
     params : LaserParams
 
     Returns
@@ -100,7 +103,8 @@ def candidate_mask(bgr: np.ndarray, red_contrast_dn: np.ndarray, white_contrast_
     red : ndarray of bool, shape (...)
         Eq. 2 on the chromaticities of Eq. 1, ``R > min_th`` and
         ``R - max(G, B) > min_delta_th`` (false where ``r + g + b = 0``), and Eq. 3
-        on the contrasts, ``r^ - w^ > alpha r^``, both hold.
+        on the contrasts, ``e^ > alpha w^``, both hold: the red excess contrast
+        ``e^`` (see :func:`red_excess`) beats alpha times the white-brightness contrast.
     saturated : ndarray of bool, shape (...)
         Red at or above ``saturation_dn`` (exempt from Eqs. 2-3, see module notes).
 
@@ -119,8 +123,28 @@ def candidate_mask(bgr: np.ndarray, red_contrast_dn: np.ndarray, white_contrast_
         ((r - np.maximum(g, b)) > np.float32(params.min_delta_th) * s) & (s > 0)
     rc = np.asarray(red_contrast_dn, dtype=np.float32)
     wc = np.asarray(white_contrast_dn, dtype=np.float32)
-    eq3 = (np.float32(1.0 - params.alpha) * rc) > wc
+    eq3 = rc > np.float32(params.alpha) * wc
     return eq2 & eq3, x[..., 2] >= params.saturation_dn
+
+
+def red_excess(bgr: np.ndarray) -> np.ndarray:
+    """Red light a pixel holds beyond what its surface colour explains, DN (float32, (H, W)).
+
+    ``e = r - mu w`` with the white brightness ``w = (g + b) / 2`` and ``mu`` the local
+    ratio of red to white brightness (box means over ``_RATIO_WINDOW_PX``), clipped to
+    ``[0, _MU_MAX]``. Shading, texture and white light scale red and white alike on a
+    surface and cancel; the laser adds red (and only ``crosstalk`` of it to green and
+    blue) and stays. The clip keeps a strongly red surface (large ``mu``) from
+    cancelling the laser through its crosstalk and from amplifying the noise of its
+    dark green and blue channels.
+    """
+    x = np.asarray(bgr).astype(np.float32)
+    b, g, r = cv2.split(x)
+    w = cv2.addWeighted(g, 0.5, b, 0.5, 0.0)
+    k = (_RATIO_WINDOW_PX, _RATIO_WINDOW_PX)
+    mu = cv2.boxFilter(r, -1, k) / np.maximum(cv2.boxFilter(w, -1, k), np.float32(1.0))
+    np.clip(mu, 0.0, _MU_MAX, out=mu)
+    return r - mu * w
 
 
 def estimate_noise_dn(green_t: np.ndarray, blue_t: np.ndarray) -> float:
@@ -165,11 +189,10 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
     h, w = img.shape[:2]
     bgr_t = cv2.transpose(img)  # (W, H, 3): one image column per row
-    b_t, g_t, r_t = cv2.split(bgr_t)
-    white_t = cv2.max(g_t, b_t)
+    b_t, g_t, _ = cv2.split(bgr_t)
     se = np.ones((1, params.background_window_px), np.uint8)
-    rc_t = cv2.morphologyEx(r_t, cv2.MORPH_TOPHAT, se)
-    wc_t = cv2.morphologyEx(white_t, cv2.MORPH_TOPHAT, se)
+    rc_t = cv2.morphologyEx(red_excess(bgr_t), cv2.MORPH_TOPHAT, se)
+    wc_t = cv2.morphologyEx(cv2.max(g_t, b_t), cv2.MORPH_TOPHAT, se)
     sigma = estimate_noise_dn(g_t, b_t)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     red, sat = candidate_mask(bgr_t, rc_t, wc_t, params)
@@ -304,15 +327,14 @@ def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
               params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
     """Sub-pixel row per chosen run: Gaussian fit (on the flanks if saturated).
 
-    The fitted signal is the red channel divided by a relative albedo estimate,
-    minus its background (a line through the mean levels of the window rows at
-    least ``_BG_INNER`` above and below). Surface texture under the stripe
-    modulates the reflected laser light and would pull the centre; the darker of
-    green and blue carries the same texture and little laser light, so
-    ``x / mean(x)`` estimates the relative albedo. Its noise is shrunk away
-    Wiener-style: the estimate is ``1 + lambda (x / mean(x) - 1)`` with ``lambda``
-    the share of that channel's variance around the stripe that is texture rather
-    than noise (plain surfaces: lambda ~ 0, textured: ~ 1).
+    The fitted signal is the red channel minus ``mu`` times the white brightness
+    ``w = (g + b) / 2``, minus its background (a line through the mean levels of
+    the window rows at least ``_BG_INNER`` above and below). Surface texture under
+    the stripe changes red and white alike and would pull the centre; subtracting
+    ``mu w`` with ``mu`` the column's red/white ratio cancels it. Subtracting adds
+    the white channel's noise, so ``mu`` is shrunk Wiener-style by ``lambda``, the
+    share of the white variance around the stripe that is texture rather than
+    noise (plain surfaces: lambda ~ 0, textured: ~ 1), and clipped to ``_MU_MAX``.
 
     Unsaturated runs: weighted log-parabola (Gaussian) fit to the 5 rows around the
     maximum. Saturated runs: the same fit to the unsaturated flank rows only (the
@@ -326,19 +348,19 @@ def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
     inside = (rows >= 0) & (rows < h)
     px = bgr_t[runs.col[:, None], np.clip(rows, 0, h - 1)].astype(np.float64)
     red = px[..., 2]
-    proxy = np.minimum(px[..., 0], px[..., 1])
+    white = 0.5 * (px[..., 0] + px[..., 1])
     upper = (k <= -_BG_INNER)[None, :] & inside
     lower = (k >= _BG_INNER)[None, :] & inside
     bg_use = upper | lower
     n_bg = np.maximum(bg_use.sum(1), 1)
-    p_mean = np.maximum(np.where(bg_use, proxy, 0.0).sum(1) / n_bg, 1.0)
-    rel = proxy / p_mean[:, None]
-    tex_var = np.where(bg_use, (rel - 1.0) ** 2, 0.0).sum(1) / np.maximum(n_bg - 1, 1)
-    noise_var = (noise_dn / p_mean) ** 2
-    lam = np.where(tex_var <= noise_var, 0.0, 1.0 - noise_var / np.maximum(tex_var, 1e-12))
-    clipped = red >= params.saturation_dn
-    albedo = np.maximum(1.0 + lam[:, None] * (rel - 1.0), 0.2)
-    flat = np.where(clipped, red, red / albedo)
+    w_mean = np.maximum(np.where(bg_use, white, 0.0).sum(1) / n_bg, 1.0)
+    r_mean = np.where(bg_use, red, 0.0).sum(1) / n_bg
+    w_var = np.where(bg_use, (white - w_mean[:, None]) ** 2, 0.0).sum(1) / np.maximum(n_bg - 1, 1)
+    noise_var = 0.5 * noise_dn**2
+    lam = np.where(w_var <= noise_var, 0.0, 1.0 - noise_var / np.maximum(w_var, 1e-12))
+    mu = lam * np.clip(r_mean / w_mean, 0.0, _MU_MAX)
+    clipped = (red >= params.saturation_dn) | (white >= params.saturation_dn)
+    flat = red - mu[:, None] * white
 
     def side_mean(sel: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = sel.sum(1)
