@@ -36,6 +36,7 @@ from slitcli.laser.params import LaserParams
 
 _FIT_HALF = 2  # half-width of the Gaussian fit window, pixels (5 samples)
 _COG_MARGIN = 3  # pixels beyond the saturated plateau in the centre of gravity
+_RUN_SHARE = 0.35  # run pixels hold at least this share of the local maximum contrast
 _RATIO_WINDOW_PX = 15  # box window of the local red/white ratio, pixels
 _MU_MAX = 2.0  # largest red/white ratio removed (see red_excess)
 _WIN_HALF = 8  # half-height of the per-column window around the stripe, pixels
@@ -196,7 +197,11 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma = estimate_noise_dn(g_t, b_t)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     red, sat = candidate_mask(bgr_t, rc_t, wc_t, params)
-    cand = (red | sat) & (rc_t >= params.seed_fraction * thr)
+    # run membership: above the seed level and above a share of the local maximum, so
+    # that the stripe on a red surface is cut out of the surface's own red runs
+    local_max = cv2.dilate(rc_t, se)
+    cand = (red | sat) & (rc_t >= params.seed_fraction * thr) & \
+        (rc_t >= np.float32(_RUN_SHARE) * local_max)
     if search_mask is not None:
         cand &= np.asarray(search_mask, dtype=bool).T
     pos = np.flatnonzero(cand)
@@ -337,7 +342,7 @@ def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
     noise (plain surfaces: lambda ~ 0, textured: ~ 1), and clipped to ``_MU_MAX``.
 
     Unsaturated runs: weighted log-parabola (Gaussian) fit to the 5 rows around the
-    maximum. Saturated runs: the same fit to the unsaturated flank rows only (the
+    maximum (their centre of gravity where that fit has no maximum). Saturated runs: the same fit to the unsaturated flank rows only (the
     clipped core carries no shape); where that fails, the centre of gravity of
     the signal over the run and ``_COG_MARGIN`` rows either side.
     """
@@ -385,8 +390,13 @@ def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
     kf = np.arange(-_FIT_HALF, _FIT_HALF + 1)
     y = np.take_along_axis(sig, (p + _WIN_HALF)[:, None] + kf[None, :], axis=1)
     off, good = _log_parabola(y, kf, np.ones(y.shape, bool))
-    v[~sat] = (centre + p + off)[~sat]
-    ok = ~sat & good
+    # where the log-parabola is no maximum (noise, a flat top), the centre of gravity
+    pos_y = np.maximum(y, 0.0)
+    tot = pos_y.sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cog = (pos_y * kf[None, :]).sum(1) / tot
+    v[~sat] = (centre + p + np.where(good, off, cog))[~sat]
+    ok = ~sat & (good | (tot > 0))
     if np.any(sat):
         s = np.flatnonzero(sat)
         ys, cl, ins = sig[s], clipped[s], inside[s]

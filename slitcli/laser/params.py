@@ -68,7 +68,7 @@ class LaserParams:
     continuity_px: float = 2.0
     max_jump_px: float = 3.0
     min_segment_cols: int = 8
-    max_search_range_m: float = 5.0
+    max_search_range_m: float = 3.0
 
     def __post_init__(self) -> None:
         checks = {
