@@ -303,9 +303,10 @@ def _rank(runs: _Runs, w: int, params: LaserParams,
 
     Normalisation (docs/laser.md): red peak divided by the column's strongest
     run (1 for the strongest); g(I) = 1 - width_eq / max_width_px in [0, 1];
-    f(y) = max of the agreement with the previous frame's row and the mean
-    agreement with the rows chosen in columns u-2..u+2 by a first pass, each
-    ``exp(-dv^2 / (2 continuity_px^2))``.
+    f(y) = the mean agreement with the rows chosen in columns u-2, u-1, u+1, u+2 by
+    a first pass (which uses the previous frame only), averaged with the agreement
+    with the previous frame's row when one is given; each agreement is
+    ``exp(-dv^2 / (2 continuity_px^2))``, in [0, 1].
     """
     colmax = np.zeros(w)
     np.maximum.at(colmax, runs.col, runs.peak)
@@ -324,7 +325,7 @@ def _rank(runs: _Runs, w: int, params: LaserParams,
     f_nbr = np.zeros(v.size)
     for d in (-2, -1, 1, 2):  # four fixed neighbour offsets, vectorised over runs
         f_nbr += _closeness(v, v1[runs.col + 2 + d], params.continuity_px)
-    f = np.maximum(f_nbr / 4.0, f_prev)
+    f = f_nbr / 4.0 if previous_v_px is None else 0.5 * (f_nbr / 4.0 + f_prev)
     return _best_per_column(runs.col, base + params.beta * f)
 
 
@@ -342,9 +343,10 @@ def _subpixel(bgr_t: np.ndarray, runs: _Runs, noise_dn: float,
     noise (plain surfaces: lambda ~ 0, textured: ~ 1), and clipped to ``_MU_MAX``.
 
     Unsaturated runs: weighted log-parabola (Gaussian) fit to the 5 rows around the
-    maximum (their centre of gravity where that fit has no maximum). Saturated runs: the same fit to the unsaturated flank rows only (the
-    clipped core carries no shape); where that fails, the centre of gravity of
-    the signal over the run and ``_COG_MARGIN`` rows either side.
+    maximum (their centre of gravity where that fit has no maximum). Saturated
+    runs: the same fit to the unsaturated flank rows only (the clipped core
+    carries no shape); where that fails, the centre of gravity of the signal over
+    the run and ``_COG_MARGIN`` rows either side.
     """
     h = bgr_t.shape[1]
     k = np.arange(-_WIN_HALF, _WIN_HALF + 1)
