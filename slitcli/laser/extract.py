@@ -200,8 +200,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # run membership: above the seed level and above a share of the local maximum, so
     # that the stripe on a red surface is cut out of the surface's own red runs
     local_max = cv2.dilate(rc_t, se)
+    # (a run can only reach the acceptance threshold where its window's maximum does)
     cand = (red | sat) & (rc_t >= params.seed_fraction * thr) & \
-        (rc_t >= np.float32(_RUN_SHARE) * local_max)
+        (rc_t >= np.float32(_RUN_SHARE) * local_max) & (local_max >= np.float32(thr))
     if search_mask is not None:
         cand &= np.asarray(search_mask, dtype=bool).T
     pos = np.flatnonzero(cand)
