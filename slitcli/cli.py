@@ -79,7 +79,7 @@ def cli(debug: bool) -> None:
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point (also ``python -m slitcli``)."""
     cli.main()
 
 
@@ -134,6 +134,287 @@ def rig_show(file: Path | None) -> None:
     rows = ", ".join(f"{d[f'stripe_row_wall_{r:.1f}m_px']:.2f} at {r:.1f} m"
                      for r in (0.6, 0.8, 1.0))
     click.echo(f"laser_stripe_row_px (centre column, wall ahead): {rows}")
+
+
+# ---------------------------------------------------------------------------- render
+@cli.command("render")
+@click.argument("scene_file", metavar="SCENE.yaml",
+                type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--frames", type=click.IntRange(min=1), default=None,
+              help="Frames to render [default: the scene's robot.frames].")
+@click.option("--seed", type=int, default=None,
+              help="Replace the scene's seed (textures and sensor noise).")
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Rig file [default: the paper rig].")
+@click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
+def render_cmd(scene_file: Path, out: Path, frames: int | None, seed: int | None,
+               rig_path: Path | None, overwrite: bool) -> None:
+    """Render a generated scene into a stereo sequence with ground truth.
+
+    Writes OUT/left/, OUT/right/ (colour PNG pairs), OUT/times.csv, OUT/rig.yaml,
+    OUT/scene.yaml and OUT/gt/ (true disparity, depth in mm, obstacle mask, stripe rows,
+    ranges per 1-degree bearing bin in metres, poses, lossless .npz). See docs/sequence.md
+    and docs/ground-truth.md.
+
+    Example: slitcli render sample_data/corridor.yaml out/corridor --frames 10
+    """
+    from slitcli.io.progress import progress_bar
+    from slitcli.rig import load_rig, paper_rig
+    from slitcli.sim.scene import load_scene
+    from slitcli.sim.sequence import render_sequence
+
+    scene = load_scene(scene_file)
+    rig = load_rig(rig_path) if rig_path is not None else paper_rig()
+    with progress_bar(scene.robot.frames if frames is None else frames, "render") as bar:
+        summary = render_sequence(scene, rig, out, frames=frames, seed=seed,
+                                  overwrite=overwrite, on_frame=lambda i, n: bar.update(1))
+    click.echo(f"rendered {summary['frames']} frames of '{scene.name}' to {out}: "
+               f"{summary['stripe_columns']} stripe columns, "
+               f"{summary['obstacle_bins']} obstacle bearing bins in the truth")
+
+
+# ---------------------------------------------------------------------------- calibrate
+_BOARD_HELP = "Chessboard inner corners COLSxROWS (points where four squares meet), e.g. 9x6."
+_SQUARE_HELP = "Side of one chessboard square in metres, e.g. 0.025."
+
+
+@cli.group("calibrate")
+def calibrate_group() -> None:
+    """Calibrate the rig: stereo from chessboards, the laser plane, the camera mount.
+
+    \b
+    Usual order (docs/calibration.md):
+      slitcli calibrate stereo calib/left calib/right --board 9x6 --square-m 0.025 -o rig.yaml
+      slitcli calibrate laser --rig rig.yaml laser_views/ --board 9x6 --square-m 0.025
+      slitcli calibrate mount --rig rig.yaml floor_seq/
+    """
+
+
+@calibrate_group.command("stereo")
+@click.argument("left_dir", type=click.Path(path_type=Path))
+@click.argument("right_dir", type=click.Path(path_type=Path))
+@click.option("--board", required=True, help=_BOARD_HELP)
+@click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
+@click.option("-o", "--output", "out", required=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
+@click.option("--base", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Rig whose name, mount, laser plane and range limits are kept "
+                   "[default: the paper rig's].")
+@click.option("--min-views", type=click.IntRange(min=3), default=5, show_default=True,
+              help="Views with the board in both cameras required.")
+@click.option("--k3/--no-k3", default=False, show_default=True,
+              help="Also estimate the third radial distortion coefficient (wide lenses).")
+@click.option("--alpha", type=click.FloatRange(0.0, 1.0), default=0.0, show_default=True,
+              help="Rectification scaling: 0 keeps only valid pixels, 1 keeps every raw pixel.")
+def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: float,
+                         out: Path, base: Path | None, min_views: int, k3: bool,
+                         alpha: float) -> None:
+    """Stereo calibration from chessboard views: intrinsics, R, T, rectification.
+
+    LEFT_DIR and RIGHT_DIR hold the raw images of the two cameras (PNG/JPEG), paired in
+    name order. Views where either camera misses the board are named and skipped.
+    Prints the RMS reprojection error (px) overall and per view, and writes a rig whose
+    `raw` holds K1 D1 K2 D2 R T R1 R2 P1 P2 and whose `left` / `baseline_m` are the
+    rectified camera.
+
+    Example: slitcli calibrate stereo calib/left calib/right --board 9x6 --square-m 0.025
+    -o rig.yaml
+    """
+    from slitcli.calibrate.board import BoardSpec
+    from slitcli.calibrate.stereo import StereoCalibrationParams, run_calibrate_stereo
+
+    params = StereoCalibrationParams(board=BoardSpec.parse(board, square_m),
+                                     min_views=min_views, k3=k3, alpha=alpha)
+    result = run_calibrate_stereo(left_dir, right_dir, out, params, base_rig=base)
+    for line in result.report_lines():
+        click.echo(line)
+    click.echo(f"wrote {out}")
+
+
+@calibrate_group.command("laser")
+@click.argument("images_dir", type=click.Path(path_type=Path))
+@click.option("--rig", "rig_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Stereo-calibrated rig; its laser plane is replaced.")
+@click.option("--board", required=True, help=_BOARD_HELP)
+@click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Rig file to write [default: update --rig in place].")
+@click.option("--min-views", type=click.IntRange(min=2), default=2, show_default=True,
+              help="Board poses with the stripe on the board required.")
+def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: float,
+                        out: Path | None, min_views: int) -> None:
+    """Laser plane from left-camera views of a chessboard crossed by the laser stripe.
+
+    IMAGES_DIR holds the left camera's images (or has a left/ subfolder), raw if the
+    rig has a `raw` calibration. Use at least 3 board poses at different distances
+    (0.6-1.2 m); a single pose is refused (its stripe is a line). Prints the plane
+    (n . X = offset_m, metres, rectified left camera frame) and the residual std (mm).
+
+    Example: slitcli calibrate laser --rig rig.yaml laser_views/ --board 9x6 --square-m 0.025
+    """
+    from slitcli.calibrate.board import BoardSpec
+    from slitcli.calibrate.laser_plane import LaserPlaneParams, run_calibrate_laser
+
+    params = LaserPlaneParams(board=BoardSpec.parse(board, square_m), min_views=min_views)
+    result = run_calibrate_laser(rig_path, images_dir, params, out_rig=out)
+    for line in result.report_lines():
+        click.echo(line)
+    click.echo(f"wrote {out or rig_path}")
+
+
+@calibrate_group.command("mount")
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("--rig", "rig_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Stereo-calibrated rig; its mount height, tilt and roll are replaced.")
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Rig file to write [default: update --rig in place].")
+@click.option("--frames", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Frames used, spread over the sequence.")
+@click.option("--max-depth-m", type=click.FloatRange(min=0.5), default=3.0, show_default=True,
+              help="Floor points farther than this (metres) are ignored.")
+def calibrate_mount_cmd(seq: Path, rig_path: Path, out: Path | None, frames: int,
+                        max_depth_m: float) -> None:
+    """Camera height (m), tilt and roll (deg) from a textured floor seen in stereo.
+
+    SEQ is a stereo sequence folder (left/, right/) looking at a flat floor. The floor
+    plane is found by RANSAC on StereoSGBM points and polished by aligning the two
+    images through the plane; `mount.forward_m` is kept.
+
+    Example: slitcli calibrate mount --rig rig.yaml floor_seq/
+    """
+    from slitcli.calibrate.mount import MountParams, run_calibrate_mount
+
+    params = MountParams(max_frames=frames, max_depth_m=max_depth_m)
+    result = run_calibrate_mount(rig_path, seq, params, out_rig=out)
+    for line in result.report_lines():
+        click.echo(line)
+    click.echo(f"wrote {out or rig_path}")
+
+
+# ---------------------------------------------------------------------------- rig import/export
+@rig_group.command("import")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("-o", "--output", "out", required=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
+@click.option("--format", "fmt", type=click.Choice(["auto", "ros", "opencv", "kalibr"]),
+              default="auto", show_default=True, help="Format of FILES (auto: from content).")
+@click.option("--base", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Rig whose mount, laser plane and range limits are kept "
+                   "[default: the paper rig's].")
+@click.option("--name", default=None, help="Rig name [default: the base rig's, or 'imported'].")
+def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
+               name: str | None) -> None:
+    """Build a rig from ROS, OpenCV or Kalibr stereo calibration files.
+
+    \b
+    ros:    left.yaml right.yaml   camera_info (plumb_bob / rational_polynomial)
+    opencv: intrinsics.yml extrinsics.yml   cv2.FileStorage, M1 D1 M2 D2 R T [R1 R2 P1 P2]
+    kalibr: camchain.yaml   cam0/cam1 pinhole-radtan, cam1.T_cn_cnm1
+    Other camera models (fisheye, omni, ...) are refused.
+
+    Example: slitcli rig import camchain.yaml -o rig.yaml
+    """
+    from slitcli.calibrate.formats import run_rig_import
+
+    rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name)
+    click.echo(f"rectified: fx {rig.left.fx_px:.3f} px, baseline_m {rig.baseline_m:.5f}, "
+               f"{rig.image_size_px[0]}x{rig.image_size_px[1]} px")
+    click.echo(f"wrote {out}")
+
+
+@rig_group.command("export")
+@click.argument("rig_file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--format", "fmt", required=True, type=click.Choice(["ros", "opencv", "kalibr"]),
+              help="ros: left.yaml + right.yaml; opencv: intrinsics.yml + extrinsics.yml; "
+                   "kalibr: camchain.yaml.")
+@click.option("-o", "--output", "out", required=True,
+              type=click.Path(file_okay=False, path_type=Path), help="Folder to write into.")
+def rig_export(rig_file: Path, fmt: str, out: Path) -> None:
+    """Write a rig's stereo calibration as ROS, OpenCV or Kalibr files.
+
+    A rig without `raw` is exported as an ideal pair (no distortion, no rotation).
+    Kalibr's radtan model holds k1 k2 p1 p2 only: rigs with k3 are refused there.
+
+    Example: slitcli rig export rig.yaml --format ros -o calib_ros/
+    """
+    from slitcli.calibrate.formats import run_rig_export
+
+    for path in run_rig_export(rig_file, fmt, out):
+        click.echo(f"wrote {path}")
+
+# -------------------------------------------------------------------------- laser
+def _laser_defaults() -> dict[str, Any]:
+    from dataclasses import fields
+
+    from slitcli.laser.params import LaserParams
+
+    return {f.name: f.default for f in fields(LaserParams)}
+
+
+_LD = _laser_defaults()
+
+
+@cli.command("laser")
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
+              help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Rig file (default: SEQ/rig.yaml, else the paper rig).")
+@click.option("--overlay", is_flag=True,
+              help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
+                   "(paper Fig. 4 style).")
+@click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
+              help="Eq. 2: minimum red chromaticity R = r/(r+g+b) (unitless; grey is 0.333).")
+@click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
+              help="Eq. 2: minimum R - max(G, B) (unitless).")
+@click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
+              help="Eq. 3 white-brightness rejection (paper 0.32): red contrast minus white "
+                   "contrast must exceed alpha x red contrast (unitless).")
+@click.option("--beta", type=float, default=_LD["beta"], show_default=True,
+              help="Eq. 4 weight of the continuity term f(y) (paper 0.25).")
+@click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
+              help="Eq. 4 weight of the narrowness term g(I) (paper 0.25).")
+@click.option("--max-width-px", type=float, default=_LD["max_width_px"], show_default=True,
+              help="Widest stripe run (equivalent width = sum / peak of red contrast), px.")
+@click.option("--background-window-px", type=int, default=_LD["background_window_px"],
+              show_default=True,
+              help="Vertical window of the background estimate (odd, > 2 x max width), px.")
+@click.option("--min-peak-dn", type=float, default=_LD["min_peak_dn"], show_default=True,
+              help="Minimum red contrast of the stripe above its background, DN.")
+@click.option("--noise-k", type=float, default=_LD["noise_k"], show_default=True,
+              help="Stripe contrast must also exceed noise-k x the estimated noise sigma.")
+@click.option("--seed-fraction", type=float, default=_LD["seed_fraction"], show_default=True,
+              help="Pixels join a candidate run above this fraction of the acceptance "
+                   "contrast (unitless).")
+@click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
+              help="Red level from which a pixel counts as saturated, DN.")
+@click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
+              help="Scale of the continuity term f(y), px.")
+@click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
+              help="Largest row step between neighbouring columns of one segment, px.")
+@click.option("--min-segment-cols", type=int, default=_LD["min_segment_cols"],
+              show_default=True, help="Shorter stripe segments are dropped, columns.")
+@click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
+              show_default=True,
+              help="Search only rows whose laser-plane range is at most this, m.")
+def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
+              **tuning: Any) -> None:
+    """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
+
+    Reads the left images of the sequence SEQ and writes OUT/laser.csv: one row per
+    frame and image column with a stripe (frame, u_px, v_px, strength [DN], x_m,
+    y_m, range_m, bearing_deg in the sensor frame, in_band = 1 inside the rig's
+    laser band). Points outside the band stay in the table, flagged in_band = 0.
+
+    Example: slitcli laser out/corridor -o out/laser --overlay
+    """
+    from slitcli.laser.batch import run_laser
+    from slitcli.laser.params import LaserParams
+
+    params = LaserParams(**tuning)
+    path = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay)
+    click.echo(f"wrote {path}")
 
 
 # ---------------------------------------------------------------------------- dwa
