@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from types import MappingProxyType
 
 import numpy as np
 
@@ -33,7 +34,7 @@ from slitcli.errors import SlitcliError
 _MAX_BLOCK_ELEMENTS = 1 << 20
 
 # Option spelled on the command line for each parameter, so errors name what users type.
-_OPTION = {
+_OPTION = MappingProxyType({
     "v_max_mps": "--v-max-mps", "w_max_dps": "--w-max-dps", "acc_mps2": "--acc-mps2",
     "ang_acc_dps2": "--ang-acc-dps2", "dt_s": "--dt-s",
     "heading_clamp_deg": "--heading-clamp-deg", "v_res_mps": "--v-res-mps",
@@ -42,7 +43,7 @@ _OPTION = {
     "d_max_m": "--d-max-m", "alpha": "--alpha", "beta": "--beta", "gamma": "--gamma",
     "turn_circle_close": "--turn-circle-close/--no-turn-circle-close",
     "discrete_braking": "--discrete-braking/--no-discrete-braking",
-}
+})
 
 
 @dataclass(frozen=True, kw_only=True)
