@@ -105,8 +105,9 @@ class LaserLook:
     Gaussian of standard deviation ``width_m``; its peak on a white surface is
     ``power_dn * (ref_range_m / r) ** falloff_exponent`` digital numbers at range ``r``
     from the emitter, so by default it saturates at 0.6 m, is about 80 DN on a grey wall
-    at 1 m, fades past 1.3 m and is lost in the noise by 2 m. The red light leaks ``crosstalk`` of itself into green and blue,
-    so a very bright core saturates towards white. Points farther than ``fan_deg`` off
+    at 1 m, fades past 1.3 m and is lost in the noise by 2 m. The red light leaks
+    ``crosstalk`` of itself into green and blue, so a very bright core saturates towards
+    white. Points farther than ``fan_deg`` off
     the forward direction are not lit. ``visible_min_dn`` is the peak below which the
     truth reports no stripe.
     """
