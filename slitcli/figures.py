@@ -1,0 +1,216 @@
+"""The paper's figures (Figs. 4, 7, 8, 9) and a range-accuracy figure, from written tables.
+
+Each ``draw_*`` function takes tables (pandas) and images (numpy) and draws onto
+matplotlib axes it is given; :func:`make_figures` reads the files the other commands
+wrote and saves the figures. Nothing here computes detection or planning results.
+Figures are plain :class:`matplotlib.figure.Figure` objects rendered by the Agg canvas:
+no pyplot, no window, no global state.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Polygon
+
+from slitcli.errors import SlitcliError
+
+FORMATS = ("png", "svg", "pdf")
+CASE_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+
+
+# ----------------------------------------------------------------------------- Fig. 4
+def stripe_segments(laser: pd.DataFrame, *, max_gap_px: int = 2, max_step_m: float = 0.05,
+                    min_cols: int = 8) -> list[pd.DataFrame]:
+    """Split one frame's stripe points into obstacle segments (continuous columns and
+    ranges), longest first."""
+    if laser.empty:
+        return []
+    t = laser.sort_values("u_px")
+    brk = (t["u_px"].diff() > max_gap_px) | (t["x_m"].diff().abs() > max_step_m)
+    seg = brk.cumsum()
+    parts = [g for _, g in t.groupby(seg) if len(g) >= min_cols]
+    return sorted(parts, key=len, reverse=True)
+
+
+def draw_fig4(ax: Axes, left_rgb: np.ndarray, laser: pd.DataFrame,
+              truth: pd.DataFrame | None = None, *, n_obstacles: int = 2) -> list[dict]:
+    """Fig. 4: the left image, the detected stripe and the range of each obstacle.
+
+    Parameters
+    ----------
+    ax : Axes
+    left_rgb : ndarray (H, W, 3) uint8, RGB
+    laser : DataFrame
+        One frame of a laser table (``u_px``, ``v_px``, ``x_m``...).
+    truth : DataFrame, optional
+        The true stripe points of that frame (gt/laser.csv), for the true ranges.
+    n_obstacles : int
+        Annotate the nearest this many stripe segments.
+
+    Returns
+    -------
+    list of dict
+        Per annotated obstacle: ``measured_m``, ``true_m`` (forward distance, median
+        over the segment's columns) and its columns.
+    """
+    ax.imshow(left_rgb)
+    ax.plot(laser["u_px"], laser["v_px"], ".", color="cyan", ms=2.5, label="detected stripe")
+    segs = stripe_segments(laser)[: max(n_obstacles, 0) + 3]
+    segs = sorted(segs, key=lambda g: float(g["x_m"].median()))[:n_obstacles]
+    notes = []
+    for g in sorted(segs, key=lambda g: float(g["u_px"].median())):
+        measured = float(g["x_m"].median())
+        true = float("nan")
+        if truth is not None and not truth.empty:
+            tr = truth[truth["u_px"].isin(g["u_px"])]
+            true = float(tr["x_m"].median()) if len(tr) else float("nan")
+        text = f"measured {measured:.3f} m"
+        if math.isfinite(true):
+            text += f"\ntrue {true:.3f} m"
+        u, v = float(g["u_px"].median()), float(g["v_px"].min())
+        ax.annotate(text, xy=(u, v), xytext=(u, max(v - 45, 12)), ha="center", fontsize=8,
+                    color="white", arrowprops={"arrowstyle": "->", "color": "white"},
+                    bbox={"boxstyle": "round", "fc": "black", "alpha": 0.6})
+        notes.append({"measured_m": measured, "true_m": true,
+                      "u_min": int(g["u_px"].min()), "u_max": int(g["u_px"].max())})
+    ax.set_xlabel("u (px)")
+    ax.set_ylabel("v (px)")
+    ax.set_title("Laser stripe and forward distance of each obstacle")
+    return notes
+
+
+# ----------------------------------------------------------------------------- Fig. 7
+def draw_fig7(axes: Sequence[Axes], left_rgb: np.ndarray, right_rgb: np.ndarray,
+              mask: np.ndarray, distance_m: np.ndarray, *, max_range_m: float = 3.0) -> None:
+    """Fig. 7: (a) left, (b) right, (c) binary obstacle image, (d) distance image.
+
+    ``mask`` is (H, W) bool; ``distance_m`` (H, W) metres with NaN where invalid.
+    """
+    a, b, c, d = axes
+    a.imshow(left_rgb)
+    a.set_title("(a) left image")
+    b.imshow(right_rgb)
+    b.set_title("(b) right image")
+    c.imshow(mask, cmap="gray", vmin=0, vmax=1)
+    c.set_title("(c) obstacle (binary disparity) image")
+    dist = np.ma.masked_invalid(distance_m)
+    cmap = matplotlib.colormaps["turbo"].with_extremes(bad="black")
+    im = d.imshow(dist, cmap=cmap, vmin=0.0, vmax=max_range_m)
+    d.set_title("(d) distance image")
+    cb = d.figure.colorbar(im, ax=d, fraction=0.046, pad=0.04)
+    cb.set_label("distance along the optical axis (m)")
+    for ax in axes:
+        ax.set_xlabel("u (px)")
+        ax.set_ylabel("v (px)")
+
+
+# ----------------------------------------------------------------------------- Fig. 8/9
+def _draw_obstacles(ax: Axes, segments_xy: np.ndarray, circles_xyr: np.ndarray) -> None:
+    # a box's outline comes as 4 consecutive segments: draw them as filled polygons
+    for s in segments_xy:
+        ax.plot(s[:, 0], s[:, 1], color="0.3", lw=2)
+    for k in range(0, len(segments_xy) - 3, 4):
+        quad = segments_xy[k:k + 4, 0, :]
+        if np.allclose(segments_xy[k + 3, 1], segments_xy[k, 0]):
+            ax.add_patch(Polygon(quad, closed=True, fc="0.75", ec="0.3"))
+    for cx, cy, r in circles_xyr:
+        ax.add_patch(Circle((cx, cy), r, fc="0.75", ec="0.3"))
+
+
+def draw_fig8(axes: Sequence[Axes], trajectories: dict[str, pd.DataFrame],
+              segments_xy: np.ndarray, circles_xyr: np.ndarray,
+              goal_xy: tuple[float, float] | None = None,
+              robot_radius_m: float | None = None) -> None:
+    """Fig. 8: one x-y panel per case with its trajectory and the obstacles."""
+    for (case, traj), ax, colour in zip(trajectories.items(), axes, CASE_COLOURS,
+                                        strict=False):
+        _draw_obstacles(ax, segments_xy, circles_xyr)
+        ax.plot(traj["x_m"], traj["y_m"], color=colour, lw=1.8, label=f"robot path ({case})")
+        ax.plot(traj["x_m"].iloc[0], traj["y_m"].iloc[0], "ko", ms=5)
+        if robot_radius_m:
+            ax.add_patch(Circle((traj["x_m"].iloc[-1], traj["y_m"].iloc[-1]), robot_radius_m,
+                                fill=False, ec=colour, ls="--"))
+        if goal_xy is not None:
+            ax.plot(*goal_xy, "k*", ms=10)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_title(case)
+        ax.grid(alpha=0.3)
+
+
+def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> None:
+    """Fig. 9: robot-obstacle distance against time, one line per case."""
+    for (case, traj), colour in zip(trajectories.items(), CASE_COLOURS, strict=False):
+        ax.plot(traj["t_s"], traj["nearest_obstacle_m"], color=colour, label=case)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("robot-obstacle distance (m)")
+    ax.set_title("Distance to the nearest obstacle")
+    ax.grid(alpha=0.3)
+    ax.legend()
+
+
+# ----------------------------------------------------------------------------- accuracy
+def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Join a detect range table with the true ranges (same frame and bearing) and give
+    the error of each sensor: columns ``true_m``, ``fused_err_m``, ``laser_err_m``,
+    ``stereo_err_m`` (NaN where that sensor has no return)."""
+    t = truth.rename(columns={"range_m": "true_m"})[["frame", "bearing_deg", "true_m"]]
+    j = ranges.merge(t, on=["frame", "bearing_deg"], how="inner")
+    j = j[np.isfinite(j["true_m"])]
+    out = pd.DataFrame({"true_m": j["true_m"]})
+    for k in ("fused", "laser", "stereo"):
+        out[f"{k}_err_m"] = j[f"{k}_range_m"] - j["true_m"]
+    return out.reset_index(drop=True)
+
+
+def draw_accuracy(ax: Axes, errors: pd.DataFrame, *, bin_m: float = 0.25) -> dict[str, int]:
+    """Median absolute range error against the true distance, per sensor.
+
+    Returns the number of bins (x positions) drawn per sensor.
+    """
+    edges = np.arange(0.0, float(errors["true_m"].max()) + bin_m, bin_m)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    k = np.digitize(errors["true_m"], edges) - 1
+    drawn = {}
+    for name, colour in (("fused", "k"), ("laser", "tab:red"), ("stereo", "tab:blue")):
+        e = errors[f"{name}_err_m"].abs()
+        med = np.array([np.nanmedian(e[(k == i) & e.notna()]) if ((k == i) & e.notna()).sum()
+                        >= 5 else np.nan for i in range(len(centres))])
+        ok = np.isfinite(med)
+        ax.plot(centres[ok], 100 * med[ok], "o-", color=colour, label=name)
+        drawn[name] = int(ok.sum())
+    ax.set_xlabel("true distance (m)")
+    ax.set_ylabel("median |range error| (cm)")
+    ax.set_title("Range accuracy against the truth")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return drawn
+
+
+# ----------------------------------------------------------------------------- files
+def save(fig: Figure, path: Path, *, dpi: int) -> Path:
+    """Render a figure with the Agg canvas and write it atomically."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from slitcli.io.atomic import atomic_path
+
+    FigureCanvasAgg(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=path.suffix[1:], bbox_inches="tight")
+    return path
+
+
+def check_format(fmt: str, dpi: int) -> None:
+    if fmt not in FORMATS:
+        raise SlitcliError(f"--format {fmt!r} is unknown; use one of {', '.join(FORMATS)}")
+    if not 20 <= dpi <= 1200:
+        raise SlitcliError(f"--dpi {dpi} is out of range; give 20-1200")

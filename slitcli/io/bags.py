@@ -1,0 +1,192 @@
+"""Stereo pairs from ROS 1 and ROS 2 bags (``.bag``, ``.db3``, ``.mcap``) via rosbags.
+
+Left and right images come from two topics (``sensor_msgs/Image`` or
+``sensor_msgs/CompressedImage``) and are paired by their header stamps: each left image
+takes the nearest right image within ``max_dt_s``, one to one, in time order. Frames are
+numbered 0, 1, ... in the order of the left stamps; ``time_s`` is the left stamp.
+Pairing needs only the stamps (a first pass); images are decoded in a second pass, one
+pair at a time, so memory does not grow with the bag.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from slitcli.errors import SlitcliError
+from slitcli.io.sequence import StereoFrame
+
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+
+
+def is_bag(path: str | Path) -> bool:
+    """A ROS 1 ``.bag`` file, a ROS 2 storage file, or a ROS 2 bag folder."""
+    p = Path(path)
+    return p.suffix in BAG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
+
+
+def _bag_root(path: Path) -> Path:
+    # rosbags opens a ROS 2 bag by its folder (metadata.yaml beside the storage files)
+    if path.suffix in (".db3", ".mcap") and path.is_file():
+        return path.parent
+    return path
+
+
+@dataclass(frozen=True)
+class BagPairs:
+    """The pairing of one bag: per frame, the left and right message stamps (ns)."""
+
+    path: Path
+    left_topic: str
+    right_topic: str
+    left_ns: np.ndarray
+    right_ns: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.left_ns)
+
+
+def _stamp_ns(msg: object, log_ns: int) -> int:
+    st = getattr(getattr(msg, "header", None), "stamp", None)
+    if st is None:
+        return log_ns
+    ns = int(st.sec) * 1_000_000_000 + int(st.nanosec)
+    return ns if ns > 0 else log_ns
+
+
+def _open(path: Path):  # returns rosbags' AnyReader, opened
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    if not path.exists():
+        raise SlitcliError(f"{path}: bag not found; give a .bag file or a ROS 2 bag folder")
+    try:
+        reader = AnyReader([_bag_root(path)],
+                           default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as e:  # rosbags raises several types for unreadable bags
+        raise SlitcliError(f"{path}: cannot open the bag ({e.__class__.__name__}: "
+                           f"{str(e).splitlines()[0] if str(e) else 'unreadable'}); check that "
+                           "it is a ROS 1 .bag or a ROS 2 bag folder") from None
+    return reader
+
+
+def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: float) -> BagPairs:
+    """Read the stamps of both topics and pair them (first pass, no image decoding)."""
+    if not max_dt_s > 0:
+        raise SlitcliError(f"--max-dt {max_dt_s} must be positive (seconds)")
+    p = Path(path)
+    reader = _open(p)
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        images = sorted(t for t, ty in topics.items() if ty in IMAGE_TYPES)
+        for opt, topic in (("--left-topic", left_topic), ("--right-topic", right_topic)):
+            if topic not in topics:
+                raise SlitcliError(f"{p}: no topic {topic!r} ({opt}); image topics in this bag: "
+                                   f"{', '.join(images) or 'none'}")
+            if topics[topic] not in IMAGE_TYPES:
+                raise SlitcliError(f"{p}: topic {topic!r} ({opt}) carries {topics[topic]}, not "
+                                   "images; choose one of " + (", ".join(images) or "none"))
+        stamps: dict[str, list[int]] = {left_topic: [], right_topic: []}
+        conns = [c for c in reader.connections if c.topic in stamps]
+        for conn, log_ns, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            stamps[conn.topic].append(_stamp_ns(msg, log_ns))
+    finally:
+        reader.close()
+    left = np.sort(np.array(stamps[left_topic], dtype=np.int64))
+    right = np.sort(np.array(stamps[right_topic], dtype=np.int64))
+    if len(left) == 0 or len(right) == 0:
+        empty = left_topic if len(left) == 0 else right_topic
+        raise SlitcliError(f"{p}: topic {empty!r} has no messages; the sequence is empty")
+    li, ri = _pair(left, right, round(max_dt_s * 1e9))
+    if len(li) == 0:
+        raise SlitcliError(f"{p}: no left/right pairs within --max-dt {max_dt_s:g} s; "
+                           + _why_unpaired(left, right, max_dt_s))
+    return BagPairs(p, left_topic, right_topic, left[li], right[ri])
+
+
+def _pair(left: np.ndarray, right: np.ndarray, max_dt_ns: int) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one nearest pairing of sorted stamps within ``max_dt_ns``."""
+    j = np.clip(np.searchsorted(right, left), 1, len(right) - 1) if len(right) > 1 else \
+        np.zeros(len(left), dtype=np.int64)
+    if len(right) > 1:
+        prev_better = np.abs(left - right[j - 1]) <= np.abs(right[j] - left)
+        j = np.where(prev_better, j - 1, j)
+    ok = np.abs(right[j] - left) <= max_dt_ns
+    li, ri = np.nonzero(ok)[0], j[ok]
+    # one right image may be nearest to two left images: keep the closer one
+    order = np.lexsort((np.abs(right[ri] - left[li]), ri))
+    li, ri = li[order], ri[order]
+    first = np.r_[True, ri[1:] != ri[:-1]][: len(ri)]
+    li, ri = li[first], ri[first]
+    keep = np.argsort(li)
+    return li[keep], ri[keep]
+
+
+def _why_unpaired(left: np.ndarray, right: np.ndarray, max_dt_s: float) -> str:
+    j = np.clip(np.searchsorted(right, left), 0, len(right) - 1)
+    gap_s = float(np.median(np.abs(right[j] - left))) * 1e-9
+    med_l, med_r = float(np.median(left)), float(np.median(right))
+    if med_l > 0 and med_r > 0:
+        decades = math.log10(med_l / med_r)
+        for k in (3, 6, 9):
+            if abs(abs(decades) - k) < 0.5:
+                return (f"the left and right stamps differ by a factor of about 10^{k}: one "
+                        "camera seems to stamp in another time unit (s, ms, us, ns); fix its "
+                        "stamps or driver")
+    hint = ""
+    if gap_s > max_dt_s:
+        hint = (f"; if the cameras are not synchronised, try --max-dt {gap_s * 1.5:.3g} "
+                "(seconds, not milliseconds)")
+    return f"the nearest left/right stamps are {gap_s:.3g} s apart (median){hint}"
+
+
+def bag_frames(pairs: BagPairs, *, skip: set[int] | frozenset[int] = frozenset()
+               ) -> Iterator[StereoFrame | int]:
+    """Decode the paired images (second pass), yielding frames in left-stamp order.
+
+    Frames whose index is in ``skip`` are not decoded: their index is yielded instead
+    (a resumed batch does not pay for finished frames).
+    """
+    from rosbags.image import message_to_cvimage
+
+    left_idx = {int(t): i for i, t in enumerate(pairs.left_ns)}
+    right_idx = {int(t): i for i, t in enumerate(pairs.right_ns)}
+    reader = _open(pairs.path)
+    pending: dict[int, dict[str, np.ndarray]] = {}
+    next_out = 0
+    done: dict[int, StereoFrame | int] = {}
+    try:
+        conns = [c for c in reader.connections if c.topic in (pairs.left_topic,
+                                                                 pairs.right_topic)]
+        for conn, log_ns, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            stamp = _stamp_ns(msg, log_ns)
+            side = "left" if conn.topic == pairs.left_topic else "right"
+            idx = (left_idx if side == "left" else right_idx).get(stamp)
+            if idx is None or (side in pending.get(idx, {})):
+                continue
+            if idx in skip:
+                pending.setdefault(idx, {})[side] = np.empty(0)
+            else:
+                img = message_to_cvimage(msg, "bgr8")
+                pending.setdefault(idx, {})[side] = np.ascontiguousarray(img)
+            slot = pending[idx]
+            if len(slot) == 2:
+                del pending[idx]
+                done[idx] = idx if idx in skip else StereoFrame(
+                    idx, f"{idx:06d}", pairs.left_ns[idx] * 1e-9, slot["left"], slot["right"])
+            while next_out in done:  # emit in frame order; only out-of-order pairs wait
+                yield done.pop(next_out)
+                next_out += 1
+    finally:
+        reader.close()
+    if next_out != len(pairs):
+        raise SlitcliError(f"{pairs.path}: {len(pairs) - next_out} paired images could not be "
+                           "read back; the bag may be truncated")

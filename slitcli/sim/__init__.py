@@ -1,0 +1,1 @@
+"""Generated scenes, the ground-truth renderer and the closed-loop simulation (DESIGN §10)."""

@@ -1,0 +1,633 @@
+"""Generated scenes (DESIGN §10): the scene file, robot poses and exact range truth.
+
+A scene is a floor (z = 0) plus vertical obstacles standing on it or hanging above it
+(boxes, cylinders, walls), optional white highlights (lamp reflections) and the laser
+sheet's appearance, seen from a robot that is static, moves straight, or follows a
+list of poses. World frame: x, y on the floor, z up, metres. A pose locates the
+robot's rotation centre; the sensor origin is ``rig.mount.forward_m`` ahead of it.
+
+The schema (``slitcli_scene: 1``) is documented in docs/scene.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from slitcli.errors import SlitcliError
+
+SCHEMA_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Surface:
+    """How a surface looks: albedo per channel (0-1), and a seeded procedural texture.
+
+    ``texture`` is ``noise`` (multi-octave value noise with feature size ``scale_m`` and
+    relative amplitude ``contrast``) or ``plain`` (uniform: no stereo features).
+    """
+
+    colour_rgb: tuple[float, float, float] = (0.6, 0.6, 0.6)
+    texture: str = "noise"
+    scale_m: float = 0.02
+    contrast: float = 0.6
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class Box:
+    """An upright box: centre of its footprint, size (along x, along y, height), yaw."""
+
+    centre_xy_m: tuple[float, float]
+    size_m: tuple[float, float, float]
+    yaw_deg: float = 0.0
+    z_min_m: float = 0.0
+    surface: Surface = field(default_factory=Surface)
+
+    @property
+    def z_max_m(self) -> float:
+        return self.z_min_m + self.size_m[2]
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """An upright cylinder."""
+
+    centre_xy_m: tuple[float, float]
+    radius_m: float
+    height_m: float
+    z_min_m: float = 0.0
+    surface: Surface = field(default_factory=Surface)
+
+    @property
+    def z_max_m(self) -> float:
+        return self.z_min_m + self.height_m
+
+
+@dataclass(frozen=True)
+class Wall:
+    """A vertical rectangle of zero thickness (seen from both sides) between two floor points."""
+
+    from_xy_m: tuple[float, float]
+    to_xy_m: tuple[float, float]
+    height_m: float
+    z_min_m: float = 0.0
+    surface: Surface = field(default_factory=Surface)
+
+    @property
+    def z_max_m(self) -> float:
+        return self.z_min_m + self.height_m
+
+
+Obstacle = Box | Cylinder | Wall
+
+
+@dataclass(frozen=True)
+class Highlight:
+    """A white lamp reflection: a saturated Gaussian spot on whatever surface is there."""
+
+    position_xyz_m: tuple[float, float, float]
+    radius_m: float = 0.03
+    brightness: float = 1.5
+
+
+@dataclass(frozen=True)
+class LaserLook:
+    """Appearance of the laser sheet in the images.
+
+    The sheet itself (its plane) comes from the rig. Across the sheet the light is a
+    Gaussian of standard deviation ``width_m``; its peak on a white surface is
+    ``power_dn * (ref_range_m / r) ** falloff_exponent`` digital numbers at range ``r``
+    from the emitter, so by default it is strong at 0.6 m, faint past 1.2 m and lost in
+    the noise by 2 m. The red light leaks ``crosstalk`` of itself into green and blue,
+    so a very bright core saturates towards white. Points farther than ``fan_deg`` off
+    the forward direction are not lit. ``visible_min_dn`` is the peak below which the
+    truth reports no stripe.
+    """
+
+    enabled: bool = True
+    width_m: float = 0.004
+    power_dn: float = 500.0
+    ref_range_m: float = 0.6
+    falloff_exponent: float = 4.0
+    crosstalk: float = 0.12
+    fan_deg: float = 60.0
+    visible_min_dn: float = 12.0
+
+
+@dataclass(frozen=True)
+class ImageLook:
+    """Camera and lighting: sensor noise, anti-aliasing, exposure and light direction."""
+
+    noise_sigma_dn: float = 2.0
+    supersample: int = 3
+    exposure: float = 0.85
+    ambient: float = 0.55
+    light_dir_xyz: tuple[float, float, float] = (0.3, 0.2, 1.0)
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """Robot pose in the world: rotation centre (x, y) in metres and heading in radians."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """Robot motion for rendering and its body for the planner.
+
+    ``motion`` is ``static`` (every frame at ``start``), ``straight`` (constant
+    ``speed_mps`` and ``yaw_rate_dps`` from ``start``) or ``poses`` (the list given).
+    """
+
+    start: Pose2D = Pose2D(0.0, 0.0, 0.0)
+    motion: str = "static"
+    speed_mps: float = 0.0
+    yaw_rate_dps: float = 0.0
+    poses: tuple[Pose2D, ...] = ()
+    frames: int = 1
+    frame_rate_hz: float = 5.0
+    radius_m: float = 0.25
+    height_m: float = 0.8
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A complete generated scene."""
+
+    name: str
+    seed: int = 0
+    floor: Surface = field(default_factory=lambda: Surface(colour_rgb=(0.55, 0.5, 0.45),
+                                                           scale_m=0.03, contrast=0.5))
+    objects: tuple[Obstacle, ...] = ()
+    highlights: tuple[Highlight, ...] = ()
+    laser: LaserLook = field(default_factory=LaserLook)
+    image: ImageLook = field(default_factory=ImageLook)
+    robot: Robot = field(default_factory=Robot)
+    goal_xy_m: tuple[float, float] | None = None
+    max_range_m: float = 5.0
+
+    def poses(self, frames: int | None = None) -> list[Pose2D]:
+        """Robot pose per frame (``frames`` overrides the scene's own count)."""
+        r = self.robot
+        n = r.frames if frames is None else frames
+        if r.motion == "poses":
+            if frames is not None and frames > len(r.poses):
+                raise SlitcliError(f"scene '{self.name}': --frames {frames} exceeds the "
+                                   f"{len(r.poses)} poses listed; give at most that many")
+            return list(r.poses[:n])
+        if r.motion == "static":
+            return [r.start] * n
+        dt = 1.0 / r.frame_rate_hz
+        w = math.radians(r.yaw_rate_dps)
+        out = []
+        for i in range(n):
+            t = i * dt
+            yaw = r.start.yaw_rad + w * t
+            if abs(w) < 1e-12:
+                dx = r.speed_mps * t * math.cos(r.start.yaw_rad)
+                dy = r.speed_mps * t * math.sin(r.start.yaw_rad)
+            else:  # exact unicycle arc
+                rad = r.speed_mps / w
+                dx = rad * (math.sin(yaw) - math.sin(r.start.yaw_rad))
+                dy = -rad * (math.cos(yaw) - math.cos(r.start.yaw_rad))
+            out.append(Pose2D(r.start.x_m + dx, r.start.y_m + dy, yaw))
+        return out
+
+    def times_s(self, frames: int | None = None) -> np.ndarray:
+        """Capture time of each frame, seconds."""
+        n = len(self.poses(frames))
+        return np.arange(n) / self.robot.frame_rate_hz
+
+
+# ------------------------------------------------------------------- footprints
+@dataclass(frozen=True)
+class Footprints:
+    """Obstacle outlines on the floor plane, for exact 2-D range truth.
+
+    ``segments_xy`` has shape (M, 2, 2) (start and end points), ``circles_xyr`` shape
+    (K, 3) (centre x, y and radius); world frame, metres.
+    """
+
+    segments_xy: np.ndarray
+    circles_xyr: np.ndarray
+
+
+def footprints(scene: Scene, *, z_low_m: float, z_high_m: float) -> Footprints:
+    """Outlines of the obstacles that reach into the height band (z_low_m, z_high_m)."""
+    segs: list[np.ndarray] = []
+    circles: list[tuple[float, float, float]] = []
+    for ob in scene.objects:
+        if ob.z_max_m <= z_low_m or ob.z_min_m >= z_high_m:
+            continue
+        if isinstance(ob, Box):
+            corners = box_corners_xy(ob)
+            segs.extend(np.stack([corners, np.roll(corners, -1, axis=0)], axis=1))
+        elif isinstance(ob, Wall):
+            segs.append(np.array([ob.from_xy_m, ob.to_xy_m], dtype=float))
+        else:
+            circles.append((ob.centre_xy_m[0], ob.centre_xy_m[1], ob.radius_m))
+    seg_arr = np.array(segs, dtype=float).reshape(-1, 2, 2)
+    circ_arr = np.array(circles, dtype=float).reshape(-1, 3)
+    return Footprints(seg_arr, circ_arr)
+
+
+def box_corners_xy(box: Box) -> np.ndarray:
+    """The 4 footprint corners of a box, counter-clockwise, shape (4, 2)."""
+    hx, hy = box.size_m[0] / 2, box.size_m[1] / 2
+    c, s = math.cos(math.radians(box.yaw_deg)), math.sin(math.radians(box.yaw_deg))
+    local = np.array([[hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]])
+    rot = np.array([[c, -s], [s, c]])
+    return local @ rot.T + np.asarray(box.centre_xy_m, dtype=float)
+
+
+def sensor_origin_xy(pose: Pose2D, forward_m: float) -> np.ndarray:
+    """World position of the sensor origin for a robot pose."""
+    return np.array([pose.x_m + forward_m * math.cos(pose.yaw_rad),
+                     pose.y_m + forward_m * math.sin(pose.yaw_rad)])
+
+
+def wedge_min_range(fp: Footprints, origin_xy: np.ndarray, heading_rad: float,
+                    bin_lo_deg: np.ndarray, bin_hi_deg: np.ndarray) -> np.ndarray:
+    """Exact distance from ``origin_xy`` to the nearest outline point in each bearing wedge.
+
+    Parameters
+    ----------
+    fp : Footprints
+    origin_xy : ndarray, shape (2,)
+        The sensor origin in the world, metres.
+    heading_rad : float
+        World direction of bearing 0.
+    bin_lo_deg, bin_hi_deg : ndarray, shape (B,)
+        Wedge limits relative to the heading, degrees, positive to the left.
+
+    Returns
+    -------
+    range_m : ndarray, shape (B,)
+        Horizontal distance to the nearest point of any outline inside the wedge; inf
+        where the wedge meets nothing.
+    """
+    lo = np.radians(np.asarray(bin_lo_deg, dtype=float)) + heading_rad
+    hi = np.radians(np.asarray(bin_hi_deg, dtype=float)) + heading_rad
+    best = np.full(lo.shape, np.inf)
+    o = np.asarray(origin_xy, dtype=float)
+    if len(fp.segments_xy):
+        best = np.minimum(best, _segments_in_wedges(fp.segments_xy - o, lo, hi).min(axis=1))
+    if len(fp.circles_xyr):
+        c = fp.circles_xyr.copy()
+        c[:, :2] -= o
+        best = np.minimum(best, _circles_in_wedges(c, lo, hi).min(axis=1))
+    return best
+
+
+def _ray_segment_t(angle: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Where the ray from the origin at ``angle`` (B, 1) meets segments (1, M): the segment
+    parameter s in [0, 1] and the ray distance; NaN when they miss."""
+    d = np.stack([np.cos(angle), np.sin(angle)], axis=-1)          # (B, 1, 2)
+    e = p1 - p0                                                     # (1, M, 2)
+    den = d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (p0[..., 0] * d[..., 1] - p0[..., 1] * d[..., 0]) / den
+        t = (p0[..., 0] * e[..., 1] - p0[..., 1] * e[..., 0]) / den
+    ok = (np.abs(den) > 1e-15) & (s >= 0) & (s <= 1) & (t >= 0)
+    return np.where(ok, s, np.nan), np.where(ok, t, np.nan)
+
+
+def _segments_in_wedges(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(B, M) nearest distance of each segment portion inside each wedge (inf if none)."""
+    p0 = seg[None, :, 0, :]
+    p1 = seg[None, :, 1, :]
+    lo_c, hi_c = lo[:, None], hi[:, None]
+    mid = 0.5 * (lo_c + hi_c)
+    half = 0.5 * (hi_c - lo_c)
+
+    def inside(p: np.ndarray) -> np.ndarray:
+        ang = np.arctan2(p[..., 1], p[..., 0])
+        return np.abs(_wrap(ang - mid)) <= half + 1e-12
+
+    # The bearing along a segment that does not pass through the origin is monotonic,
+    # so the part inside a wedge is one interval of the segment parameter, bounded by
+    # the endpoints that are inside and the crossings of the two boundary rays.
+    s_lo, _ = _ray_segment_t(lo_c, p0, p1)
+    s_hi, _ = _ray_segment_t(hi_c, p0, p1)
+    in0 = inside(p0)
+    in1 = inside(p1)
+    cands = np.stack([np.where(in0, 0.0, np.nan), np.where(in1, 1.0, np.nan), s_lo, s_hi])
+    s_min = np.nanmin(np.where(np.isnan(cands), np.inf, cands), axis=0)
+    s_max = np.nanmax(np.where(np.isnan(cands), -np.inf, cands), axis=0)
+    hit = np.isfinite(s_min) & (s_max >= s_min)
+    s_min = np.where(hit, s_min, 0.0)
+    s_max = np.where(hit, s_max, 0.0)
+    e = p1 - p0
+    ee = np.maximum((e * e).sum(-1), 1e-300)
+    s_star = np.clip(-(p0 * e).sum(-1) / ee, s_min, s_max)
+    pt = p0 + s_star[..., None] * e
+    dist = np.hypot(pt[..., 0], pt[..., 1])
+    return np.where(hit, dist, np.inf)
+
+
+def _circles_in_wedges(circ: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(B, K) nearest distance of each disc's part inside each wedge (inf if none)."""
+    cx, cy, r = circ[None, :, 0], circ[None, :, 1], circ[None, :, 2]
+    lo_c, hi_c = lo[:, None], hi[:, None]
+    dist_c = np.hypot(cx, cy)
+    mid = 0.5 * (lo_c + hi_c)
+    half = 0.5 * (hi_c - lo_c)
+    centre_in = np.abs(_wrap(np.arctan2(cy, cx) - mid)) <= half
+    # Over disc ∩ wedge, the nearest point is on the disc boundary towards the origin
+    # (if that direction lies in the wedge) or the first crossing of a boundary ray.
+    best = np.where(centre_in, np.maximum(dist_c - r, 0.0), np.inf)
+    for ang in (lo_c, hi_c):
+        dx, dy = np.cos(ang), np.sin(ang)
+        b = dx * cx + dy * cy
+        disc = b * b - (dist_c * dist_c - r * r)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        t0 = b - root
+        t1 = b + root
+        t = np.where(t0 >= 0, t0, np.where(t1 >= 0, 0.0, np.inf))
+        best = np.minimum(best, np.where(disc >= 0, t, np.inf))
+    return best
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def bearing_bins(rig_bearing_limits_deg: tuple[float, float], bin_deg: float = 1.0
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bearing bins over the camera's horizontal field of view (DESIGN §6).
+
+    Bin centres are the multiples of ``bin_deg`` whose bins lie (at least half) inside
+    the field of view. Returns centres, lower and upper edges, degrees, positive left.
+    """
+    right, left = rig_bearing_limits_deg
+    k0 = math.ceil(right / bin_deg - 1e-9)
+    k1 = math.floor(left / bin_deg + 1e-9)
+    centres = np.arange(k0, k1 + 1) * bin_deg
+    return centres, centres - bin_deg / 2, centres + bin_deg / 2
+
+
+def true_ranges(scene: Scene, pose: Pose2D, bin_lo_deg: np.ndarray, bin_hi_deg: np.ndarray, *,
+                forward_m: float = 0.0, floor_margin_m: float = 0.02,
+                max_range_m: float | None = None) -> np.ndarray:
+    """Ground-truth nearest obstacle range per bearing bin, sensor frame (DESIGN §6).
+
+    An obstacle counts when it reaches above ``floor_margin_m`` and starts below the
+    robot's height. NaN where nothing lies within ``max_range_m`` (default: the scene's).
+    """
+    fp = footprints(scene, z_low_m=floor_margin_m, z_high_m=scene.robot.height_m)
+    origin = sensor_origin_xy(pose, forward_m)
+    r = wedge_min_range(fp, origin, pose.yaw_rad, bin_lo_deg, bin_hi_deg)
+    limit = scene.max_range_m if max_range_m is None else max_range_m
+    return np.where(r <= limit, r, np.nan)
+
+
+# ---------------------------------------------------------------------- loading
+class _Keys:
+    """Validation helpers that name the file and key in one-line errors."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def err(self, key: str, problem: str, fix: str) -> SlitcliError:
+        return SlitcliError(f"{self.source}: key '{key}' {problem}; {fix}")
+
+    def mapping(self, v: Any, key: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
+        if v is None:
+            return {}
+        if not isinstance(v, Mapping):
+            raise self.err(key, "must be a mapping", f"allowed keys: {', '.join(allowed)}")
+        for k in v:
+            if k not in allowed:
+                import difflib
+
+                close = difflib.get_close_matches(str(k), allowed, n=1)
+                hint = f"did you mean '{close[0]}'?" if close else \
+                    f"allowed keys: {', '.join(allowed)}"
+                raise SlitcliError(f"{self.source}: unknown key '{key}.{k}'; {hint}")
+        return v
+
+    def num(self, m: Mapping[str, Any], k: str, key: str, default: float | None = None, *,
+            low: float | None = None, high: float | None = None, strict: bool = False) -> float:
+        name = f"{key}.{k}"
+        if k not in m:
+            if default is None:
+                raise SlitcliError(f"{self.source}: missing key '{name}'; add it (see "
+                                   "docs/scene.md)")
+            return default
+        v = m[k]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise self.err(name, f"= {v!r} is not a finite number", "give a number")
+        if low is not None and (v < low or (strict and v == low)):
+            raise self.err(name, f"= {v!r} is out of range",
+                           f"it must be {'>' if strict else '>='} {low:g}")
+        if high is not None and v > high:
+            raise self.err(name, f"= {v!r} is out of range", f"it must be <= {high:g}")
+        return float(v)
+
+    def vec(self, m: Mapping[str, Any], k: str, key: str, n: int,
+            default: tuple[float, ...] | None = None) -> tuple[float, ...]:
+        name = f"{key}.{k}"
+        if k not in m:
+            if default is None:
+                raise SlitcliError(f"{self.source}: missing key '{name}'; add it as a list of "
+                                   f"{n} numbers")
+            return default
+        v = m[k]
+        if (not isinstance(v, list | tuple) or len(v) != n
+                or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                           and math.isfinite(x) for x in v)):
+            raise self.err(name, f"= {v!r} is not a list of {n} numbers",
+                           f"give [{', '.join(['number'] * n)}]")
+        return tuple(float(x) for x in v)
+
+
+def _surface(r: _Keys, v: Any, key: str) -> Surface:
+    m = r.mapping(v, key, ("colour_rgb", "texture", "scale_m", "contrast", "seed"))
+    texture = m.get("texture", "noise")
+    if texture not in ("noise", "plain"):
+        raise r.err(f"{key}.texture", f"= {texture!r} is unknown", "use noise or plain")
+    colour = r.vec(m, "colour_rgb", key, 3, (0.6, 0.6, 0.6))
+    if min(colour) < 0 or max(colour) > 1:
+        raise r.err(f"{key}.colour_rgb", f"= {list(colour)} is out of range",
+                    "give albedos between 0 and 1")
+    seed = m.get("seed")
+    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
+        raise r.err(f"{key}.seed", f"= {seed!r} is not a whole number", "give an integer")
+    return Surface(colour_rgb=colour, texture=texture,
+                   scale_m=r.num(m, "scale_m", key, 0.02, low=0.0, strict=True),
+                   contrast=r.num(m, "contrast", key, 0.6, low=0.0, high=1.0), seed=seed)
+
+
+def _pose(r: _Keys, v: Any, key: str) -> Pose2D:
+    if isinstance(v, list | tuple):
+        v = dict(zip(("x_m", "y_m", "yaw_deg"), v, strict=False))
+    m = r.mapping(v, key, ("x_m", "y_m", "yaw_deg"))
+    return Pose2D(r.num(m, "x_m", key, 0.0), r.num(m, "y_m", key, 0.0),
+                  math.radians(r.num(m, "yaw_deg", key, 0.0)))
+
+
+def _obstacle(r: _Keys, v: Any, key: str) -> Obstacle:
+    if not isinstance(v, Mapping) or "type" not in v:
+        raise r.err(key, "needs a 'type'", "use type: box, cylinder or wall")
+    kind = v["type"]
+    rest = {k: x for k, x in v.items() if k != "type"}
+    common = ("z_min_m", "surface")
+    if kind == "box":
+        m = r.mapping(rest, key, ("centre_xy_m", "size_m", "yaw_deg", *common))
+        size = r.vec(m, "size_m", key, 3)
+        if min(size) <= 0:
+            raise r.err(f"{key}.size_m", f"= {list(size)} has a non-positive size",
+                        "give positive lengths in metres")
+        return Box(r.vec(m, "centre_xy_m", key, 2), size, r.num(m, "yaw_deg", key, 0.0),
+                   r.num(m, "z_min_m", key, 0.0, low=0.0), _surface(r, m.get("surface"),
+                                                                   f"{key}.surface"))
+    if kind == "cylinder":
+        m = r.mapping(rest, key, ("centre_xy_m", "radius_m", "height_m", *common))
+        return Cylinder(r.vec(m, "centre_xy_m", key, 2),
+                        r.num(m, "radius_m", key, low=0.0, strict=True),
+                        r.num(m, "height_m", key, low=0.0, strict=True),
+                        r.num(m, "z_min_m", key, 0.0, low=0.0),
+                        _surface(r, m.get("surface"), f"{key}.surface"))
+    if kind == "wall":
+        m = r.mapping(rest, key, ("from_xy_m", "to_xy_m", "height_m", *common))
+        a, b = r.vec(m, "from_xy_m", key, 2), r.vec(m, "to_xy_m", key, 2)
+        if a == b:
+            raise r.err(f"{key}.to_xy_m", "equals from_xy_m", "give two different points")
+        return Wall(a, b, r.num(m, "height_m", key, low=0.0, strict=True),
+                    r.num(m, "z_min_m", key, 0.0, low=0.0),
+                    _surface(r, m.get("surface"), f"{key}.surface"))
+    raise r.err(f"{key}.type", f"= {kind!r} is unknown", "use box, cylinder or wall")
+
+
+_TOP = ("slitcli_scene", "name", "seed", "floor", "objects", "highlights", "laser", "image",
+        "robot", "goal_xy_m", "max_range_m")
+
+
+def scene_from_dict(data: Any, source: str = "scene") -> Scene:
+    """Validate a parsed scene mapping (docs/scene.md) and build the :class:`Scene`."""
+    r = _Keys(source)
+    if not isinstance(data, Mapping):
+        raise SlitcliError(f"{source}: a scene file must be a mapping with 'slitcli_scene: 1'; "
+                           "see docs/scene.md")
+    for k in data:
+        if k not in _TOP:
+            import difflib
+
+            close = difflib.get_close_matches(str(k), _TOP, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else f"allowed keys: {', '.join(_TOP)}"
+            raise SlitcliError(f"{source}: unknown key '{k}'; {hint}")
+    if data.get("slitcli_scene") != SCHEMA_VERSION:
+        raise r.err("slitcli_scene", f"= {data.get('slitcli_scene')!r} is not a schema version "
+                    "this slitcli reads", f"set slitcli_scene: {SCHEMA_VERSION}")
+    seed = data.get("seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        raise r.err("seed", f"= {seed!r} is not a whole number", "give an integer")
+    objs = data.get("objects") or []
+    if not isinstance(objs, list):
+        raise r.err("objects", "must be a list", "give a list of box/cylinder/wall entries")
+    objects = tuple(_obstacle(r, o, f"objects[{i}]") for i, o in enumerate(objs))
+    hls = data.get("highlights") or []
+    if not isinstance(hls, list):
+        raise r.err("highlights", "must be a list", "give a list of highlight entries")
+    highlights = []
+    for i, h in enumerate(hls):
+        key = f"highlights[{i}]"
+        m = r.mapping(h, key, ("position_xyz_m", "radius_m", "brightness"))
+        highlights.append(Highlight(r.vec(m, "position_xyz_m", key, 3),
+                                    r.num(m, "radius_m", key, 0.03, low=0.0, strict=True),
+                                    r.num(m, "brightness", key, 1.5, low=0.0)))
+    lm = r.mapping(data.get("laser"), "laser", tuple(LaserLook.__dataclass_fields__))
+    d = LaserLook()
+    enabled = lm.get("enabled", True)
+    if not isinstance(enabled, bool):
+        raise r.err("laser.enabled", f"= {enabled!r} is not true/false", "give true or false")
+    laser = LaserLook(
+        enabled=enabled,
+        width_m=r.num(lm, "width_m", "laser", d.width_m, low=0.0, strict=True),
+        power_dn=r.num(lm, "power_dn", "laser", d.power_dn, low=0.0),
+        ref_range_m=r.num(lm, "ref_range_m", "laser", d.ref_range_m, low=0.0, strict=True),
+        falloff_exponent=r.num(lm, "falloff_exponent", "laser", d.falloff_exponent, low=0.0),
+        crosstalk=r.num(lm, "crosstalk", "laser", d.crosstalk, low=0.0, high=1.0),
+        fan_deg=r.num(lm, "fan_deg", "laser", d.fan_deg, low=0.0, high=90.0, strict=True),
+        visible_min_dn=r.num(lm, "visible_min_dn", "laser", d.visible_min_dn, low=0.0),
+    )
+    im = r.mapping(data.get("image"), "image", tuple(ImageLook.__dataclass_fields__))
+    di = ImageLook()
+    ss = im.get("supersample", di.supersample)
+    if not isinstance(ss, int) or isinstance(ss, bool) or not 1 <= ss <= 8:
+        raise r.err("image.supersample", f"= {ss!r} is out of range", "give a whole number 1-8")
+    image = ImageLook(
+        noise_sigma_dn=r.num(im, "noise_sigma_dn", "image", di.noise_sigma_dn, low=0.0),
+        supersample=ss,
+        exposure=r.num(im, "exposure", "image", di.exposure, low=0.0, strict=True),
+        ambient=r.num(im, "ambient", "image", di.ambient, low=0.0, high=1.0),
+        light_dir_xyz=r.vec(im, "light_dir_xyz", "image", 3, di.light_dir_xyz),
+    )
+    robot = _robot(r, data.get("robot"))
+    goal = None
+    if data.get("goal_xy_m") is not None:
+        goal = r.vec(data, "goal_xy_m", "scene", 2)
+    floor = _surface(r, data.get("floor"), "floor") if data.get("floor") is not None else \
+        Scene.__dataclass_fields__["floor"].default_factory()
+    return Scene(
+        name=str(data.get("name", Path(source).stem)), seed=seed, floor=floor, objects=objects,
+        highlights=tuple(highlights), laser=laser, image=image, robot=robot, goal_xy_m=goal,
+        max_range_m=r.num(data, "max_range_m", "scene", 5.0, low=0.0, strict=True),
+    )
+
+
+def _robot(r: _Keys, v: Any) -> Robot:
+    m = r.mapping(v, "robot", ("start", "motion", "speed_mps", "yaw_rate_dps", "poses",
+                               "frames", "frame_rate_hz", "radius_m", "height_m"))
+    motion = m.get("motion", "static")
+    if motion not in ("static", "straight", "poses"):
+        raise r.err("robot.motion", f"= {motion!r} is unknown", "use static, straight or poses")
+    poses = tuple(_pose(r, p, f"robot.poses[{i}]") for i, p in enumerate(m.get("poses") or []))
+    if motion == "poses" and not poses:
+        raise r.err("robot.poses", "is empty", "list at least one [x_m, y_m, yaw_deg] pose")
+    frames = m.get("frames", len(poses) if motion == "poses" else 1)
+    if not isinstance(frames, int) or isinstance(frames, bool) or frames < 1:
+        raise r.err("robot.frames", f"= {frames!r} is not a positive whole number",
+                    "give the number of frames to render")
+    if motion == "poses" and frames > len(poses):
+        raise r.err("robot.frames", f"= {frames} exceeds the {len(poses)} poses listed",
+                    "list more poses or render fewer frames")
+    return Robot(
+        start=_pose(r, m.get("start"), "robot.start") if m.get("start") is not None else
+        Pose2D(0.0, 0.0, 0.0),
+        motion=motion, speed_mps=r.num(m, "speed_mps", "robot", 0.0),
+        yaw_rate_dps=r.num(m, "yaw_rate_dps", "robot", 0.0), poses=poses, frames=frames,
+        frame_rate_hz=r.num(m, "frame_rate_hz", "robot", 5.0, low=0.0, strict=True),
+        radius_m=r.num(m, "radius_m", "robot", 0.25, low=0.0, strict=True),
+        height_m=r.num(m, "height_m", "robot", 0.8, low=0.0, strict=True),
+    )
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene YAML file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise SlitcliError(f"{p}: scene file not found; check the path (examples in "
+                           "sample_data/)") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise SlitcliError(f"{p}: cannot read the scene file ({e.__class__.__name__}); check "
+                           "the path and permissions") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise SlitcliError(f"{p}: not valid YAML{where}; fix the syntax") from None
+    return scene_from_dict(data, source=str(p))

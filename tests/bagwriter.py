@@ -1,0 +1,47 @@
+"""Write small ROS 1 / ROS 2 bags of stereo frames with the rosbags Writer (test helper)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+
+IMAGE = "sensor_msgs/msg/Image"
+
+
+def _image(ts, t_ns: int, bgr: np.ndarray):
+    types = ts.types
+    header_cls = types["std_msgs/msg/Header"]
+    extra = {"seq": 0} if "seq" in header_cls.__dataclass_fields__ else {}
+    stamp = types["builtin_interfaces/msg/Time"](sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+    return types[IMAGE](header=header_cls(stamp=stamp, frame_id="cam", **extra),
+                        height=bgr.shape[0], width=bgr.shape[1], encoding="bgr8",
+                        is_bigendian=0, step=bgr.shape[1] * 3,
+                        data=np.ascontiguousarray(bgr).reshape(-1))
+
+
+def write_bag(path: Path, frames: list[tuple[np.ndarray, np.ndarray]], *, ros: int,
+              t0_ns: int = 1_700_000_000 * 10**9, dt_ns: int = 200_000_000,
+              right_offset_ns: int = 2_000_000, right_divisor: int = 1,
+              storage: str = "sqlite3") -> Path:
+    """Frames as /stereo/left/image_raw and /stereo/right/image_raw; returns the bag path."""
+    if ros == 1:
+        ts = get_typestore(Stores.ROS1_NOETIC)
+        writer, ser = Writer1(path), ts.serialize_ros1
+    else:
+        ts = get_typestore(Stores.ROS2_HUMBLE)
+        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+        writer, ser = Writer2(path, version=9, storage_plugin=plugin), ts.serialize_cdr
+    with writer as w:
+        cl = w.add_connection("/stereo/left/image_raw", IMAGE, typestore=ts)
+        cr = w.add_connection("/stereo/right/image_raw", IMAGE, typestore=ts)
+        for i, (left, right) in enumerate(frames):
+            t = t0_ns + i * dt_ns
+            tr = (t + right_offset_ns) // right_divisor
+            w.write(cl, t, ser(_image(ts, t, left), IMAGE))
+            w.write(cr, t + right_offset_ns, ser(_image(ts, tr, right), IMAGE))
+    return path
