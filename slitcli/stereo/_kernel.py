@@ -15,7 +15,7 @@ import numpy as np
 
 # An energy-free window (all zeros after prefiltering) makes Eq. 10 0/0; its inverse
 # norm is set to this so every candidate that touches it costs more than any real one.
-BIG_INV = np.float32(1e20)
+BIG_INV = np.float32(1e30)
 # Added to the SSD so that 0 * BIG_INV**2 (two empty windows) becomes +inf, not 0.
 SSD_EPS = np.float32(1e-3)
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}  # no nnan/ninf: +inf marks impossible costs
@@ -166,7 +166,7 @@ def _window_energy(v, prefix, inv, m):
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
 def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-          disp_out, reason_out):
+          disp_out, cost_out, reason_out):
     height, width = pl.shape
     win = 2 * m + 1
     colsum = np.zeros((num, width + 2 * m), np.float32)
@@ -262,6 +262,7 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
         for x in range(width):
             i = best_i[x]
             c1v = cost[i, x] if i >= 0 else inf
+            cost_out[y, x] = c1v
             if i < 0 or not (c1v < inf):
                 disp_out[y, x] = np.nan
                 reason_out[y, x] = REASON_NO_CANDIDATE
@@ -287,11 +288,58 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
 
 @nb.njit(cache=True, parallel=True, nogil=True)
 def nssd_match(pl, pr, dmin, num, m, n, uniq, lr_tol, subpixel, bands,
-               disp_out, reason_out):
+               disp_out, cost_out, reason_out):
     """Match rows in parallel bands; see :func:`slitcli.stereo.matcher.match_nssd`."""
     height = pl.shape[0]
     for b in nb.prange(bands):
         y0 = b * height // bands
         y1 = (b + 1) * height // bands
         _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-              disp_out, reason_out)
+              disp_out, cost_out, reason_out)
+
+
+@nb.njit(cache=True, parallel=True, nogil=True)
+def local_zncc(gl, gr, disp, r, out):
+    """Zero-mean normalised correlation of the (2r+1)^2 neighbourhood at each disparity.
+
+    For every pixel with a finite ``disp`` the left window around (x, y) is compared
+    with the right window around (x - disp, y), the right image linearly interpolated
+    along x; windows are clipped to the image. ``out`` gets the correlation in
+    [-1, 1], 0 for flat windows and NaN where ``disp`` is NaN.
+    """
+    height, width = gl.shape
+    for y in nb.prange(height):
+        for x in range(width):
+            d = disp[y, x]
+            if not (d == d):
+                out[y, x] = np.nan
+                continue
+            n = 0
+            sl = 0.0
+            sr = 0.0
+            sll = 0.0
+            srr = 0.0
+            slr = 0.0
+            for yy in range(max(0, y - r), min(height, y + r + 1)):
+                for xl in range(max(0, x - r), min(width, x + r + 1)):
+                    xr = xl - d
+                    if xr < 0.0 or xr > width - 1:
+                        continue
+                    x0 = int(np.floor(xr))
+                    t = xr - x0
+                    x1 = min(x0 + 1, width - 1)
+                    a = float(gl[yy, xl])
+                    b = (1.0 - t) * float(gr[yy, x0]) + t * float(gr[yy, x1])
+                    n += 1
+                    sl += a
+                    sr += b
+                    sll += a * a
+                    srr += b * b
+                    slr += a * b
+            if n < 2:
+                out[y, x] = np.nan
+                continue
+            vl = sll - sl * sl / n
+            vr = srr - sr * sr / n
+            cov = slr - sl * sr / n
+            out[y, x] = cov / np.sqrt(vl * vr) if vl > 1e-9 and vr > 1e-9 else 0.0

@@ -31,6 +31,12 @@ all optional and each measured in docs/stereo.md:
 - left-right consistency from the same cost values: the right pixel x - d must
   pick (within ``lr_max_diff_px``) the same disparity when it looks for its own
   best left match along the same costs, so no second full match is run;
+- local support: the winning disparity must also hold for the pixel's own close
+  neighbourhood: the zero-mean normalised correlation of the ``(2 r + 1)^2`` grey
+  windows (r = ``support_radius_px``) at that disparity must reach
+  ``support_min_zncc``. A 9 x 9 window still matches a textureless pixel next to an
+  edge or a textured neighbour (and often gives it the neighbour's disparity); this
+  check keeps only pixels whose own surroundings carry the match;
 - speckle removal: connected regions of at most ``speckle_window_px`` pixels
   whose disparities differ by at most ``speckle_range_px`` are removed.
 
@@ -60,6 +66,7 @@ REASON_UNIQUENESS = 3
 REASON_LEFT_RIGHT = 4
 REASON_SPECKLE = 5
 REASON_OPENCV = 6
+REASON_SUPPORT = 7
 REASON_NAMES = {
     REASON_VALID: "valid",
     REASON_NO_CANDIDATE: "no candidate (disparity range or empty window)",
@@ -68,6 +75,7 @@ REASON_NAMES = {
     REASON_LEFT_RIGHT: "left-right",
     REASON_SPECKLE: "speckle",
     REASON_OPENCV: "rejected by the OpenCV matcher",
+    REASON_SUPPORT: "local support",
 }
 
 # Prefiltered images are stored as integers in units of 1/_QUANT DN: every window
@@ -96,8 +104,10 @@ class MatcherParams:
     prefilter_cap_dn: float = 15.0
     log_sigma_px: float = 1.0
     texture_min_dn: float = 1.0
-    uniqueness_ratio: float = 0.2
+    uniqueness_ratio: float = 0.15
     lr_max_diff_px: int = 1
+    support_radius_px: int = 1
+    support_min_zncc: float = 0.5
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
@@ -133,6 +143,9 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         raise SlitcliError(f"--texture-min {p.texture_min_dn} must be >= 0 DN (0 = off)")
     if not p.uniqueness_ratio >= 0:
         raise SlitcliError(f"--uniqueness {p.uniqueness_ratio} must be >= 0 (0 = off)")
+    if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0:
+        raise SlitcliError("--support-radius must be >= 1 px and --support-min in [-1, 1] "
+                           "(0 = off)")
     if p.speckle_window_px < 0 or not p.speckle_range_px >= 0:
         raise SlitcliError("--speckle-window and --speckle-range must be >= 0 (0 = off)")
     if p.matcher in ("bm", "sgbm"):
@@ -166,10 +179,13 @@ class DisparityResult:
     invalid_reason : ndarray, uint8, shape (H, W)
         0 for valid pixels, else the first filter that rejected the pixel
         (``REASON_*`` codes, see :data:`REASON_NAMES`).
+    match_cost : ndarray, float32, shape (H, W) or None
+        Eq. 10 cost of the winning disparity (``nssd`` only; +inf where none).
     """
 
     disparity_px: np.ndarray
     invalid_reason: np.ndarray
+    match_cost: np.ndarray | None = None
 
     @property
     def valid(self) -> np.ndarray:
@@ -251,20 +267,27 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     m = params.window_w_px // 2
     n = params.window_h_px // 2
     disp = np.empty((h, w), np.float32)
+    cost = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     bands = max(1, min(h, _kernel_threads()))
     _kernel.nssd_match(pl, pr, int(params.min_disparity_px), int(params.num_disparities),
                        int(m), int(n), float(params.uniqueness_ratio),
                        float(params.lr_max_diff_px), params.subpixel == "parabola",
-                       int(bands), disp, reason)
+                       int(bands), disp, cost, reason)
     if params.texture_min_dn > 0:
         scale = 1.0 if params.prefilter == "none" else _QUANT
         std = window_std_dn(pl, params.window_w_px, params.window_h_px) / scale
         weak = (std < params.texture_min_dn) & (reason == REASON_VALID)
         reason[weak] = REASON_TEXTURE
+    if params.support_min_zncc != 0:
+        zncc = np.empty((h, w), np.float32)
+        cand = np.where(reason == REASON_VALID, disp, np.float32(np.nan))
+        _kernel.local_zncc(np.ascontiguousarray(left_grey), np.ascontiguousarray(right_grey),
+                           cand, int(params.support_radius_px), zncc)
+        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
-    return DisparityResult(disp, reason)
+    return DisparityResult(disp, reason, cost)
 
 
 def _kernel_threads() -> int:
