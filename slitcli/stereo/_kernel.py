@@ -2,10 +2,11 @@
 
 The kernel walks the image one row at a time and keeps, per disparity, the running
 vertical window sums of squared differences (``num_disparities x width`` floats per
-thread), so the full cost volume is never stored. Loops run over 0-based slices
-because numba's negative-index wraparound on offset indices would stop LLVM from
-vectorising them. The kernel is compiled on first use and cached on disk
-(``cache=True``), so only the first run on a machine pays the compile.
+thread), so the full cost volume is never stored. Hot loops index whole arrays with
+unsigned (uint64) indices: numba's negative-index wraparound on signed offsets would
+stop LLVM from vectorising them, and array slices would cost an atomic reference
+count each. The kernel is compiled on first use and cached on disk (``cache=True``),
+so only the first run on a machine pays the compile.
 """
 
 from __future__ import annotations
@@ -28,97 +29,97 @@ REASON_UNIQUENESS = 3
 REASON_LEFT_RIGHT = 4
 
 
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _add_group(out, s, k0, size, first):
-    """``out[x] (+)= s[x+k0] + ... + s[x+k0+size-1]`` for size in {1, 2, 4, 8}."""
-    width = out.shape[0]
-    a = s[k0:k0 + width + size - 1]
-    if size == 8:
-        if first:
-            for x in range(width):
-                out[x] = (a[x] + a[x + 1] + a[x + 2] + a[x + 3]
-                          + a[x + 4] + a[x + 5] + a[x + 6] + a[x + 7])
-        else:
-            for x in range(width):
-                out[x] += (a[x] + a[x + 1] + a[x + 2] + a[x + 3]
-                           + a[x + 4] + a[x + 5] + a[x + 6] + a[x + 7])
-    elif size == 4:
-        if first:
-            for x in range(width):
-                out[x] = a[x] + a[x + 1] + a[x + 2] + a[x + 3]
-        else:
-            for x in range(width):
-                out[x] += a[x] + a[x + 1] + a[x + 2] + a[x + 3]
-    elif size == 2:
-        if first:
-            for x in range(width):
-                out[x] = a[x] + a[x + 1]
-        else:
-            for x in range(width):
-                out[x] += a[x] + a[x + 1]
-    else:
-        if first:
-            for x in range(width):
-                out[x] = a[x]
-        else:
-            for x in range(width):
-                out[x] += a[x]
+_U = nb.uint64
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _box_row_but_last(out, s, win):
-    """``out[x] = s[x] + ... + s[x+win-2]``: all but the last term of a window sum.
-
-    The window width is odd, so its last term is added by the caller's fused loop;
-    the rest goes in unrolled groups of 8, 4 and 2 that LLVM vectorises over x.
-    """
-    k = 0
-    first = True
-    rest = win - 1
-    while rest - k >= 8:
-        _add_group(out, s, k, 8, first)
-        first = False
-        k += 8
-    for size in (4, 2):
-        if rest - k >= size:
-            _add_group(out, s, k, size, first)
-            first = False
-            k += size
-    if first:
-        out[:] = 0.0
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _colsum_step(row, pl_add, pr_add, pl_sub, pr_sub, do_add, do_sub, d):
-    """Slide one disparity's vertical window sums of squared differences down a row."""
-    width = pl_add.shape[0]
+def _colsum_step(colsum, i, pl, pr, ra, rs, do_add, do_sub, d, m, width):
+    """Slide disparity i's vertical window sums of squared differences down one row."""
     lo = max(0, d)
     hi = min(width, width + d)
     if lo >= hi:
         return
-    r = row[lo:hi]
-    a = pl_add[lo:hi]
-    b = pr_add[lo - d:hi - d]
-    e = pl_sub[lo:hi]
-    f = pr_sub[lo - d:hi - d]
+    n = _U(hi - lo)
+    ui = _U(i)
+    cb = _U(m + lo)
+    lb = _U(lo)
+    rb = _U(lo - d)
+    ua = _U(ra)
+    us = _U(rs)
     if do_add and do_sub:
-        for j in range(hi - lo):
-            t = a[j] - b[j]
-            u = e[j] - f[j]
-            r[j] += t * t - u * u
+        for j in range(n):
+            t = pl[ua, lb + j] - pr[ua, rb + j]
+            u = pl[us, lb + j] - pr[us, rb + j]
+            colsum[ui, cb + j] += t * t - u * u
     elif do_add:
-        for j in range(hi - lo):
-            t = a[j] - b[j]
-            r[j] += t * t
+        for j in range(n):
+            t = pl[ua, lb + j] - pr[ua, rb + j]
+            colsum[ui, cb + j] += t * t
     elif do_sub:
-        for j in range(hi - lo):
-            u = e[j] - f[j]
-            r[j] -= u * u
+        for j in range(n):
+            u = pl[us, lb + j] - pr[us, rb + j]
+            colsum[ui, cb + j] -= u * u
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _border_cost(crow, ssd, last, cly, cry, x0, x1, lo, hi, d, m):
+def _box_but_last(ssd, colsum, i, win, width):
+    """``ssd[x] = colsum[i, x] + ... + colsum[i, x + win - 2]`` (all but the last term).
+
+    The window width is odd, so its last term is added by the caller's cost loop; the
+    rest goes in unrolled groups of 8, 4 and 2 that LLVM vectorises over x.
+    """
+    ui = _U(i)
+    w = _U(width)
+    k = 0
+    first = True
+    rest = win - 1
+    while rest - k >= 8:
+        o = _U(k)
+        if first:
+            for x in range(w):
+                ssd[x] = (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+                          + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)]
+                          + colsum[ui, o + x + _U(4)] + colsum[ui, o + x + _U(5)]
+                          + colsum[ui, o + x + _U(6)] + colsum[ui, o + x + _U(7)])
+        else:
+            for x in range(w):
+                ssd[x] += (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+                           + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)]
+                           + colsum[ui, o + x + _U(4)] + colsum[ui, o + x + _U(5)]
+                           + colsum[ui, o + x + _U(6)] + colsum[ui, o + x + _U(7)])
+        first = False
+        k += 8
+    if rest - k >= 4:
+        o = _U(k)
+        if first:
+            for x in range(w):
+                ssd[x] = (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+                          + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)])
+        else:
+            for x in range(w):
+                ssd[x] += (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+                           + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)])
+        first = False
+        k += 4
+    if rest - k >= 2:
+        o = _U(k)
+        if first:
+            for x in range(w):
+                ssd[x] = colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+        else:
+            for x in range(w):
+                ssd[x] += colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
+        first = False
+        k += 2
+    if first:
+        for x in range(w):
+            ssd[x] = 0.0
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _border_cost(cost, i, ssd, colsum, cly, cry, x0, x1, lo, hi, d, m):
     """Eq. 10 with the window clipped to the columns both images have (left/right edges)."""
+    win = 2 * m + 1
     for x in range(x0, x1):
         c0 = max(x - m, lo)
         c1 = min(x + m, hi - 1)
@@ -129,21 +130,24 @@ def _border_cost(crow, ssd, last, cly, cry, x0, x1, lo, hi, d, m):
                            np.float32(1.0) / np.sqrt(max(sl, sr)))
         else:
             f = np.float32(1.0) / np.sqrt(sl * sr)
-        crow[x] = (ssd[x] + last[x] + SSD_EPS) * f
+        cost[i, x] = (ssd[x] + colsum[i, x + win - 1] + SSD_EPS) * f
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _slide_energy(v, add, sub, do_add, do_sub):
-    """Slide the vertical window sum of squared intensities ``v`` down one row."""
+def _slide_energy(v, img, ra, rs, do_add, do_sub):
+    """Slide the vertical window sums of squared intensities ``v`` down one row."""
+    w = _U(v.shape[0])
+    ua = _U(ra)
+    us = _U(rs)
     if do_add and do_sub:
-        for c in range(v.shape[0]):
-            v[c] += add[c] * add[c] - sub[c] * sub[c]
+        for c in range(w):
+            v[c] += img[ua, c] * img[ua, c] - img[us, c] * img[us, c]
     elif do_add:
-        for c in range(v.shape[0]):
-            v[c] += add[c] * add[c]
+        for c in range(w):
+            v[c] += img[ua, c] * img[ua, c]
     elif do_sub:
-        for c in range(v.shape[0]):
-            v[c] -= sub[c] * sub[c]
+        for c in range(w):
+            v[c] -= img[us, c] * img[us, c]
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
@@ -171,19 +175,16 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
     win = 2 * m + 1
     colsum = np.zeros((num, width + 2 * m), np.float32)
     cost = np.empty((num, width), np.float32)
-    ssd = np.empty(width, np.float32)
     cost_bits = cost.view(np.int32)
+    ssd = np.empty(width, np.float32)
     lkey = np.empty(width, np.int32)
     rkey = np.empty(width, np.int32)
     best_i = np.empty(width, np.int32)
     rbest_i = np.empty(width, np.int32)
     second = np.empty(width, np.float32)
-    index_bits = 1
-    while (1 << index_bits) < num:
-        index_bits += 1
-    index_mask = np.int32((1 << index_bits) - 1)
-    key_mask = np.int32(~index_mask)
-    inf_key = np.int32(0x7F800000 & ~index_mask)
+    c_0 = np.empty(width, np.float32)
+    c_m = np.empty(width, np.float32)
+    c_p = np.empty(width, np.float32)
     vl = np.zeros(width, np.float32)
     vr = np.zeros(width, np.float32)
     cly = np.empty(width + 1, np.float64)
@@ -191,20 +192,24 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
     il = np.empty(width, np.float32)
     ir = np.empty(width, np.float32)
     inf = np.float32(np.inf)
+    index_bits = 1
+    while (1 << index_bits) < num:
+        index_bits += 1
+    index_mask = np.int32((1 << index_bits) - 1)
+    key_mask = np.int32(~index_mask)
+    inf_key = np.int32(0x7F800000 & ~index_mask)
     for r in range(max(0, y0 - n), min(height, y0 + n + 1)):
-        _slide_energy(vl, pl[r], pl[r], True, False)
-        _slide_energy(vr, pr[r], pr[r], True, False)
+        _slide_energy(vl, pl, r, r, True, False)
+        _slide_energy(vr, pr, r, r, True, False)
         for i in range(num):
-            _colsum_step(colsum[i, m:m + width], pl[r], pr[r], pl[r], pr[r], True, False,
-                         dmin + i)
+            _colsum_step(colsum, i, pl, pr, r, r, True, False, dmin + i, m, width)
     for y in range(y0, y1):
         ra = min(y + n, height - 1)
         rs = max(y - n - 1, 0)
         do_add = y > y0 and y + n < height
         do_sub = y > y0 and y - n - 1 >= 0
-        pla, pra, pls, prs = pl[ra], pr[ra], pl[rs], pr[rs]
-        _slide_energy(vl, pla, pls, do_add, do_sub)
-        _slide_energy(vr, pra, prs, do_add, do_sub)
+        _slide_energy(vl, pl, ra, rs, do_add, do_sub)
+        _slide_energy(vr, pr, ra, rs, do_add, do_sub)
         _window_energy(vl, cly, il, m)
         _window_energy(vr, cry, ir, m)
         lkey[:] = inf_key
@@ -213,55 +218,64 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
             d = dmin + i
             lo = max(0, d)
             hi = min(width, width + d)
-            crow = cost[i]
-            srow = colsum[i]
-            _colsum_step(srow[m:m + width], pla, pra, pls, prs, do_add, do_sub, d)
+            ui = _U(i)
+            _colsum_step(colsum, i, pl, pr, ra, rs, do_add, do_sub, d, m, width)
+            for x in range(0, max(lo, 0)):
+                cost[i, x] = inf
+            for x in range(max(hi, 0), width):
+                cost[i, x] = inf
             if lo >= hi:
-                crow[:] = inf
                 continue
-            crow[:lo] = inf
-            crow[hi:] = inf
-            _box_row_but_last(ssd, srow, win)
-            last = srow[win - 1:win - 1 + width]
+            _box_but_last(ssd, colsum, i, win, width)
             # interior: the whole window lies where both images have data
             a = min(lo + m, hi)
             b = max(hi - m, a)
-            ci = crow[a:b]
-            si = ssd[a:b]
-            la = last[a:b]
-            li = il[a:b]
-            ri = ir[a - d:b - d]
-            for j in range(b - a):
-                ci[j] = (si[j] + la[j] + SSD_EPS) * li[j] * ri[j]
+            ua = _U(a)
+            ur = _U(a - d)
+            ul = _U(win - 1) + ua
+            for j in range(_U(b - a)):
+                cost[ui, ua + j] = ((ssd[ua + j] + colsum[ui, ul + j] + SSD_EPS)
+                                    * il[ua + j] * ir[ur + j])
             # borders: the window clipped to the columns both images have (masked Eq. 10)
-            _border_cost(crow, ssd, last, cly, cry, lo, a, lo, hi, d, m)
-            _border_cost(crow, ssd, last, cly, cry, b, hi, lo, hi, d, m)
+            _border_cost(cost, i, ssd, colsum, cly, cry, lo, a, lo, hi, d, m)
+            _border_cost(cost, i, ssd, colsum, cly, cry, b, hi, lo, hi, d, m)
             # winner-take-all for the left and the right image at once on packed
             # (cost bits | index) keys: one vectorised integer min per side
             ii = np.int32(i)
-            ck = cost_bits[i, lo:hi]
-            lk = lkey[lo:hi]
-            rk = rkey[lo - d:hi - d]
-            for j in range(hi - lo):
-                k = np.int32(np.int32(ck[j] & key_mask) | ii)
-                lk[j] = k if k < lk[j] else lk[j]
-                rk[j] = k if k < rk[j] else rk[j]
+            ulo = _U(lo)
+            urr = _U(lo - d)
+            for j in range(_U(hi - lo)):
+                k = np.int32(np.int32(cost_bits[ui, ulo + j] & key_mask) | ii)
+                lk = lkey[ulo + j]
+                lkey[ulo + j] = k if k < lk else lk
+                rk = rkey[urr + j]
+                rkey[urr + j] = k if k < rk else rk
         for x in range(width):
             best_i[x] = np.int32(lkey[x] & index_mask) if lkey[x] < inf_key else -1
             rbest_i[x] = np.int32(rkey[x] & index_mask) if rkey[x] < inf_key else -1
-        if uniq > 0.0:
-            second[:] = inf
-            for i in range(num):
-                crow = cost[i]
-                ii = np.int32(i)
-                for x in range(width):
-                    c = crow[x]
-                    bi = best_i[x]
-                    far = (ii < bi - 1) or (ii > bi + 1)
-                    second[x] = c if (far and c < second[x]) else second[x]
+        # costs around each winner, kept for the parabola before they are masked out
         for x in range(width):
             i = best_i[x]
-            c1v = cost[i, x] if i >= 0 else inf
+            c_0[x] = cost[i, x] if i >= 0 else inf
+            c_m[x] = cost[i - 1, x] if i >= 1 else inf
+            c_p[x] = cost[i + 1, x] if 0 <= i < num - 1 else inf
+        if uniq > 0.0:
+            # second best away from the winner: mask winner +-1, then a plain min
+            for x in range(width):
+                i = best_i[x]
+                for k in range(max(i - 1, 0), min(i + 2, num)):
+                    cost[k, x] = inf
+            second[:] = inf
+            uw = _U(width)
+            for i in range(num):
+                ui = _U(i)
+                for x in range(uw):
+                    c = cost[ui, x]
+                    s2 = second[x]
+                    second[x] = c if c < s2 else s2
+        for x in range(width):
+            i = best_i[x]
+            c1v = c_0[x]
             cost_out[y, x] = c1v
             if i < 0 or not (c1v < inf):
                 disp_out[y, x] = np.nan
@@ -270,8 +284,8 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
             d = dmin + i
             delta = np.float32(0.0)
             if subpixel and i > 0 and i < num - 1:
-                cm = cost[i - 1, x]
-                cp = cost[i + 1, x]
+                cm = c_m[x]
+                cp = c_p[x]
                 den = cm - 2.0 * c1v + cp
                 if cm < inf and cp < inf and den > 0.0:
                     delta = np.float32(0.5 * (cm - cp) / den)
@@ -309,37 +323,39 @@ def local_zncc(gl, gr, disp, r, out):
     """
     height, width = gl.shape
     for y in nb.prange(height):
+        y0 = max(0, y - r)
+        y1 = min(height, y + r + 1)
         for x in range(width):
             d = disp[y, x]
             if not (d == d):
                 out[y, x] = np.nan
                 continue
-            n = 0
-            sl = 0.0
-            sr = 0.0
-            sll = 0.0
-            srr = 0.0
-            slr = 0.0
-            for yy in range(max(0, y - r), min(height, y + r + 1)):
-                for xl in range(max(0, x - r), min(width, x + r + 1)):
-                    xr = xl - d
-                    if xr < 0.0 or xr > width - 1:
-                        continue
-                    x0 = int(np.floor(xr))
-                    t = xr - x0
-                    x1 = min(x0 + 1, width - 1)
-                    a = float(gl[yy, xl])
-                    b = (1.0 - t) * float(gr[yy, x0]) + t * float(gr[yy, x1])
-                    n += 1
+            di = int(np.floor(d))
+            t = np.float32(d - di)
+            # right sample at xl - d = (1 - t) * gr[xl - di] + t * gr[xl - di - 1]
+            x0 = max(0, x - r, di + 1)
+            x1 = min(width, x + r + 1, width + di)
+            n = (y1 - y0) * (x1 - x0)
+            if n < 2:
+                out[y, x] = np.nan
+                continue
+            sl = np.float32(0.0)
+            sr = np.float32(0.0)
+            sll = np.float32(0.0)
+            srr = np.float32(0.0)
+            slr = np.float32(0.0)
+            for yy in range(y0, y1):
+                rowl = gl[yy]
+                rowr = gr[yy]
+                for xl in range(x0, x1):
+                    a = rowl[xl]
+                    b = (np.float32(1.0) - t) * rowr[xl - di] + t * rowr[xl - di - 1]
                     sl += a
                     sr += b
                     sll += a * a
                     srr += b * b
                     slr += a * b
-            if n < 2:
-                out[y, x] = np.nan
-                continue
             vl = sll - sl * sl / n
             vr = srr - sr * sr / n
             cov = slr - sl * sr / n
-            out[y, x] = cov / np.sqrt(vl * vr) if vl > 1e-9 and vr > 1e-9 else 0.0
+            out[y, x] = cov / np.sqrt(vl * vr) if vl > 1e-3 and vr > 1e-3 else 0.0

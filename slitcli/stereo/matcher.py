@@ -282,7 +282,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     if params.support_min_zncc != 0:
         zncc = np.empty((h, w), np.float32)
         cand = np.where(reason == REASON_VALID, disp, np.float32(np.nan))
-        _kernel.local_zncc(np.ascontiguousarray(left_grey), np.ascontiguousarray(right_grey),
+        _kernel.local_zncc(np.asarray(left_grey, np.float32), np.asarray(right_grey, np.float32),
                            cand, int(params.support_radius_px), zncc)
         reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
