@@ -33,10 +33,11 @@ all optional and each measured in docs/stereo.md:
   best left match along the same costs, so no second full match is run;
 - local support: the winning disparity must also hold for the pixel's own close
   neighbourhood: the zero-mean normalised correlation of the ``(2 r + 1)^2`` grey
-  windows (r = ``support_radius_px``) at that disparity must reach
-  ``support_min_zncc``. A 9 x 9 window still matches a textureless pixel next to an
-  edge or a textured neighbour (and often gives it the neighbour's disparity); this
-  check keeps only pixels whose own surroundings carry the match;
+  windows (r = ``support_radius_px``) of the left image and of the right image warped
+  by the winning disparities must reach ``support_min_zncc``. A 9 x 9 window still
+  matches a textureless pixel next to an edge or a textured neighbour (and often
+  gives it the neighbour's disparity); this check keeps only pixels whose own
+  surroundings carry the match;
 - speckle removal: connected regions of at most ``speckle_window_px`` pixels
   whose disparities differ by at most ``speckle_range_px`` are removed.
 
@@ -107,7 +108,7 @@ class MatcherParams:
     uniqueness_ratio: float = 0.15
     lr_max_diff_px: int = 1
     support_radius_px: int = 1
-    support_min_zncc: float = 0.5
+    support_min_zncc: float = 0.4
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
@@ -280,14 +281,42 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
         weak = (std < params.texture_min_dn) & (reason == REASON_VALID)
         reason[weak] = REASON_TEXTURE
     if params.support_min_zncc != 0:
-        zncc = np.empty((h, w), np.float32)
-        cand = np.where(reason == REASON_VALID, disp, np.float32(np.nan))
-        _kernel.local_zncc(np.asarray(left_grey, np.float32), np.asarray(right_grey, np.float32),
-                           cand, int(params.support_radius_px), zncc)
+        zncc = local_support_zncc(left_grey, right_grey, disp, params.support_radius_px)
         reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
+
+
+def local_support_zncc(left_grey: np.ndarray, right_grey: np.ndarray,
+                       disparity_px: np.ndarray, radius_px: int) -> np.ndarray:
+    """Zero-mean normalised correlation of each pixel's small neighbourhood at its match.
+
+    The right grey image is warped onto the left one by the winning disparities
+    (``right(x - d(x), y)``, bilinear) and correlated with the left image over
+    ``(2 radius + 1)^2`` windows, so a window is compared at the disparities of its own
+    pixels. NaN disparities (no candidate) warp with 0 and their pixels are invalid
+    anyway. Returns float32 (H, W) in [-1, 1]; 0 where a window is flat.
+    """
+    gl = np.asarray(left_grey, np.float32)
+    gr = np.asarray(right_grey, np.float32)
+    h, w = gl.shape
+    d = np.where(np.isfinite(disparity_px), disparity_px, np.float32(0.0))
+    map_x = np.arange(w, dtype=np.float32)[None, :] - d
+    map_y = np.repeat(np.arange(h, dtype=np.float32)[:, None], w, axis=1)
+    warped = cv2.remap(gr, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    k = (2 * radius_px + 1, 2 * radius_px + 1)
+
+    def box(a: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
+
+    ml, mr = box(gl), box(warped)
+    var_l = box(gl * gl) - ml * ml
+    var_r = box(warped * warped) - mr * mr
+    cov = box(gl * warped) - ml * mr
+    den = np.sqrt(np.maximum(var_l, 0.0) * np.maximum(var_r, 0.0))
+    flat = den < 1e-3
+    return np.where(flat, np.float32(0.0), cov / np.where(flat, np.float32(1.0), den))
 
 
 def _kernel_threads() -> int:
