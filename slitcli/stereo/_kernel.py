@@ -1,8 +1,11 @@
 """Numba kernel of the Eq. 10 matcher: cost rows, winner-take-all, uniqueness, left-right.
 
-The kernel walks the image one row at a time and keeps, per disparity, the running
-vertical window sums of squared differences (``num_disparities x width`` floats per
-thread), so the full cost volume is never stored. Hot loops index whole arrays with
+The kernel walks the image one row at a time and keeps, per column, the running
+vertical window sums of squared differences of all disparities (``width x
+num_disparities`` floats per thread, disparity-contiguous), so the full cost volume
+is never stored: a window sum slides along x with one add and one subtract per
+disparity whatever the window size, and the winner-take-all of a pixel is a min over
+a contiguous vector of packed (cost | index) keys. Hot loops index whole arrays with
 unsigned (uint64) indices: numba's negative-index wraparound on signed offsets would
 stop LLVM from vectorising them, and array slices would cost an atomic reference
 count each. The kernel is compiled on first use and cached on disk (``cache=True``),
@@ -30,107 +33,6 @@ REASON_LEFT_RIGHT = 4
 
 
 _U = nb.uint64
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _colsum_step(colsum, i, pl, pr, ra, rs, do_add, do_sub, d, m, width):
-    """Slide disparity i's vertical window sums of squared differences down one row."""
-    lo = max(0, d)
-    hi = min(width, width + d)
-    if lo >= hi:
-        return
-    n = _U(hi - lo)
-    ui = _U(i)
-    cb = _U(m + lo)
-    lb = _U(lo)
-    rb = _U(lo - d)
-    ua = _U(ra)
-    us = _U(rs)
-    if do_add and do_sub:
-        for j in range(n):
-            t = pl[ua, lb + j] - pr[ua, rb + j]
-            u = pl[us, lb + j] - pr[us, rb + j]
-            colsum[ui, cb + j] += t * t - u * u
-    elif do_add:
-        for j in range(n):
-            t = pl[ua, lb + j] - pr[ua, rb + j]
-            colsum[ui, cb + j] += t * t
-    elif do_sub:
-        for j in range(n):
-            u = pl[us, lb + j] - pr[us, rb + j]
-            colsum[ui, cb + j] -= u * u
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _box_but_last(ssd, colsum, i, win, width):
-    """``ssd[x] = colsum[i, x] + ... + colsum[i, x + win - 2]`` (all but the last term).
-
-    The window width is odd, so its last term is added by the caller's cost loop; the
-    rest goes in unrolled groups of 8, 4 and 2 that LLVM vectorises over x.
-    """
-    ui = _U(i)
-    w = _U(width)
-    k = 0
-    first = True
-    rest = win - 1
-    while rest - k >= 8:
-        o = _U(k)
-        if first:
-            for x in range(w):
-                ssd[x] = (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-                          + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)]
-                          + colsum[ui, o + x + _U(4)] + colsum[ui, o + x + _U(5)]
-                          + colsum[ui, o + x + _U(6)] + colsum[ui, o + x + _U(7)])
-        else:
-            for x in range(w):
-                ssd[x] += (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-                           + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)]
-                           + colsum[ui, o + x + _U(4)] + colsum[ui, o + x + _U(5)]
-                           + colsum[ui, o + x + _U(6)] + colsum[ui, o + x + _U(7)])
-        first = False
-        k += 8
-    if rest - k >= 4:
-        o = _U(k)
-        if first:
-            for x in range(w):
-                ssd[x] = (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-                          + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)])
-        else:
-            for x in range(w):
-                ssd[x] += (colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-                           + colsum[ui, o + x + _U(2)] + colsum[ui, o + x + _U(3)])
-        first = False
-        k += 4
-    if rest - k >= 2:
-        o = _U(k)
-        if first:
-            for x in range(w):
-                ssd[x] = colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-        else:
-            for x in range(w):
-                ssd[x] += colsum[ui, o + x] + colsum[ui, o + x + _U(1)]
-        first = False
-        k += 2
-    if first:
-        for x in range(w):
-            ssd[x] = 0.0
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _border_cost(cost, i, ssd, colsum, cly, cry, x0, x1, lo, hi, d, m):
-    """Eq. 10 with the window clipped to the columns both images have (left/right edges)."""
-    win = 2 * m + 1
-    for x in range(x0, x1):
-        c0 = max(x - m, lo)
-        c1 = min(x + m, hi - 1)
-        sl = np.float32(cly[c1 + 1] - cly[c0])
-        sr = np.float32(cry[c1 + 1 - d] - cry[c0 - d])
-        if sl < 0.5 or sr < 0.5:
-            f = BIG_INV * (BIG_INV if sl < 0.5 and sr < 0.5 else
-                           np.float32(1.0) / np.sqrt(max(sl, sr)))
-        else:
-            f = np.float32(1.0) / np.sqrt(sl * sr)
-        cost[i, x] = (ssd[x] + colsum[i, x + win - 1] + SSD_EPS) * f
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
@@ -168,30 +70,85 @@ def _window_energy(v, prefix, inv, m):
         inv[x] = BIG_INV if e < 0.5 else np.float32(1.0 / np.sqrt(e))
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _border_x(cvec, ssum, cly, cry, i0, i1, x, dmin, m, width):
+    """Eq. 10 of pixel x for disparity indices i0..i1-1 whose window leaves the columns
+    both images have: sums and energies over the clipped window (masked Eq. 10)."""
+    for i in range(i0, i1):
+        d = dmin + i
+        lo = max(0, d)
+        hi = min(width, width + d)
+        c0 = max(x - m, lo)
+        c1 = min(x + m, hi - 1)
+        sl = np.float32(cly[c1 + 1] - cly[c0])
+        sr = np.float32(cry[c1 + 1 - d] - cry[c0 - d])
+        if sl < 0.5 or sr < 0.5:
+            g = BIG_INV * (BIG_INV if sl < 0.5 and sr < 0.5 else
+                           np.float32(1.0) / np.sqrt(max(sl, sr)))
+        else:
+            g = np.float32(1.0) / np.sqrt(sl * sr)
+        cvec[i] = (ssum[i] + SSD_EPS) * g
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _colsum_rows(colsum, pl, prr, ra, rs, do_add, do_sub, dmin, num, m):
+    """Slide all disparities' vertical window sums down one row (disparity-contiguous)."""
+    width = pl.shape[1]
+    ua = _U(ra)
+    us = _U(rs)
+    for c in range(width):
+        lo = max(0, c - width + 1 - dmin)
+        hi = min(num, c - dmin + 1)
+        if lo >= hi:
+            continue
+        p = _U(c + m + 1)
+        j0 = _U(width - 1 - c + dmin + lo)
+        ulo = _U(lo)
+        a = pl[ua, c]
+        b = pl[us, c]
+        if do_add and do_sub:
+            for k in range(_U(hi - lo)):
+                t = a - prr[ua, j0 + k]
+                u = b - prr[us, j0 + k]
+                colsum[p, ulo + k] += t * t - u * u
+        elif do_add:
+            for k in range(_U(hi - lo)):
+                t = a - prr[ua, j0 + k]
+                colsum[p, ulo + k] += t * t
+        elif do_sub:
+            for k in range(_U(hi - lo)):
+                u = b - prr[us, j0 + k]
+                colsum[p, ulo + k] -= u * u
+
+
 @nb.njit(cache=True, fastmath=_FASTMATH)
-def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-          disp_out, cost_out, reason_out):
+def _band(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
+          disp_out, cost_out, energy_out, reason_out):
+    """Rows y0..y1-1 of :func:`nssd_match`."""
     height, width = pl.shape
-    win = 2 * m + 1
-    colsum = np.zeros((num, width + 2 * m), np.float32)
-    cost = np.empty((num, width), np.float32)
-    cost_bits = cost.view(np.int32)
-    ssd = np.empty(width, np.float32)
-    lkey = np.empty(width, np.int32)
-    rkey = np.empty(width, np.int32)
+    uw = _U(width)
+    colsum = np.zeros((width + 2 * m + 1, num), np.float32)
+    ssum = np.empty(num, np.float32)
+    cvec = np.empty(num, np.float32)
+    cbits = cvec.view(np.int32)
+    rkey = np.empty(width, np.int32)          # right best key, reversed column index
     best_i = np.empty(width, np.int32)
     rbest_i = np.empty(width, np.int32)
-    second = np.empty(width, np.float32)
     c_0 = np.empty(width, np.float32)
     c_m = np.empty(width, np.float32)
     c_p = np.empty(width, np.float32)
+    second = np.empty(width, np.float32)
+    s2 = np.empty(1, np.int32)
+    s2f = s2.view(np.float32)
     vl = np.zeros(width, np.float32)
     vr = np.zeros(width, np.float32)
     cly = np.empty(width + 1, np.float64)
     cry = np.empty(width + 1, np.float64)
     il = np.empty(width, np.float32)
     ir = np.empty(width, np.float32)
+    irr = np.empty(width, np.float32)
     inf = np.float32(np.inf)
+    inf_bits = np.int32(0x7F800000)
     index_bits = 1
     while (1 << index_bits) < num:
         index_bits += 1
@@ -201,8 +158,7 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
     for r in range(max(0, y0 - n), min(height, y0 + n + 1)):
         _slide_energy(vl, pl, r, r, True, False)
         _slide_energy(vr, pr, r, r, True, False)
-        for i in range(num):
-            _colsum_step(colsum, i, pl, pr, r, r, True, False, dmin + i, m, width)
+        _colsum_rows(colsum, pl, prr, r, r, True, False, dmin, num, m)
     for y in range(y0, y1):
         ra = min(y + n, height - 1)
         rs = max(y - n - 1, 0)
@@ -210,70 +166,88 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
         do_sub = y > y0 and y - n - 1 >= 0
         _slide_energy(vl, pl, ra, rs, do_add, do_sub)
         _slide_energy(vr, pr, ra, rs, do_add, do_sub)
+        _colsum_rows(colsum, pl, prr, ra, rs, do_add, do_sub, dmin, num, m)
         _window_energy(vl, cly, il, m)
         _window_energy(vr, cry, ir, m)
-        lkey[:] = inf_key
+        for j in range(uw):
+            irr[j] = ir[uw - _U(1) - j]
         rkey[:] = inf_key
-        for i in range(num):
-            d = dmin + i
-            lo = max(0, d)
-            hi = min(width, width + d)
-            ui = _U(i)
-            _colsum_step(colsum, i, pl, pr, ra, rs, do_add, do_sub, d, m, width)
-            for x in range(0, max(lo, 0)):
-                cost[i, x] = inf
-            for x in range(max(hi, 0), width):
-                cost[i, x] = inf
-            if lo >= hi:
+        un = _U(num)
+        # window sums of column x = -1: colsum rows 0 .. 2m
+        ssum[:] = 0.0
+        for p in range(_U(2 * m + 1)):
+            for i in range(un):
+                ssum[i] += colsum[p, i]
+        for x in range(width):
+            ux = _U(x)
+            # slide the window one column: add column x + m, drop column x - m - 1
+            pa = ux + _U(2 * m + 1)
+            for i in range(un):
+                ssum[i] += colsum[pa, i] - colsum[ux, i]
+            vlo = max(0, x - width + 1 - dmin)
+            vhi = min(num, x - dmin + 1)
+            for i in range(0, max(min(vlo, num), 0)):
+                cvec[i] = inf
+            for i in range(max(vhi, 0), num):
+                cvec[i] = inf
+            if vlo >= vhi:
+                best_i[x] = -1
+                c_0[x] = inf
                 continue
-            _box_but_last(ssd, colsum, i, win, width)
-            # interior: the whole window lies where both images have data
-            a = min(lo + m, hi)
-            b = max(hi - m, a)
-            ua = _U(a)
-            ur = _U(a - d)
-            ul = _U(win - 1) + ua
-            for j in range(_U(b - a)):
-                cost[ui, ua + j] = ((ssd[ua + j] + colsum[ui, ul + j] + SSD_EPS)
-                                    * il[ua + j] * ir[ur + j])
-            # borders: the window clipped to the columns both images have (masked Eq. 10)
-            _border_cost(cost, i, ssd, colsum, cly, cry, lo, a, lo, hi, d, m)
-            _border_cost(cost, i, ssd, colsum, cly, cry, b, hi, lo, hi, d, m)
-            # winner-take-all for the left and the right image at once on packed
-            # (cost bits | index) keys: one vectorised integer min per side
-            ii = np.int32(i)
-            ulo = _U(lo)
-            urr = _U(lo - d)
-            for j in range(_U(hi - lo)):
-                k = np.int32(np.int32(cost_bits[ui, ulo + j] & key_mask) | ii)
-                lk = lkey[ulo + j]
-                lkey[ulo + j] = k if k < lk else lk
-                rk = rkey[urr + j]
-                rkey[urr + j] = k if k < rk else rk
+            j0 = width - 1 - x + dmin   # reversed right column of disparity index 0
+            if m <= x <= width - 1 - m:
+                ilo = max(vlo, x + m + 1 - width - dmin)
+                ihi = min(vhi, x - m - dmin + 1)
+            else:
+                ilo = vlo
+                ihi = vlo
+            if ilo < ihi:
+                f = il[x]
+                uj = _U(j0 + ilo)
+                for k in range(_U(ihi - ilo)):
+                    i = _U(ilo) + k
+                    cvec[i] = (ssum[i] + SSD_EPS) * f * irr[uj + k]
+            else:
+                ilo = vlo
+                ihi = vlo
+            _border_x(cvec, ssum, cly, cry, vlo, ilo, x, dmin, m, width)
+            _border_x(cvec, ssum, cly, cry, ihi, vhi, x, dmin, m, width)
+            # winner-take-all for this left pixel (a min over packed cost|index keys)
+            # and, along the same costs, for every right pixel it can see
+            lk = inf_key
+            uj = _U(j0 + vlo)
+            for k in range(_U(vhi - vlo)):
+                i = _U(vlo) + k
+                key = np.int32(np.int32(cbits[i] & key_mask) | np.int32(i))
+                lk = key if key < lk else lk
+                rk = rkey[uj + k]
+                rkey[uj + k] = key if key < rk else rk
+            if lk >= inf_key:
+                best_i[x] = -1
+                c_0[x] = inf
+                continue
+            bi = np.int32(lk & index_mask)
+            best_i[x] = bi
+            c_0[x] = cvec[bi]
+            c_m[x] = cvec[bi - 1] if bi >= 1 else inf
+            c_p[x] = cvec[bi + 1] if bi < num - 1 else inf
+            if uniq > 0.0:
+                # best cost further than 1 px from the winner: mask the winner +-1, then
+                # a min over the float bits (non-negative floats order like their bits)
+                for i in range(max(bi - 1, 0), min(bi + 2, num)):
+                    cbits[i] = inf_bits
+                sb = inf_bits
+                ulo = _U(vlo)
+                for k in range(_U(vhi - vlo)):
+                    b = cbits[ulo + k]
+                    sb = b if b < sb else sb
+                s2[0] = sb
+                second[x] = s2f[0]
         for x in range(width):
-            best_i[x] = np.int32(lkey[x] & index_mask) if lkey[x] < inf_key else -1
-            rbest_i[x] = np.int32(rkey[x] & index_mask) if rkey[x] < inf_key else -1
-        # costs around each winner, kept for the parabola before they are masked out
+            rk = rkey[width - 1 - x]
+            rbest_i[x] = np.int32(rk & index_mask) if rk < inf_key else -1
         for x in range(width):
-            i = best_i[x]
-            c_0[x] = cost[i, x] if i >= 0 else inf
-            c_m[x] = cost[i - 1, x] if i >= 1 else inf
-            c_p[x] = cost[i + 1, x] if 0 <= i < num - 1 else inf
-        if uniq > 0.0:
-            # second best away from the winner: mask winner +-1, then a plain min
-            for x in range(width):
-                i = best_i[x]
-                for k in range(max(i - 1, 0), min(i + 2, num)):
-                    cost[k, x] = inf
-            second[:] = inf
-            uw = _U(width)
-            for i in range(num):
-                ui = _U(i)
-                for x in range(uw):
-                    c = cost[ui, x]
-                    s2 = second[x]
-                    second[x] = c if c < s2 else s2
-        for x in range(width):
+            energy_out[y, x] = cly[min(x + m, width - 1) + 1] - cly[max(x - m, 0)]
             i = best_i[x]
             c1v = c_0[x]
             cost_out[y, x] = c1v
@@ -301,13 +275,98 @@ def _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
-def nssd_match(pl, pr, dmin, num, m, n, uniq, lr_tol, subpixel, bands,
-               disp_out, cost_out, reason_out):
-    """Match rows in parallel bands; see :func:`slitcli.stereo.matcher.match_nssd`."""
+def nssd_match(pl, pr, prr, dmin, num, m, n, uniq, lr_tol, subpixel, bands,
+               disp_out, cost_out, energy_out, reason_out):
+    """Eq. 10 winner-take-all with subpixel, uniqueness and left-right check.
+
+    Parameters
+    ----------
+    pl, pr : (H, W) float32
+        Matched (prefiltered) left and right images, integer-valued.
+    prr : (H, W) float32
+        ``pr`` mirrored left-right (contiguous), so that the right pixels x - d of
+        consecutive disparities are consecutive in memory.
+    dmin, num : int
+        Disparities ``dmin .. dmin + num - 1``.
+    m, n : int
+        Half window width and height: the window is (2m+1) x (2n+1).
+    uniq : float
+        Uniqueness ratio (0 = off).
+    lr_tol : float
+        Left-right tolerance in px (< 0 = off).
+    subpixel : bool
+        Parabola refinement.
+    bands : int
+        Row bands run in parallel.
+    disp_out, cost_out, energy_out : (H, W) float32
+        Disparity (NaN where no candidate), Eq. 10 cost of the winner (+inf where
+        none) and left window energy ``sum P_l^2`` over the window clipped to the image.
+    reason_out : (H, W) uint8
+        REASON_* code per pixel.
+    """
     height = pl.shape[0]
     for b in nb.prange(bands):
         y0 = b * height // bands
         y1 = (b + 1) * height // bands
-        _band(pl, pr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-              disp_out, cost_out, reason_out)
+        _band(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
+              disp_out, cost_out, energy_out, reason_out)
 
+
+@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True, parallel=True)
+def support_zncc(gl, gr, disp, r, out):
+    """Zero-mean normalised correlation of ``gl`` and ``gr`` warped by ``disp``.
+
+    ``warped(x, y) = gr(x - disp(x, y), y)`` (linear in x, clamped to the image; 0 shift
+    where ``disp`` is NaN), then the (2r+1)^2 windows of ``gl`` and ``warped``
+    (clipped to the image) are correlated. ``out`` (H, W) gets values in [-1, 1], 0
+    where a window is flat.
+    """
+    height, width = gl.shape
+    warped = np.empty((height, width), np.float32)
+    for y in nb.prange(height):
+        for x in range(width):
+            d = disp[y, x]
+            xr = np.float32(x) - (d if d == d else np.float32(0.0))
+            xr = min(max(xr, np.float32(0.0)), np.float32(width - 1))
+            x0 = min(int(xr), width - 2)
+            t = xr - np.float32(x0)
+            warped[y, x] = (np.float32(1.0) - t) * gr[y, x0] + t * gr[y, x0 + 1]
+    for y in nb.prange(height):
+        _support_row(gl, warped, y, r, out)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _support_row(gl, warped, y, r, out):
+    height, width = gl.shape
+    # column sums over the window's rows, zero-padded by r on both sides, then window
+    # sums along x as 2r+1 shifted adds (vectorised)
+    pad = width + 2 * r
+    s = np.zeros((5, pad), np.float32)
+    h = np.zeros((5, width), np.float32)
+    y0 = max(0, y - r)
+    y1 = min(height, y + r + 1)
+    uw = _U(width)
+    ur = _U(r)
+    for yy in range(_U(y0), _U(y1)):
+        for x in range(uw):
+            a = gl[yy, x]
+            b = warped[yy, x]
+            s[0, ur + x] += a
+            s[1, ur + x] += b
+            s[2, ur + x] += a * a
+            s[3, ur + x] += b * b
+            s[4, ur + x] += a * b
+    for q in range(_U(5)):
+        for k in range(_U(2 * r + 1)):
+            for x in range(uw):
+                h[q, x] += s[q, x + k]
+    rows = np.float32(y1 - y0)
+    for x in range(width):
+        cnt = rows * np.float32(min(width, x + r + 1) - max(0, x - r))
+        a = h[0, x]
+        b = h[1, x]
+        var_a = h[2, x] - a * a / cnt
+        var_b = h[3, x] - b * b / cnt
+        cov = h[4, x] - a * b / cnt
+        den = np.sqrt(max(var_a, np.float32(0.0)) * max(var_b, np.float32(0.0)))
+        out[y, x] = cov / den if den > 1e-3 else np.float32(0.0)

@@ -24,8 +24,8 @@ all optional and each measured in docs/stereo.md:
 - prefilter: ``mean`` (subtract the local mean and clip, as StereoBM's
   normalised-response prefilter), ``xsobel`` (horizontal derivative, clipped) or
   ``log`` (Laplacian of Gaussian), or ``none``;
-- texture: the window's standard deviation in the matched (prefiltered) image
-  must reach ``texture_min_dn``;
+- texture: the window's RMS in the matched (prefiltered, zero-mean) image, or the
+  window's standard deviation without a prefilter, must reach ``texture_min_dn``;
 - uniqueness: no disparity further than 1 px from the winner may cost less than
   ``(1 + uniqueness_ratio)`` times the winner's cost;
 - left-right consistency from the same cost values: the right pixel x - d must
@@ -34,7 +34,7 @@ all optional and each measured in docs/stereo.md:
 - local support: the winning disparity must also hold for the pixel's own close
   neighbourhood: the zero-mean normalised correlation of the ``(2 r + 1)^2`` grey
   windows (r = ``support_radius_px``) of the left image and of the right image warped
-  by the winning disparities must reach ``support_min_zncc``. A 9 x 9 window still
+  by the winning disparities (bilinear) must reach ``support_min_zncc``. A 9 x 9 window still
   matches a textureless pixel next to an edge or a textured neighbour (and often
   gives it the neighbour's disparity); this check keeps only pixels whose own
   surroundings carry the match;
@@ -269,54 +269,38 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     n = params.window_h_px // 2
     disp = np.empty((h, w), np.float32)
     cost = np.empty((h, w), np.float32)
+    energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     bands = max(1, min(h, _kernel_threads()))
-    _kernel.nssd_match(pl, pr, int(params.min_disparity_px), int(params.num_disparities),
+    _kernel.nssd_match(pl, pr, np.ascontiguousarray(pr[:, ::-1]),
+                       int(params.min_disparity_px), int(params.num_disparities),
                        int(m), int(n), float(params.uniqueness_ratio),
                        float(params.lr_max_diff_px), params.subpixel == "parabola",
-                       int(bands), disp, cost, reason)
+                       int(bands), disp, cost, energy, reason)
     if params.texture_min_dn > 0:
-        scale = 1.0 if params.prefilter == "none" else _QUANT
-        std = window_std_dn(pl, params.window_w_px, params.window_h_px) / scale
-        weak = (std < params.texture_min_dn) & (reason == REASON_VALID)
+        if params.prefilter == "none":
+            texture = window_std_dn(pl, params.window_w_px, params.window_h_px)
+        else:
+            # the prefiltered image is zero-mean: its window RMS is its texture
+            texture = np.sqrt(energy / _window_count(h, w, m, n)) / np.float32(_QUANT)
+        weak = (texture < params.texture_min_dn) & (reason == REASON_VALID)
         reason[weak] = REASON_TEXTURE
     if params.support_min_zncc != 0:
-        zncc = local_support_zncc(left_grey, right_grey, disp, params.support_radius_px)
+        zncc = np.empty((h, w), np.float32)
+        _kernel.support_zncc(np.asarray(left_grey, np.float32),
+                             np.asarray(right_grey, np.float32), disp,
+                             int(params.support_radius_px), zncc)
         reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
 
 
-def local_support_zncc(left_grey: np.ndarray, right_grey: np.ndarray,
-                       disparity_px: np.ndarray, radius_px: int) -> np.ndarray:
-    """Zero-mean normalised correlation of each pixel's small neighbourhood at its match.
-
-    The right grey image is warped onto the left one by the winning disparities
-    (``right(x - d(x), y)``, bilinear) and correlated with the left image over
-    ``(2 radius + 1)^2`` windows, so a window is compared at the disparities of its own
-    pixels. NaN disparities (no candidate) warp with 0 and their pixels are invalid
-    anyway. Returns float32 (H, W) in [-1, 1]; 0 where a window is flat.
-    """
-    gl = np.asarray(left_grey, np.float32)
-    gr = np.asarray(right_grey, np.float32)
-    h, w = gl.shape
-    d = np.where(np.isfinite(disparity_px), disparity_px, np.float32(0.0))
-    map_x = np.arange(w, dtype=np.float32)[None, :] - d
-    map_y = np.repeat(np.arange(h, dtype=np.float32)[:, None], w, axis=1)
-    warped = cv2.remap(gr, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    k = (2 * radius_px + 1, 2 * radius_px + 1)
-
-    def box(a: np.ndarray) -> np.ndarray:
-        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
-
-    ml, mr = box(gl), box(warped)
-    var_l = box(gl * gl) - ml * ml
-    var_r = box(warped * warped) - mr * mr
-    cov = box(gl * warped) - ml * mr
-    den = np.sqrt(np.maximum(var_l, 0.0) * np.maximum(var_r, 0.0))
-    flat = den < 1e-3
-    return np.where(flat, np.float32(0.0), cov / np.where(flat, np.float32(1.0), den))
+def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
+    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w)."""
+    rows = np.minimum(np.arange(h) + n, h - 1) - np.maximum(np.arange(h) - n, 0) + 1
+    cols = np.minimum(np.arange(w) + m, w - 1) - np.maximum(np.arange(w) - m, 0) + 1
+    return (rows[:, None] * cols[None, :]).astype(np.float32)
 
 
 def _kernel_threads() -> int:
@@ -332,8 +316,8 @@ def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
         return disp, reason
     valid = reason == REASON_VALID
     bad = np.int16(-32768)
-    fixed = np.where(valid, np.rint(np.nan_to_num(disp) * 16.0), bad)
-    fixed = np.clip(fixed, -32768, 32767).astype(np.int16)
+    # 1/16 px units (disparities are < 2048 px, so they fit in int16)
+    fixed = np.where(valid, disp * np.float32(16.0), np.float32(bad)).astype(np.int16)
     cv2.filterSpeckles(fixed, int(bad), int(params.speckle_window_px),
                        max(1, math.ceil(params.speckle_range_px * 16.0)))
     removed = valid & (fixed == bad)
