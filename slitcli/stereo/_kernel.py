@@ -312,18 +312,30 @@ def nssd_match(pl, pr, prr, dmin, num, m, n, uniq, lr_tol, subpixel, bands,
               disp_out, cost_out, energy_out, reason_out)
 
 
-@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True, parallel=True)
-def support_zncc(gl, gr, disp, r, out):
+@nb.njit(cache=True, parallel=True, nogil=True)
+def support_zncc(gl, gr, disp, r, bands, out):
     """Zero-mean normalised correlation of ``gl`` and ``gr`` warped by ``disp``.
 
     ``warped(x, y) = gr(x - disp(x, y), y)`` (linear in x, clamped to the image; 0 shift
     where ``disp`` is NaN), then the (2r+1)^2 windows of ``gl`` and ``warped``
     (clipped to the image) are correlated. ``out`` (H, W) gets values in [-1, 1], 0
-    where a window is flat.
+    where a window is flat. Rows run in ``bands`` parallel bands.
     """
     height, width = gl.shape
     warped = np.empty((height, width), np.float32)
-    for y in nb.prange(height):
+    for b in nb.prange(bands):
+        _warp_rows(gl, gr, disp, warped, b * height // bands, (b + 1) * height // bands)
+    for b in nb.prange(bands):
+        s = np.zeros((5, width + 2 * r), np.float32)
+        h = np.zeros((5, width), np.float32)
+        for y in range(b * height // bands, (b + 1) * height // bands):
+            _support_row(gl, warped, y, r, s, h, out)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _warp_rows(gl, gr, disp, warped, y0, y1):
+    width = gl.shape[1]
+    for y in range(y0, y1):
         for x in range(width):
             d = disp[y, x]
             xr = np.float32(x) - (d if d == d else np.float32(0.0))
@@ -331,18 +343,15 @@ def support_zncc(gl, gr, disp, r, out):
             x0 = min(int(xr), width - 2)
             t = xr - np.float32(x0)
             warped[y, x] = (np.float32(1.0) - t) * gr[y, x0] + t * gr[y, x0 + 1]
-    for y in nb.prange(height):
-        _support_row(gl, warped, y, r, out)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _support_row(gl, warped, y, r, out):
+def _support_row(gl, warped, y, r, s, h, out):
     height, width = gl.shape
     # column sums over the window's rows, zero-padded by r on both sides, then window
     # sums along x as 2r+1 shifted adds (vectorised)
-    pad = width + 2 * r
-    s = np.zeros((5, pad), np.float32)
-    h = np.zeros((5, width), np.float32)
+    s[:] = 0.0
+    h[:] = 0.0
     y0 = max(0, y - r)
     y1 = min(height, y + r + 1)
     uw = _U(width)

@@ -47,10 +47,12 @@ filled in.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import KW_ONLY, dataclass
 
 import cv2
+import numba
 import numpy as np
 
 from slitcli.errors import SlitcliError
@@ -228,10 +230,12 @@ def prefilter_image(grey: np.ndarray, params: MatcherParams) -> np.ndarray:
                                    borderType=cv2.BORDER_REFLECT_101)
         out = cv2.Laplacian(blurred, cv2.CV_32F, ksize=1, scale=-1.0,
                             borderType=cv2.BORDER_REFLECT_101)
-    if kind != "none":
-        cap = float(params.prefilter_cap_dn)
-        out = np.clip(out, -cap, cap)
-    return np.rint(out * _QUANT).astype(np.float32) if kind != "none" else out
+    if kind == "none":
+        return g
+    cap = np.float32(params.prefilter_cap_dn)
+    np.clip(out, -cap, cap, out=out)
+    out *= np.float32(_QUANT)
+    return np.rint(out, out=out)
 
 
 def window_std_dn(image_q: np.ndarray, window_w_px: int, window_h_px: int) -> np.ndarray:
@@ -271,41 +275,50 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     cost = np.empty((h, w), np.float32)
     energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
-    bands = max(1, min(h, _kernel_threads()))
-    _kernel.nssd_match(pl, pr, np.ascontiguousarray(pr[:, ::-1]),
-                       int(params.min_disparity_px), int(params.num_disparities),
-                       int(m), int(n), float(params.uniqueness_ratio),
-                       float(params.lr_max_diff_px), params.subpixel == "parabola",
-                       int(bands), disp, cost, energy, reason)
+    # twice as many row bands as threads, handed out one at a time, so a core that
+    # is busy with something else does not hold up the whole frame
+    bands = max(1, min(h // max(1, 2 * n + 1), 2 * _kernel_threads()))
+    with numba.parallel_chunksize(1):
+        _kernel.nssd_match(pl, pr, np.ascontiguousarray(pr[:, ::-1]),
+                           int(params.min_disparity_px), int(params.num_disparities),
+                           int(m), int(n), float(params.uniqueness_ratio),
+                           float(params.lr_max_diff_px), params.subpixel == "parabola",
+                           int(bands), disp, cost, energy, reason)
     if params.texture_min_dn > 0:
         if params.prefilter == "none":
-            texture = window_std_dn(pl, params.window_w_px, params.window_h_px)
+            texture_ok = window_std_dn(pl, params.window_w_px,
+                                       params.window_h_px) >= params.texture_min_dn
         else:
             # the prefiltered image is zero-mean: its window RMS is its texture
-            texture = np.sqrt(energy / _window_count(h, w, m, n)) / np.float32(_QUANT)
-        weak = (texture < params.texture_min_dn) & (reason == REASON_VALID)
+            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
+            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
+            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
+        weak = (reason == REASON_VALID) & ~texture_ok
         reason[weak] = REASON_TEXTURE
     if params.support_min_zncc != 0:
         zncc = np.empty((h, w), np.float32)
-        _kernel.support_zncc(np.asarray(left_grey, np.float32),
-                             np.asarray(right_grey, np.float32), disp,
-                             int(params.support_radius_px), zncc)
+        with numba.parallel_chunksize(1):
+            _kernel.support_zncc(np.asarray(left_grey, np.float32),
+                                 np.asarray(right_grey, np.float32), disp,
+                                 int(params.support_radius_px), int(bands), zncc)
         reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
 
 
+@functools.lru_cache(maxsize=8)
 def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
-    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w)."""
+    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w),
+    read-only (a small memo: it depends on the sizes only)."""
     rows = np.minimum(np.arange(h) + n, h - 1) - np.maximum(np.arange(h) - n, 0) + 1
     cols = np.minimum(np.arange(w) + m, w - 1) - np.maximum(np.arange(w) - m, 0) + 1
-    return (rows[:, None] * cols[None, :]).astype(np.float32)
+    out = (rows[:, None] * cols[None, :]).astype(np.float32)
+    out.setflags(write=False)
+    return out
 
 
 def _kernel_threads() -> int:
-    import numba
-
     return int(numba.get_num_threads())
 
 
