@@ -379,3 +379,79 @@ def _support_row(gl, warped, y, r, s, h, out):
         cov = h[4, x] - a * b / cnt
         den = np.sqrt(max(var_a, np.float32(0.0)) * max(var_b, np.float32(0.0)))
         out[y, x] = cov / den if den > 1e-3 else np.float32(0.0)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def reproject(disp, rays_s, fb, height_m, floor_margin_m, two_sigma_d, robot_height_m,
+              max_range_m, depth_out, pts_out, obstacle_out, feature_out):
+    """Eq. 8 depth, sensor-frame points and the obstacle / feature tests in one pass.
+
+    ``rays_s`` (H, W, 3) are the pixel rays in the sensor frame at unit optical-axis
+    depth; ``fb`` is f x baseline; a point is floor below
+    ``floor_margin_m + two_sigma_d |r_z| D^2 / fb`` (see slitcli.stereo.obstacles).
+    """
+    height, width = disp.shape
+    nan = np.float32(np.nan)
+    for y in range(height):
+        for x in range(width):
+            d = disp[y, x]
+            if not (d > 0):
+                depth_out[y, x] = nan
+                pts_out[y, x, 0] = nan
+                pts_out[y, x, 1] = nan
+                pts_out[y, x, 2] = nan
+                obstacle_out[y, x] = False
+                feature_out[y, x] = False
+                continue
+            dep = np.float32(fb) / d
+            px = rays_s[y, x, 0] * dep
+            py = rays_s[y, x, 1] * dep
+            pz = rays_s[y, x, 2] * dep + np.float32(height_m)
+            depth_out[y, x] = dep
+            pts_out[y, x, 0] = px
+            pts_out[y, x, 1] = py
+            pts_out[y, x, 2] = pz
+            floor_z = floor_margin_m + two_sigma_d * abs(rays_s[y, x, 2]) * dep * dep / fb
+            not_floor = pz >= floor_z
+            feature_out[y, x] = not_floor
+            obstacle_out[y, x] = (not_floor and pz < robot_height_m and px > 0
+                                  and px * px + py * py <= max_range_m * max_range_m)
+
+
+@nb.njit(cache=True, nogil=True)
+def bin_percentile(pts, obstacle, feature, bin_idx, nbins, step_m, max_range_m,
+                   percentile, range_out, obstacle_px, feature_px):
+    """Per bearing bin: pixel counts and the percentile of the obstacle ranges.
+
+    Ranges go into ``step_m`` histogram cells up to ``max_range_m``; the percentile is
+    the centre of the cell holding the ``floor(p (n - 1))``-th smallest range.
+    ``range_out`` is left untouched for bins without obstacle points.
+    """
+    height, width = obstacle.shape
+    cells = int(np.ceil(max_range_m / step_m)) + 1
+    hist = np.zeros((nbins, cells), np.int32)
+    obstacle_px[:] = 0
+    feature_px[:] = 0
+    for y in range(height):
+        for x in range(width):
+            b = bin_idx[y, x]
+            if b < 0:
+                continue
+            if feature[y, x]:
+                feature_px[b] += 1
+            if obstacle[y, x]:
+                r = np.sqrt(pts[y, x, 0] * pts[y, x, 0] + pts[y, x, 1] * pts[y, x, 1])
+                c = min(int(r / step_m), cells - 1)
+                hist[b, c] += 1
+                obstacle_px[b] += 1
+    for b in range(nbins):
+        nb_ = obstacle_px[b]
+        if nb_ == 0:
+            continue
+        rank = int(np.floor(percentile / 100.0 * (nb_ - 1)))
+        acc = 0
+        for c in range(cells):
+            acc += hist[b, c]
+            if acc > rank:
+                range_out[b] = (c + 0.5) * step_m
+                break

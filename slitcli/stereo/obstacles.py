@@ -165,22 +165,21 @@ def obstacle_points(disparity_px: np.ndarray, rig: Rig, params: ObstacleParams
     feature_mask : (H, W) bool
         Valid and not floor.
     """
+    from slitcli.stereo import _kernel
+
     geo = pixel_geometry(rig)
-    depth = depth_from_disparity(disparity_px, rig)
-    # sensor point = origin + depth * (ray in the sensor frame), since rays have z_cam = 1
-    pts = geo.rays_sensor_xyz * depth[..., None]
-    pts[..., 2] += np.float32(rig.mount.height_m)
-    valid = np.isfinite(depth)
-    z = np.where(valid, pts[..., 2], -np.inf)
-    # height moves by |r_z| D^2 / (f W) per pixel of disparity (module notes)
-    dz_dd = np.abs(geo.rays_sensor_xyz[..., 2]) * np.where(valid, depth, 0.0) ** 2 \
-        / np.float32(rig.focal_px * rig.baseline_m)
-    floor_z = params.floor_margin_m + 2.0 * params.disparity_sigma_px * dz_dd
-    not_floor = valid & (z >= floor_z)
+    d = np.ascontiguousarray(disparity_px, dtype=np.float32)
+    h, w = d.shape
+    depth = np.empty((h, w), np.float32)
+    pts = np.empty((h, w, 3), np.float32)
+    obstacle = np.empty((h, w), np.bool_)
+    feature = np.empty((h, w), np.bool_)
     max_r = rig.stereo.max_range_m if params.max_range_m is None else params.max_range_m
-    horiz = np.hypot(pts[..., 0], pts[..., 1])
-    obstacle = not_floor & (z < params.robot_height_m) & (horiz <= max_r) & (pts[..., 0] > 0)
-    return depth, pts, obstacle, not_floor
+    _kernel.reproject(d, geo.rays_sensor_xyz, float(rig.focal_px * rig.baseline_m),
+                      float(rig.mount.height_m), float(params.floor_margin_m),
+                      float(2.0 * params.disparity_sigma_px), float(params.robot_height_m),
+                      float(max_r), depth, pts, obstacle, feature)
+    return depth, pts, obstacle, feature
 
 
 @functools.lru_cache(maxsize=8)
@@ -202,7 +201,7 @@ def bearing_ranges(points_sensor_xyz: np.ndarray, obstacle_mask: np.ndarray,
 
     The ``range_percentile`` of a bin's obstacle ranges is read from a histogram of
     ``RANGE_STEP_M`` cells (so it is exact to half a cell, 1 mm), which keeps this
-    O(pixels) with no per-bin loop or sort.
+    O(pixels) with no sort (compiled, slitcli.stereo._kernel.bin_percentile).
 
     Parameters
     ----------
@@ -211,26 +210,22 @@ def bearing_ranges(points_sensor_xyz: np.ndarray, obstacle_mask: np.ndarray,
     obstacle_mask, feature_mask : (H, W) bool
         From :func:`obstacle_points`.
     """
+    from slitcli.stereo import _kernel
+
     centres, bin_idx = _pixel_bins(rig, float(params.bin_width_deg))
     nb = centres.size
-    inside = bin_idx >= 0
-    feature_px = np.bincount(bin_idx[feature_mask & inside], minlength=nb)[:nb]
-    sel = obstacle_mask & inside
-    b = bin_idx[sel]
-    rng = np.hypot(points_sensor_xyz[..., 0][sel], points_sensor_xyz[..., 1][sel])
-    obstacle_px = np.bincount(b, minlength=nb)[:nb]
     range_m = np.full(nb, np.nan)
-    if b.size:
-        cells = int(np.ceil(float(rng.max()) / RANGE_STEP_M)) + 1
-        cell = np.minimum((rng / RANGE_STEP_M).astype(np.int64), cells - 1)
-        hist = np.bincount(b * cells + cell, minlength=nb * cells).reshape(nb, cells)
-        cum = np.cumsum(hist, axis=1)
-        rank = np.floor(params.range_percentile / 100.0 * (obstacle_px - 1)).astype(np.int64)
-        first = np.argmax(cum > rank[:, None], axis=1)
-        enough = obstacle_px >= params.min_obstacle_px
-        range_m[enough] = (first[enough] + 0.5) * RANGE_STEP_M
+    obstacle_px = np.zeros(nb, np.int64)
+    feature_px = np.zeros(nb, np.int64)
+    max_r = rig.stereo.max_range_m if params.max_range_m is None else params.max_range_m
+    _kernel.bin_percentile(np.ascontiguousarray(points_sensor_xyz, dtype=np.float32),
+                           np.ascontiguousarray(obstacle_mask),
+                           np.ascontiguousarray(feature_mask), bin_idx, nb, RANGE_STEP_M,
+                           float(max_r), float(params.range_percentile), range_m,
+                           obstacle_px, feature_px)
+    range_m[obstacle_px < params.min_obstacle_px] = np.nan
     return BearingRanges(np.array(centres), range_m, feature_px >= params.min_feature_px,
-                         obstacle_px.astype(np.int64), feature_px.astype(np.int64))
+                         obstacle_px, feature_px)
 
 
 def bins_check(rig: Rig, params: ObstacleParams) -> None:

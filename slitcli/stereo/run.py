@@ -16,7 +16,9 @@ before anything is written.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
@@ -100,6 +102,17 @@ def _ranges_rows(ref: FrameRef, res: StereoFrameResult) -> str:
                         lineterminator="\n")
 
 
+def _write_frame(out: Path, batch: FrameBatch, ref: FrameRef, res: StereoFrameResult) -> None:
+    """The three PNGs of a frame, then its part file (which marks it finished)."""
+    name = ref.name + ".png"
+    for sub, img in (("disparity", encode_disparity_png(res.disparity_px)),
+                     ("distance", encode_depth_png(res.depth_m)),
+                     ("mask", encode_mask_png(res.obstacle_mask))):
+        target = out / sub / name
+        write_bytes_atomic(target, _png_bytes(target, img))
+    write_bytes_atomic(batch.part_path(ref.index, "stereo"), _ranges_rows(ref, res).encode())
+
+
 def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | None = None,
                params: StereoParams | None = None, overwrite: bool = False,
                on_frame: Callable[[int, int], None] | None = None) -> dict:
@@ -147,28 +160,35 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
     batch = FrameBatch(out, "stereo", manifest, overwrite=overwrite)
     for sub in OUTPUT_FOLDERS:
         (out / sub).mkdir(parents=True, exist_ok=True)
-    computed, skipped, valid = 0, 0, []
     n = len(seq.refs)
-    for ref in seq.refs:
-        name = ref.name + ".png"
-        if batch.is_done(ref.index, ("stereo",)) and all(
-                (out / sub / name).exists() for sub in OUTPUT_FOLDERS):
-            skipped += 1
-        else:
-            frame = read_frame(ref, rig)
+    todo = [ref for ref in seq.refs if not (
+        batch.is_done(ref.index, ("stereo",))
+        and all((out / sub / f"{ref.name}.png").exists() for sub in OUTPUT_FOLDERS))]
+    skipped = n - len(todo)
+    if on_frame is not None and skipped:
+        on_frame(skipped, n)
+    valid: list[float] = []
+    # reading the next pair and encoding / writing the last frame's PNGs run on a
+    # helper thread (OpenCV releases the GIL) while this thread matches
+    with ThreadPoolExecutor(max_workers=1) as io_pool:
+        reads = deque(io_pool.submit(read_frame, ref, rig) for ref in todo[:2])
+        writes: deque[Future] = deque()
+        for k, ref in enumerate(todo):
+            frame = reads.popleft().result()
+            if k + 2 < len(todo):
+                reads.append(io_pool.submit(read_frame, todo[k + 2], rig))
             res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
-            for sub, img in (("disparity", encode_disparity_png(res.disparity_px)),
-                             ("distance", encode_depth_png(res.depth_m)),
-                             ("mask", encode_mask_png(res.obstacle_mask))):
-                target = out / sub / name
-                write_bytes_atomic(target, _png_bytes(target, img))
-            # the part file is written last: it marks the frame as finished
-            write_bytes_atomic(batch.part_path(ref.index, "stereo"),
-                               _ranges_rows(ref, res).encode())
-            computed += 1
+            writes.append(io_pool.submit(_write_frame, out, batch, ref, res))
+            while len(writes) > 1:
+                writes.popleft().result()
+                if on_frame is not None:
+                    on_frame(skipped + k, n)
             valid.append(float(np.isfinite(res.disparity_px).mean()))
-        if on_frame is not None:
-            on_frame(computed + skipped, n)
+        while writes:
+            writes.popleft().result()
+    if on_frame is not None and todo:
+        on_frame(n, n)
+    computed = len(todo)
     batch.assemble(n, "stereo", out / RANGES_FILE, RANGES_HEADER)
     return {"frames": n, "computed": computed, "skipped": skipped,
             "valid_fraction": float(np.mean(valid)) if valid else float("nan")}
