@@ -121,10 +121,38 @@ def _colsum_rows(colsum, pl, prr, ra, rs, do_add, do_sub, dmin, num, m):
                 colsum[p, ulo + k] -= u * u
 
 
-@nb.njit(cache=True, fastmath=_FASTMATH)
-def _band(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-          disp_out, cost_out, energy_out, reason_out):
-    """Rows y0..y1-1 of :func:`nssd_match`."""
+@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
+              disp_out, cost_out, energy_out, reason_out):
+    """Eq. 10 winner-take-all with subpixel, uniqueness and left-right check.
+
+    Parameters
+    ----------
+    pl, pr : (H, W) float32
+        Matched (prefiltered) left and right images, integer-valued.
+    prr : (H, W) float32
+        ``pr`` mirrored left-right (contiguous), so that the right pixels x - d of
+        consecutive disparities are consecutive in memory.
+    dmin, num : int
+        Disparities ``dmin .. dmin + num - 1``.
+    m, n : int
+        Half window width and height: the window is (2m+1) x (2n+1).
+    uniq : float
+        Uniqueness ratio (0 = off).
+    lr_tol : float
+        Left-right tolerance in px (< 0 = off).
+    subpixel : bool
+        Parabola refinement.
+    y0, y1 : int
+        Rows y0 .. y1 - 1 are matched (the GIL is released: bands of rows can run
+        on several threads; the result does not depend on the split, every sum is
+        exact).
+    disp_out, cost_out, energy_out : (H, W) float32
+        Disparity (NaN where no candidate), Eq. 10 cost of the winner (+inf where
+        none) and left window energy ``sum P_l^2`` over the window clipped to the image.
+    reason_out : (H, W) uint8
+        REASON_* code per pixel.
+    """
     height, width = pl.shape
     uw = _U(width)
     colsum = np.zeros((width + 2 * m + 1, num), np.float32)
@@ -274,62 +302,23 @@ def _band(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
             reason_out[y, x] = reason
 
 
-@nb.njit(cache=True, parallel=True, nogil=True)
-def nssd_match(pl, pr, prr, dmin, num, m, n, uniq, lr_tol, subpixel, bands,
-               disp_out, cost_out, energy_out, reason_out):
-    """Eq. 10 winner-take-all with subpixel, uniqueness and left-right check.
-
-    Parameters
-    ----------
-    pl, pr : (H, W) float32
-        Matched (prefiltered) left and right images, integer-valued.
-    prr : (H, W) float32
-        ``pr`` mirrored left-right (contiguous), so that the right pixels x - d of
-        consecutive disparities are consecutive in memory.
-    dmin, num : int
-        Disparities ``dmin .. dmin + num - 1``.
-    m, n : int
-        Half window width and height: the window is (2m+1) x (2n+1).
-    uniq : float
-        Uniqueness ratio (0 = off).
-    lr_tol : float
-        Left-right tolerance in px (< 0 = off).
-    subpixel : bool
-        Parabola refinement.
-    bands : int
-        Row bands run in parallel.
-    disp_out, cost_out, energy_out : (H, W) float32
-        Disparity (NaN where no candidate), Eq. 10 cost of the winner (+inf where
-        none) and left window energy ``sum P_l^2`` over the window clipped to the image.
-    reason_out : (H, W) uint8
-        REASON_* code per pixel.
-    """
-    height = pl.shape[0]
-    for b in nb.prange(bands):
-        y0 = b * height // bands
-        y1 = (b + 1) * height // bands
-        _band(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-              disp_out, cost_out, energy_out, reason_out)
+@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def warp_rows(gr, disp, warped, y0, y1):
+    """``warped(x, y) = gr(x - disp(x, y), y)`` for rows y0..y1-1 (linear in x, clamped
+    to the image; no shift where ``disp`` is NaN)."""
+    _warp_rows(gr, gr, disp, warped, y0, y1)
 
 
-@nb.njit(cache=True, parallel=True, nogil=True)
-def support_zncc(gl, gr, disp, r, bands, out):
-    """Zero-mean normalised correlation of ``gl`` and ``gr`` warped by ``disp``.
-
-    ``warped(x, y) = gr(x - disp(x, y), y)`` (linear in x, clamped to the image; 0 shift
-    where ``disp`` is NaN), then the (2r+1)^2 windows of ``gl`` and ``warped``
-    (clipped to the image) are correlated. ``out`` (H, W) gets values in [-1, 1], 0
-    where a window is flat. Rows run in ``bands`` parallel bands.
-    """
-    height, width = gl.shape
-    warped = np.empty((height, width), np.float32)
-    for b in nb.prange(bands):
-        _warp_rows(gl, gr, disp, warped, b * height // bands, (b + 1) * height // bands)
-    for b in nb.prange(bands):
-        s = np.zeros((5, width + 2 * r), np.float32)
-        h = np.zeros((5, width), np.float32)
-        for y in range(b * height // bands, (b + 1) * height // bands):
-            _support_row(gl, warped, y, r, s, h, out)
+@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def support_rows(gl, warped, r, y0, y1, out):
+    """Zero-mean normalised correlation of the (2r+1)^2 windows of ``gl`` and
+    ``warped`` (clipped to the image) for rows y0..y1-1: ``out`` in [-1, 1], 0 where a
+    window is flat. ``warped`` must be complete for rows y0 - r .. y1 - 1 + r."""
+    width = gl.shape[1]
+    s = np.zeros((5, width + 2 * r), np.float32)
+    h = np.zeros((5, width), np.float32)
+    for y in range(y0, y1):
+        _support_row(gl, warped, y, r, s, h, out)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")

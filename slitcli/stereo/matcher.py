@@ -48,7 +48,10 @@ filled in.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import KW_ONLY, dataclass
 
 import cv2
@@ -275,15 +278,13 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     cost = np.empty((h, w), np.float32)
     energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
-    # twice as many row bands as threads, handed out one at a time, so a core that
-    # is busy with something else does not hold up the whole frame
-    bands = max(1, min(h // max(1, 2 * n + 1), 2 * _kernel_threads()))
-    with numba.parallel_chunksize(1):
-        _kernel.nssd_match(pl, pr, np.ascontiguousarray(pr[:, ::-1]),
-                           int(params.min_disparity_px), int(params.num_disparities),
-                           int(m), int(n), float(params.uniqueness_ratio),
-                           float(params.lr_max_diff_px), params.subpixel == "parabola",
-                           int(bands), disp, cost, energy, reason)
+    threads = _kernel_threads()
+    prr = np.ascontiguousarray(pr[:, ::-1])
+    args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
+            float(params.uniqueness_ratio), float(params.lr_max_diff_px),
+            params.subpixel == "parabola", disp, cost, energy, reason)
+    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
+                  threads, min_rows=2 * n + 1)
     if params.texture_min_dn > 0:
         if params.prefilter == "none":
             texture_ok = window_std_dn(pl, params.window_w_px,
@@ -296,11 +297,14 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
         weak = (reason == REASON_VALID) & ~texture_ok
         reason[weak] = REASON_TEXTURE
     if params.support_min_zncc != 0:
+        gl = np.asarray(left_grey, np.float32)
+        gr = np.asarray(right_grey, np.float32)
+        warped = np.empty((h, w), np.float32)
+        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, threads)
         zncc = np.empty((h, w), np.float32)
-        with numba.parallel_chunksize(1):
-            _kernel.support_zncc(np.asarray(left_grey, np.float32),
-                                 np.asarray(right_grey, np.float32), disp,
-                                 int(params.support_radius_px), int(bands), zncc)
+        r = int(params.support_radius_px)
+        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
+                      threads)
         reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
@@ -319,7 +323,30 @@ def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
 
 
 def _kernel_threads() -> int:
+    """Threads for the compiled kernels: numba's setting (``NUMBA_NUM_THREADS``; 1 in
+    the workers of a process pool)."""
     return int(numba.get_num_threads())
+
+
+def run_row_bands(fn: Callable[[int, int], object], height: int, threads: int, *,
+                  min_rows: int = 8) -> None:
+    """Call ``fn(y0, y1)`` over bands of rows covering 0..height, on ``threads`` threads.
+
+    The compiled kernels release the GIL, so plain threads run them in parallel.
+    There are twice as many bands as threads, handed out one at a time, so a core that
+    is busy with something else does not hold up the whole image; idle threads sleep
+    (no spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's
+    rows above it).
+    """
+    bands = max(1, min(2 * threads, height // max(1, min_rows)))
+    edges = [b * height // bands for b in range(bands + 1)]
+    if threads <= 1 or bands == 1:
+        for y0, y1 in itertools.pairwise(edges):
+            fn(y0, y1)
+        return
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
+            f.result()
 
 
 def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
