@@ -444,3 +444,18 @@ def bin_percentile(pts, obstacle, feature, bin_idx, nbins, step_m, max_range_m,
             if acc > rank:
                 range_out[b] = (c + 0.5) * step_m
                 break
+
+
+@nb.njit(cache=True, nogil=True)
+def clip_quantise(grey, smooth, sign, cap, scale, out):
+    """``out = rint(clip(grey - sign * smooth, -cap, cap) * scale)`` in one pass.
+
+    With ``sign = 0`` ``smooth`` is ignored and ``grey`` itself is clipped (the
+    derivative prefilters pass their response as ``grey``).
+    """
+    height, width = grey.shape
+    for y in range(height):
+        for x in range(width):
+            v = grey[y, x] - sign * smooth[y, x]
+            v = min(max(v, -cap), cap)
+            out[y, x] = np.float32(np.rint(v * scale))

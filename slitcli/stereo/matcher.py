@@ -52,6 +52,7 @@ import itertools
 import math
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import KW_ONLY, dataclass
 
 import cv2
@@ -218,27 +219,29 @@ def prefilter_image(grey: np.ndarray, params: MatcherParams) -> np.ndarray:
     clipped to +-``prefilter_cap_dn`` and rounded to 1/4 DN so every window sum of
     the matcher is exact.
     """
+    from slitcli.stereo import _kernel
+
     g = np.asarray(grey, dtype=np.float32)
     kind = params.prefilter
     if kind == "none":
-        out = g
-    elif kind == "mean":
+        return g
+    if kind == "mean":
         k = params.prefilter_size_px
-        out = g - cv2.blur(g, (k, k), borderType=cv2.BORDER_REFLECT_101)
+        response, smooth, sign = g, cv2.blur(g, (k, k), borderType=cv2.BORDER_REFLECT_101), 1.0
     elif kind == "xsobel":
-        out = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
-                        borderType=cv2.BORDER_REFLECT_101)
+        response = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
+                             borderType=cv2.BORDER_REFLECT_101)
+        smooth, sign = response, 0.0
     else:
         blurred = cv2.GaussianBlur(g, (0, 0), params.log_sigma_px,
                                    borderType=cv2.BORDER_REFLECT_101)
-        out = cv2.Laplacian(blurred, cv2.CV_32F, ksize=1, scale=-1.0,
-                            borderType=cv2.BORDER_REFLECT_101)
-    if kind == "none":
-        return g
-    cap = np.float32(params.prefilter_cap_dn)
-    np.clip(out, -cap, cap, out=out)
-    out *= np.float32(_QUANT)
-    return np.rint(out, out=out)
+        response = cv2.Laplacian(blurred, cv2.CV_32F, ksize=1, scale=-1.0,
+                                 borderType=cv2.BORDER_REFLECT_101)
+        smooth, sign = response, 0.0
+    out = np.empty_like(g)
+    _kernel.clip_quantise(response, smooth, np.float32(sign),
+                          np.float32(params.prefilter_cap_dn), np.float32(_QUANT), out)
+    return out
 
 
 def window_std_dn(image_q: np.ndarray, window_w_px: int, window_h_px: int) -> np.ndarray:
@@ -267,45 +270,22 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     -------
     DisparityResult
     """
-    from slitcli.stereo import _kernel
-
-    pl = prefilter_image(left_grey, params)
-    pr = prefilter_image(right_grey, params)
-    h, w = pl.shape
-    m = params.window_w_px // 2
-    n = params.window_h_px // 2
+    h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     cost = np.empty((h, w), np.float32)
     energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     threads = _kernel_threads()
-    prr = np.ascontiguousarray(pr[:, ::-1])
-    args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
-            float(params.uniqueness_ratio), float(params.lr_max_diff_px),
-            params.subpixel == "parabola", disp, cost, energy, reason)
-    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
-                  threads, min_rows=2 * n + 1)
-    if params.texture_min_dn > 0:
-        if params.prefilter == "none":
-            texture_ok = window_std_dn(pl, params.window_w_px,
-                                       params.window_h_px) >= params.texture_min_dn
+    with ThreadPoolExecutor(max_workers=threads) if threads > 1 else nullcontext() as pool:
+        if pool is not None:
+            right_job = pool.submit(prefilter_image, right_grey, params)
+            pl = prefilter_image(left_grey, params)
+            pr = right_job.result()
         else:
-            # the prefiltered image is zero-mean: its window RMS is its texture
-            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
-            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
-            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
-        weak = (reason == REASON_VALID) & ~texture_ok
-        reason[weak] = REASON_TEXTURE
-    if params.support_min_zncc != 0:
-        gl = np.asarray(left_grey, np.float32)
-        gr = np.asarray(right_grey, np.float32)
-        warped = np.empty((h, w), np.float32)
-        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, threads)
-        zncc = np.empty((h, w), np.float32)
-        r = int(params.support_radius_px)
-        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
-                      threads)
-        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
+            pl = prefilter_image(left_grey, params)
+            pr = prefilter_image(right_grey, params)
+        _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
+                     energy, reason)
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
@@ -322,31 +302,70 @@ def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
     return out
 
 
+def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
+                 right_grey: np.ndarray, params: MatcherParams,
+                 pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
+                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray) -> None:
+    """Kernel, texture and support tests of :func:`match_nssd`, filling the outputs."""
+    from slitcli.stereo import _kernel
+
+    h, w = pl.shape
+    m = params.window_w_px // 2
+    n = params.window_h_px // 2
+    prr = np.ascontiguousarray(pr[:, ::-1])
+    args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
+            float(params.uniqueness_ratio), float(params.lr_max_diff_px),
+            params.subpixel == "parabola", disp, cost, energy, reason)
+    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
+                  pool, threads, min_rows=2 * n + 1)
+    if params.texture_min_dn > 0:
+        if params.prefilter == "none":
+            texture_ok = window_std_dn(pl, params.window_w_px,
+                                       params.window_h_px) >= params.texture_min_dn
+        else:
+            # the prefiltered image is zero-mean: its window RMS is its texture
+            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
+            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
+            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
+        weak = (reason == REASON_VALID) & ~texture_ok
+        reason[weak] = REASON_TEXTURE
+    if params.support_min_zncc != 0:
+        gl = np.asarray(left_grey, np.float32)
+        gr = np.asarray(right_grey, np.float32)
+        warped = np.empty((h, w), np.float32)
+        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
+                      threads)
+        zncc = np.empty((h, w), np.float32)
+        r = int(params.support_radius_px)
+        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
+                      pool, threads)
+        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
+
+
 def _kernel_threads() -> int:
     """Threads for the compiled kernels: numba's setting (``NUMBA_NUM_THREADS``; 1 in
     the workers of a process pool)."""
     return int(numba.get_num_threads())
 
 
-def run_row_bands(fn: Callable[[int, int], object], height: int, threads: int, *,
-                  min_rows: int = 8) -> None:
-    """Call ``fn(y0, y1)`` over bands of rows covering 0..height, on ``threads`` threads.
+def run_row_bands(fn: Callable[[int, int], object], height: int,
+                  pool: ThreadPoolExecutor | None, threads: int, *, min_rows: int = 8) -> None:
+    """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
 
-    The compiled kernels release the GIL, so plain threads run them in parallel.
-    There are twice as many bands as threads, handed out one at a time, so a core that
-    is busy with something else does not hold up the whole image; idle threads sleep
-    (no spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's
-    rows above it).
+    The compiled kernels release the GIL, so the threads of ``pool`` run them in
+    parallel. There are twice as many bands as ``threads``, handed out one at a time,
+    so a core that is busy with something else does not hold up the whole image; idle
+    threads sleep (no spinning). Bands are at least ``min_rows`` rows (a band re-reads
+    the window's rows above it). Without a pool the bands run here, in order.
     """
     bands = max(1, min(2 * threads, height // max(1, min_rows)))
     edges = [b * height // bands for b in range(bands + 1)]
-    if threads <= 1 or bands == 1:
+    if pool is None or bands == 1:
         for y0, y1 in itertools.pairwise(edges):
             fn(y0, y1)
         return
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
-            f.result()
+    for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
+        f.result()
 
 
 def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
