@@ -1,0 +1,453 @@
+"""Disparity from a rectified pair: the paper's normalised SSD (Eq. 10) and OpenCV matchers.
+
+The default matcher (``nssd``) is the paper's correlation stereo (Small Vision System
+style). For a left pixel (x, y) and a disparity d it compares the window
+``(2m+1) x (2n+1)`` around (x, y) in the left image with the window around
+(x - d, y) in the right image:
+
+    C(x, y, d) = sum (P_l - P_r)^2 / ( sqrt(sum P_l^2) * sqrt(sum P_r^2) )     (Eq. 10)
+
+The paper writes ``P_r(x + d)``; with the right camera at ``+baseline_m`` along x
+(DESIGN §2) a point seen at column x in the left image appears at x - d in the
+right one, so this module uses ``x - d`` and disparities are positive.
+
+Where the window leaves the columns both images have (the left border for large d,
+the right border), the sums run over the part that both images cover, so a pixel
+at column u can still be matched at every disparity d <= u (OpenCV's StereoBM
+instead drops its ``num_disparities - 1`` leftmost columns).
+
+After winner-take-all the disparity is refined to subpixel by a parabola through
+the costs at d - 1, d, d + 1 (Eq. 10 is a normalised sum of squares, locally
+quadratic in the shift, so the parabola is its natural model). Validity filters,
+all optional and each measured in docs/stereo.md:
+
+- prefilter: ``mean`` (subtract the local mean and clip, as StereoBM's
+  normalised-response prefilter), ``xsobel`` (horizontal derivative, clipped) or
+  ``log`` (Laplacian of Gaussian), or ``none``;
+- texture: the window's RMS in the matched (prefiltered, zero-mean) image, or the
+  window's standard deviation without a prefilter, must reach ``texture_min_dn``;
+- uniqueness: no disparity further than 1 px from the winner may cost less than
+  ``(1 + uniqueness_ratio)`` times the winner's cost;
+- left-right consistency from the same cost values: the right pixel x - d must
+  pick (within ``lr_max_diff_px``) the same disparity when it looks for its own
+  best left match along the same costs, so no second full match is run;
+- local support: the winning disparity must also hold for the pixel's own close
+  neighbourhood: the zero-mean normalised correlation of the ``(2 r + 1)^2`` grey
+  windows (r = ``support_radius_px``) of the left image and of the right image warped
+  by the winning disparities (bilinear) must reach ``support_min_zncc``. A 9 x 9 window still
+  matches a textureless pixel next to an edge or a textured neighbour (and often
+  gives it the neighbour's disparity); this check keeps only pixels whose own
+  surroundings carry the match;
+- speckle removal: connected regions of at most ``speckle_window_px`` pixels
+  whose disparities differ by at most ``speckle_range_px`` are removed.
+
+Invalid pixels are NaN in ``disparity_px`` and carry a reason code; they are never
+filled in.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
+from dataclasses import KW_ONLY, dataclass
+
+import cv2
+import numba
+import numpy as np
+
+from slitcli.errors import SlitcliError
+
+MATCHERS = ("nssd", "bm", "sgbm")
+PREFILTERS = ("none", "mean", "xsobel", "log")
+SUBPIXEL = ("parabola", "none")
+
+# invalid_reason codes (docs/stereo.md)
+REASON_VALID = 0
+REASON_NO_CANDIDATE = 1
+REASON_TEXTURE = 2
+REASON_UNIQUENESS = 3
+REASON_LEFT_RIGHT = 4
+REASON_SPECKLE = 5
+REASON_OPENCV = 6
+REASON_SUPPORT = 7
+REASON_NAMES = {
+    REASON_VALID: "valid",
+    REASON_NO_CANDIDATE: "no candidate (disparity range or empty window)",
+    REASON_TEXTURE: "texture",
+    REASON_UNIQUENESS: "uniqueness",
+    REASON_LEFT_RIGHT: "left-right",
+    REASON_SPECKLE: "speckle",
+    REASON_OPENCV: "rejected by the OpenCV matcher",
+    REASON_SUPPORT: "local support",
+}
+
+# Prefiltered images are stored as integers in units of 1/_QUANT DN: every window
+# sum of the matcher is then exact in float32, whatever the band split of the rows.
+_QUANT = 4.0
+
+
+@dataclass(frozen=True)
+class MatcherParams:
+    """Parameters of the disparity matcher (units in the names; DN = grey level 0-255).
+
+    ``window_w_px`` x ``window_h_px`` is the correlation window (2m+1) x (2n+1) of
+    Eq. 10; disparities searched are ``min_disparity_px .. min_disparity_px +
+    num_disparities - 1``. A filter is off when its parameter is 0 (``texture_min_dn``,
+    ``uniqueness_ratio``, ``speckle_window_px``) or negative (``lr_max_diff_px``).
+    """
+
+    matcher: str = "nssd"
+    num_disparities: int = 48
+    min_disparity_px: int = 0
+    window_w_px: int = 9
+    window_h_px: int = 9
+    _: KW_ONLY
+    prefilter: str = "mean"
+    prefilter_size_px: int = 9
+    prefilter_cap_dn: float = 15.0
+    log_sigma_px: float = 1.0
+    texture_min_dn: float = 1.0
+    uniqueness_ratio: float = 0.15
+    lr_max_diff_px: int = 1
+    support_radius_px: int = 1
+    support_min_zncc: float = 0.4
+    subpixel: str = "parabola"
+    speckle_window_px: int = 100
+    speckle_range_px: float = 2.0
+
+    def __post_init__(self) -> None:
+        check_matcher_params(self)
+
+
+def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) -> None:
+    """Raise :class:`SlitcliError` naming the option for impossible parameters."""
+    if p.matcher not in MATCHERS:
+        raise SlitcliError(f"--matcher {p.matcher!r} is unknown; use one of {', '.join(MATCHERS)}")
+    if p.prefilter not in PREFILTERS:
+        raise SlitcliError(f"--prefilter {p.prefilter!r} is unknown; use one of "
+                           f"{', '.join(PREFILTERS)}")
+    if p.subpixel not in SUBPIXEL:
+        raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
+                           f"{', '.join(SUBPIXEL)}")
+    if not isinstance(p.num_disparities, int | np.integer) or p.num_disparities <= 0:
+        raise SlitcliError(f"--num-disparities {p.num_disparities} must be a positive whole "
+                           "number of pixels (e.g. 48)")
+    for name, w in (("width", p.window_w_px), ("height", p.window_h_px)):
+        if not isinstance(w, int | np.integer) or w < 1 or w % 2 == 0:
+            raise SlitcliError(f"--window {name} {w} must be an odd number of pixels >= 1 "
+                               "(2m+1 of Eq. 10), e.g. --window 9 or --window 9x7")
+    if p.prefilter_size_px < 3 or p.prefilter_size_px % 2 == 0:
+        raise SlitcliError(f"--prefilter-size {p.prefilter_size_px} must be odd and >= 3")
+    if not p.prefilter_cap_dn > 0:
+        raise SlitcliError(f"--prefilter-cap {p.prefilter_cap_dn} must be > 0 DN")
+    if not p.log_sigma_px > 0:
+        raise SlitcliError(f"log_sigma_px {p.log_sigma_px} must be > 0 px")
+    if not p.texture_min_dn >= 0:
+        raise SlitcliError(f"--texture-min {p.texture_min_dn} must be >= 0 DN (0 = off)")
+    if not p.uniqueness_ratio >= 0:
+        raise SlitcliError(f"--uniqueness {p.uniqueness_ratio} must be >= 0 (0 = off)")
+    if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0:
+        raise SlitcliError("--support-radius must be >= 1 px and --support-min in [-1, 1] "
+                           "(0 = off)")
+    if p.speckle_window_px < 0 or not p.speckle_range_px >= 0:
+        raise SlitcliError("--speckle-window and --speckle-range must be >= 0 (0 = off)")
+    if p.matcher in ("bm", "sgbm"):
+        if p.num_disparities % 16:
+            raise SlitcliError(f"--num-disparities {p.num_disparities} must be a multiple of "
+                               f"16 for --matcher {p.matcher} (OpenCV); e.g. 48 or 64")
+        if p.window_w_px != p.window_h_px:
+            raise SlitcliError(f"--window {p.window_w_px}x{p.window_h_px}: --matcher "
+                               f"{p.matcher} needs a square window; give one number")
+        if p.matcher == "bm" and not 5 <= p.window_w_px <= 255:
+            raise SlitcliError(f"--window {p.window_w_px}: --matcher bm needs 5..255 px")
+    if image_width_px is not None:
+        if p.window_w_px > image_width_px:
+            raise SlitcliError(f"--window width {p.window_w_px} is wider than the image "
+                               f"({image_width_px} px); use a smaller odd window")
+        if p.min_disparity_px + p.num_disparities > image_width_px or \
+                p.min_disparity_px <= -image_width_px:
+            raise SlitcliError(f"--num-disparities {p.num_disparities} (from "
+                               f"{p.min_disparity_px} px) exceeds the image width "
+                               f"{image_width_px} px; use fewer disparities")
+
+
+@dataclass(frozen=True)
+class DisparityResult:
+    """Output of a matcher for one rectified pair.
+
+    Attributes
+    ----------
+    disparity_px : ndarray, float32, shape (H, W)
+        Left-image disparity (left column minus right column) in pixels; NaN = invalid.
+    invalid_reason : ndarray, uint8, shape (H, W)
+        0 for valid pixels, else the first filter that rejected the pixel
+        (``REASON_*`` codes, see :data:`REASON_NAMES`).
+    match_cost : ndarray, float32, shape (H, W) or None
+        Eq. 10 cost of the winning disparity (``nssd`` only; +inf where none).
+    """
+
+    disparity_px: np.ndarray
+    invalid_reason: np.ndarray
+    match_cost: np.ndarray | None = None
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Boolean (H, W) mask of valid pixels."""
+        return self.invalid_reason == REASON_VALID
+
+
+def to_grey(image: np.ndarray) -> np.ndarray:
+    """BGR (H, W, 3) or grey (H, W) uint8 image to grey uint8 (H, W)."""
+    img = np.asarray(image)
+    if img.ndim == 3:
+        return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim == 2:
+        return img
+    raise SlitcliError(f"image of shape {img.shape} is neither grey (H, W) nor BGR (H, W, 3)")
+
+
+def prefilter_image(grey: np.ndarray, params: MatcherParams) -> np.ndarray:
+    """The image the Eq. 10 cost is computed on, float32 (H, W), in units of 1/4 DN.
+
+    ``none`` returns the grey levels; ``mean`` subtracts the ``prefilter_size_px``
+    box mean; ``xsobel`` is the horizontal 3x3 Sobel derivative in DN/px; ``log``
+    is minus the Laplacian of a Gaussian of ``log_sigma_px``. Filtered values are
+    clipped to +-``prefilter_cap_dn`` and rounded to 1/4 DN so every window sum of
+    the matcher is exact.
+    """
+    from slitcli.stereo import _kernel
+
+    g = np.asarray(grey, dtype=np.float32)
+    kind = params.prefilter
+    if kind == "none":
+        return g
+    if kind == "mean":
+        k = params.prefilter_size_px
+        response, smooth, sign = g, cv2.blur(g, (k, k), borderType=cv2.BORDER_REFLECT_101), 1.0
+    elif kind == "xsobel":
+        response = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
+                             borderType=cv2.BORDER_REFLECT_101)
+        smooth, sign = response, 0.0
+    else:
+        blurred = cv2.GaussianBlur(g, (0, 0), params.log_sigma_px,
+                                   borderType=cv2.BORDER_REFLECT_101)
+        response = cv2.Laplacian(blurred, cv2.CV_32F, ksize=1, scale=-1.0,
+                                 borderType=cv2.BORDER_REFLECT_101)
+        smooth, sign = response, 0.0
+    out = np.empty_like(g)
+    _kernel.clip_quantise(response, smooth, np.float32(sign),
+                          np.float32(params.prefilter_cap_dn), np.float32(_QUANT), out)
+    return out
+
+
+def window_std_dn(image_q: np.ndarray, window_w_px: int, window_h_px: int) -> np.ndarray:
+    """Standard deviation of ``image_q`` (1/4 DN units unless unprefiltered) per window.
+
+    Returns float32 (H, W) in DN; windows are clipped at the image border.
+    """
+    f = np.asarray(image_q, dtype=np.float32)
+    k = (int(window_w_px), int(window_h_px))
+    mean = cv2.boxFilter(f, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
+    mean_sq = cv2.boxFilter(f * f, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
+    return np.sqrt(np.maximum(mean_sq - mean * mean, 0.0))
+
+
+def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
+               params: MatcherParams) -> DisparityResult:
+    """The paper's matcher: Eq. 10 cost, winner-take-all, subpixel, validity filters.
+
+    Parameters
+    ----------
+    left_grey, right_grey : ndarray, uint8, shape (H, W)
+        Rectified grey images (right camera at +baseline along x).
+    params : MatcherParams
+
+    Returns
+    -------
+    DisparityResult
+    """
+    h, w = left_grey.shape
+    disp = np.empty((h, w), np.float32)
+    cost = np.empty((h, w), np.float32)
+    energy = np.empty((h, w), np.float32)
+    reason = np.empty((h, w), np.uint8)
+    threads = _kernel_threads()
+    with ThreadPoolExecutor(max_workers=threads) if threads > 1 else nullcontext() as pool:
+        if pool is not None:
+            right_job = pool.submit(prefilter_image, right_grey, params)
+            pl = prefilter_image(left_grey, params)
+            pr = right_job.result()
+        else:
+            pl = prefilter_image(left_grey, params)
+            pr = prefilter_image(right_grey, params)
+        _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
+                     energy, reason)
+    disp, reason = _apply_speckle(disp, reason, params)
+    disp[reason != REASON_VALID] = np.nan
+    return DisparityResult(disp, reason, cost)
+
+
+@functools.lru_cache(maxsize=8)
+def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
+    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w),
+    read-only (a small memo: it depends on the sizes only)."""
+    rows = np.minimum(np.arange(h) + n, h - 1) - np.maximum(np.arange(h) - n, 0) + 1
+    cols = np.minimum(np.arange(w) + m, w - 1) - np.maximum(np.arange(w) - m, 0) + 1
+    out = (rows[:, None] * cols[None, :]).astype(np.float32)
+    out.setflags(write=False)
+    return out
+
+
+def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
+                 right_grey: np.ndarray, params: MatcherParams,
+                 pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
+                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray) -> None:
+    """Kernel, texture and support tests of :func:`match_nssd`, filling the outputs."""
+    from slitcli.stereo import _kernel
+
+    h, w = pl.shape
+    m = params.window_w_px // 2
+    n = params.window_h_px // 2
+    prr = np.ascontiguousarray(pr[:, ::-1])
+    args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
+            float(params.uniqueness_ratio), float(params.lr_max_diff_px),
+            params.subpixel == "parabola", disp, cost, energy, reason)
+    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
+                  pool, threads, min_rows=2 * n + 1)
+    if params.texture_min_dn > 0:
+        if params.prefilter == "none":
+            texture_ok = window_std_dn(pl, params.window_w_px,
+                                       params.window_h_px) >= params.texture_min_dn
+        else:
+            # the prefiltered image is zero-mean: its window RMS is its texture
+            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
+            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
+            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
+        weak = (reason == REASON_VALID) & ~texture_ok
+        reason[weak] = REASON_TEXTURE
+    if params.support_min_zncc != 0:
+        gl = np.asarray(left_grey, np.float32)
+        gr = np.asarray(right_grey, np.float32)
+        warped = np.empty((h, w), np.float32)
+        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
+                      threads)
+        zncc = np.empty((h, w), np.float32)
+        r = int(params.support_radius_px)
+        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
+                      pool, threads)
+        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
+
+
+def _kernel_threads() -> int:
+    """Threads for the compiled kernels: numba's setting (``NUMBA_NUM_THREADS``; 1 in
+    the workers of a process pool)."""
+    return int(numba.get_num_threads())
+
+
+def run_row_bands(fn: Callable[[int, int], object], height: int,
+                  pool: ThreadPoolExecutor | None, threads: int, *, min_rows: int = 8) -> None:
+    """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
+
+    The compiled kernels release the GIL, so the threads of ``pool`` run them in
+    parallel. There are twice as many bands as ``threads``, handed out one at a time,
+    so a core that is busy with something else does not hold up the whole image; idle
+    threads sleep (no spinning). Bands are at least ``min_rows`` rows (a band re-reads
+    the window's rows above it). Without a pool the bands run here, in order.
+    """
+    bands = max(1, min(2 * threads, height // max(1, min_rows)))
+    edges = [b * height // bands for b in range(bands + 1)]
+    if pool is None or bands == 1:
+        for y0, y1 in itertools.pairwise(edges):
+            fn(y0, y1)
+        return
+    for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
+        f.result()
+
+
+def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
+                   params: MatcherParams) -> tuple[np.ndarray, np.ndarray]:
+    """Mark small connected disparity blobs invalid (cv2.filterSpeckles on 1/16 px)."""
+    if params.speckle_window_px <= 0:
+        return disp, reason
+    valid = reason == REASON_VALID
+    bad = np.int16(-32768)
+    # 1/16 px units (disparities are < 2048 px, so they fit in int16)
+    fixed = np.where(valid, disp * np.float32(16.0), np.float32(bad)).astype(np.int16)
+    cv2.filterSpeckles(fixed, int(bad), int(params.speckle_window_px),
+                       max(1, math.ceil(params.speckle_range_px * 16.0)))
+    removed = valid & (fixed == bad)
+    reason = reason.copy()
+    reason[removed] = REASON_SPECKLE
+    return disp, reason
+
+
+def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
+                 params: MatcherParams) -> DisparityResult:
+    """OpenCV's StereoBM (``bm``) or StereoSGBM (``sgbm``) behind the same interface.
+
+    The shared parameters map onto OpenCV's: ``uniqueness_ratio`` x 100 ->
+    ``uniquenessRatio`` (percent), ``lr_max_diff_px`` -> ``disp12MaxDiff``,
+    ``speckle_*`` -> ``speckleWindowSize`` / ``speckleRange``, ``prefilter_cap_dn`` ->
+    ``preFilterCap`` and, for BM, ``texture_min_dn`` -> ``textureThreshold`` (a sum
+    of absolute prefiltered values over the window: 0.8 x std x window area). SGBM
+    uses P1 = 8 w^2 and P2 = 32 w^2.
+    """
+    w = params.window_w_px
+    common = dict(minDisparity=int(params.min_disparity_px),
+                  numDisparities=int(params.num_disparities), blockSize=int(w))
+    lr = int(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else -1
+    cap = int(min(63, max(1, round(params.prefilter_cap_dn))))
+    if params.matcher == "bm":
+        st = cv2.StereoBM_create(numDisparities=int(params.num_disparities), blockSize=int(w))
+        st.setMinDisparity(int(params.min_disparity_px))
+        st.setTextureThreshold(round(0.8 * params.texture_min_dn * w * w))
+        st.setPreFilterCap(cap)
+    else:
+        st = cv2.StereoSGBM_create(**common, P1=8 * w * w, P2=32 * w * w,
+                                   mode=cv2.STEREO_SGBM_MODE_SGBM)
+        st.setPreFilterCap(cap)
+    st.setUniquenessRatio(round(100 * params.uniqueness_ratio))
+    st.setDisp12MaxDiff(lr)
+    st.setSpeckleWindowSize(int(params.speckle_window_px))
+    st.setSpeckleRange(math.ceil(params.speckle_range_px) if params.speckle_window_px
+                       else 0)
+    raw = st.compute(np.ascontiguousarray(left_grey), np.ascontiguousarray(right_grey))
+    valid = raw >= params.min_disparity_px * 16
+    disp = np.where(valid, raw.astype(np.float32) / 16.0, np.float32(np.nan))
+    reason = np.where(valid, REASON_VALID, REASON_OPENCV).astype(np.uint8)
+    return DisparityResult(disp.astype(np.float32), reason)
+
+
+def compute_disparity(left: np.ndarray, right: np.ndarray,
+                      params: MatcherParams | None = None) -> DisparityResult:
+    """Disparity of a rectified pair with the chosen matcher.
+
+    Parameters
+    ----------
+    left, right : ndarray, uint8, shape (H, W, 3) BGR or (H, W) grey
+        Rectified images of the same size.
+    params : MatcherParams, optional
+        Defaults to ``MatcherParams()`` (the paper's Eq. 10 matcher with filters).
+
+    Raises
+    ------
+    SlitcliError
+        For images of different sizes or parameters impossible for this image size.
+    """
+    p = MatcherParams() if params is None else params
+    lg, rg = to_grey(left), to_grey(right)
+    if lg.shape != rg.shape:
+        raise SlitcliError(f"left image {lg.shape[1]}x{lg.shape[0]} and right image "
+                           f"{rg.shape[1]}x{rg.shape[0]} differ in size; give a rectified "
+                           "pair of the same size")
+    check_matcher_params(p, image_width_px=lg.shape[1])
+    if p.window_h_px > lg.shape[0]:
+        raise SlitcliError(f"--window height {p.window_h_px} is taller than the image "
+                           f"({lg.shape[0]} px); use a smaller odd window")
+    if p.matcher == "nssd":
+        return match_nssd(lg, rg, p)
+    return match_opencv(lg, rg, p)

@@ -1,0 +1,241 @@
+"""From disparity to distance image, obstacle mask and nearest obstacle range per bearing.
+
+Every valid pixel is reprojected with Eq. 8 (depth along the optical axis
+``D = W f / d``) to a point in the left camera frame, then moved to the sensor frame
+(x forward, y left, z up, origin on the floor below the left camera) with the rig's
+tilt, roll and height. The paper's Eq. 9 (``Z = D H cos(theta)``) is garbled
+(DESIGN §5); this is the exact form.
+
+A point is an obstacle point when it stands above the floor and below the top of the
+robot and lies within the stereo range. The floor test allows for the disparity
+noise: a pixel is floor when ``z < floor_margin_m + 2 sigma_z``, where
+``sigma_z = |dz/dd| disparity_sigma_px`` is how far the point's height moves for a
+disparity error of ``disparity_sigma_px``: a point moves along its ray by
+``D^2 / (f W)`` of depth per pixel of disparity, so ``|dz/dd| = |r_z| D^2 / (f W)``
+with ``r_z`` the sensor-z component of the pixel's ray (scaled to unit depth).
+
+Per bearing bin (bins of DESIGN §6, shared with the ground truth and the range table)
+the nearest obstacle range is a low percentile of the horizontal ranges
+``hypot(x, y)`` of the bin's obstacle points, once the bin holds
+``min_obstacle_px`` of them (a single wrong pixel cannot make an obstacle), and
+``has_features`` says whether stereo saw enough valid, non-floor pixels in that
+direction to be trusted (fusion falls back to the laser where it did not).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import KW_ONLY, dataclass
+
+import numpy as np
+
+from slitcli.errors import SlitcliError
+from slitcli.rig import Rig
+
+RANGE_STEP_M = 0.002  # histogram cell of the per-bin range percentile
+
+
+@dataclass(frozen=True)
+class ObstacleParams:
+    """How obstacle points and per-bearing ranges are drawn from a disparity image.
+
+    ``max_range_m`` of None uses the rig's ``stereo.max_range_m`` (the paper's 3 m).
+    """
+
+    _: KW_ONLY
+    floor_margin_m: float = 0.05
+    disparity_sigma_px: float = 0.25
+    robot_height_m: float = 0.8
+    max_range_m: float | None = None
+    bin_width_deg: float = 1.0
+    range_percentile: float = 10.0
+    min_obstacle_px: int = 8
+    min_feature_px: int = 20
+
+    def __post_init__(self) -> None:
+        if not self.floor_margin_m >= 0 or not self.disparity_sigma_px >= 0:
+            raise SlitcliError("--floor-margin and the disparity sigma must be >= 0")
+        if not self.robot_height_m > self.floor_margin_m:
+            raise SlitcliError(f"--robot-height {self.robot_height_m} m must be above the "
+                               f"floor margin {self.floor_margin_m} m")
+        if self.max_range_m is not None and not self.max_range_m > 0:
+            raise SlitcliError(f"--max-range {self.max_range_m} must be > 0 m")
+        if not 0 < self.bin_width_deg <= 45:
+            raise SlitcliError(f"--bin-width {self.bin_width_deg} must be in (0, 45] deg")
+        if not 0 <= self.range_percentile <= 100:
+            raise SlitcliError(f"--range-percentile {self.range_percentile} must be in "
+                               "[0, 100]")
+        if self.min_obstacle_px < 1 or self.min_feature_px < 1:
+            raise SlitcliError("--min-obstacle-px and --min-feature-px must be >= 1")
+
+
+@dataclass(frozen=True)
+class BearingRanges:
+    """Nearest obstacle per bearing bin (sensor frame; bearing positive to the left).
+
+    Attributes
+    ----------
+    bearing_deg : (B,) float
+        Bin centres, degrees (multiples of the bin width).
+    range_m : (B,) float
+        Nearest obstacle range (horizontal distance from the sensor origin), metres;
+        NaN where the bin holds fewer than ``min_obstacle_px`` obstacle points.
+    has_features : (B,) bool
+        At least ``min_feature_px`` valid non-floor pixels in the bin.
+    obstacle_px, feature_px : (B,) int
+        Obstacle points and valid non-floor pixels per bin.
+    """
+
+    bearing_deg: np.ndarray
+    range_m: np.ndarray
+    has_features: np.ndarray
+    obstacle_px: np.ndarray
+    feature_px: np.ndarray
+
+
+def bearing_bin_centres_deg(rig: Rig, bin_width_deg: float = 1.0) -> np.ndarray:
+    """Bin centres over the left camera's horizontal field of view (DESIGN §6).
+
+    The same bins as the ground truth (:func:`slitcli.sim.scene.bearing_bins`):
+    multiples of ``bin_width_deg`` whose bins lie at least half inside the view.
+    """
+    from slitcli.sim.scene import bearing_bins
+
+    centres, _, _ = bearing_bins(rig.bearing_limits_deg(), bin_width_deg)
+    return centres
+
+
+@dataclass(frozen=True)
+class PixelGeometry:
+    """Per-pixel geometry of a rig's left image (read-only arrays, shape (H, W, ...)).
+
+    ``rays_cam_xyz`` are the pixel rays ``K^-1 (u, v, 1)`` (z = 1), ``rays_sensor_xyz``
+    the same rays in the sensor frame and ``bearing_deg`` their bearings (positive
+    left). The sensor origin lies straight below the left optical centre, so a point's
+    bearing equals the bearing of the ray it lies on.
+    """
+
+    rays_cam_xyz: np.ndarray
+    rays_sensor_xyz: np.ndarray
+    bearing_deg: np.ndarray
+
+
+@functools.lru_cache(maxsize=4)
+def pixel_geometry(rig: Rig) -> PixelGeometry:
+    """The rig's :class:`PixelGeometry`, computed once per rig (a small memo)."""
+    w, h = rig.image_size_px
+    rays = rig.pixel_rays_cam(np.arange(w)[None, :], np.arange(h)[:, None]).astype(np.float32)
+    rs = (rays @ rig.R_sensor_from_cam.T.astype(np.float32)).astype(np.float32)
+    bearing = np.degrees(np.arctan2(rs[..., 1], rs[..., 0])).astype(np.float32)
+    for a in (rays, rs, bearing):
+        a.setflags(write=False)
+    return PixelGeometry(rays, rs, bearing)
+
+
+def depth_from_disparity(disparity_px: np.ndarray, rig: Rig) -> np.ndarray:
+    """Depth along the optical axis, ``D = W f / d`` (paper Eq. 8), float32 (H, W), metres.
+
+    NaN where the disparity is NaN or not positive.
+    """
+    d = np.asarray(disparity_px, dtype=np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = np.float32(rig.baseline_m * rig.focal_px) / d
+    return np.where(d > 0, depth, np.float32(np.nan)).astype(np.float32)
+
+
+def obstacle_points(disparity_px: np.ndarray, rig: Rig, params: ObstacleParams
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Depth, sensor-frame points and the obstacle / feature masks of a disparity image.
+
+    Parameters
+    ----------
+    disparity_px : (H, W) float
+        Disparity of the rectified left image (NaN = invalid); (W, H) must be the
+        rig's ``image_size_px``.
+
+    Returns
+    -------
+    depth_m : (H, W) float32
+        Eq. 8 depth, NaN where invalid.
+    points_sensor_xyz : (H, W, 3) float32
+        Sensor-frame points, metres, NaN where invalid.
+    obstacle_mask : (H, W) bool
+        Valid, not floor (see the module notes), below ``robot_height_m``, in front of
+        the sensor and with a horizontal range within the stereo range.
+    feature_mask : (H, W) bool
+        Valid and not floor.
+    """
+    from slitcli.stereo import _kernel
+
+    geo = pixel_geometry(rig)
+    d = np.ascontiguousarray(disparity_px, dtype=np.float32)
+    h, w = d.shape
+    depth = np.empty((h, w), np.float32)
+    pts = np.empty((h, w, 3), np.float32)
+    obstacle = np.empty((h, w), np.bool_)
+    feature = np.empty((h, w), np.bool_)
+    max_r = rig.stereo.max_range_m if params.max_range_m is None else params.max_range_m
+    _kernel.reproject(d, geo.rays_sensor_xyz, float(rig.focal_px * rig.baseline_m),
+                      float(rig.mount.height_m), float(params.floor_margin_m),
+                      float(2.0 * params.disparity_sigma_px), float(params.robot_height_m),
+                      float(max_r), depth, pts, obstacle, feature)
+    return depth, pts, obstacle, feature
+
+
+@functools.lru_cache(maxsize=8)
+def _pixel_bins(rig: Rig, bin_width_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bin centres (B,) and each pixel's bin index (H, W) (-1 outside), read-only."""
+    centres = bearing_bin_centres_deg(rig, bin_width_deg)
+    k0 = round(centres[0] / bin_width_deg) if centres.size else 0
+    idx = np.rint(pixel_geometry(rig).bearing_deg / bin_width_deg).astype(np.int64) - k0
+    idx = np.where((idx >= 0) & (idx < centres.size), idx, -1)
+    centres.setflags(write=False)
+    idx.setflags(write=False)
+    return centres, idx
+
+
+def bearing_ranges(points_sensor_xyz: np.ndarray, obstacle_mask: np.ndarray,
+                   feature_mask: np.ndarray, rig: Rig, params: ObstacleParams
+                   ) -> BearingRanges:
+    """Nearest obstacle range and ``has_features`` per bearing bin.
+
+    The ``range_percentile`` of a bin's obstacle ranges is read from a histogram of
+    ``RANGE_STEP_M`` cells (so it is exact to half a cell, 1 mm), which keeps this
+    O(pixels) with no sort (compiled, slitcli.stereo._kernel.bin_percentile).
+
+    Parameters
+    ----------
+    points_sensor_xyz : (H, W, 3) float
+        Sensor-frame points of the pixels (NaN where invalid).
+    obstacle_mask, feature_mask : (H, W) bool
+        From :func:`obstacle_points`.
+    """
+    from slitcli.stereo import _kernel
+
+    centres, bin_idx = _pixel_bins(rig, float(params.bin_width_deg))
+    nb = centres.size
+    range_m = np.full(nb, np.nan)
+    obstacle_px = np.zeros(nb, np.int64)
+    feature_px = np.zeros(nb, np.int64)
+    max_r = rig.stereo.max_range_m if params.max_range_m is None else params.max_range_m
+    _kernel.bin_percentile(np.ascontiguousarray(points_sensor_xyz, dtype=np.float32),
+                           np.ascontiguousarray(obstacle_mask),
+                           np.ascontiguousarray(feature_mask), bin_idx, nb, RANGE_STEP_M,
+                           float(max_r), float(params.range_percentile), range_m,
+                           obstacle_px, feature_px)
+    range_m[obstacle_px < params.min_obstacle_px] = np.nan
+    return BearingRanges(np.array(centres), range_m, feature_px >= params.min_feature_px,
+                         obstacle_px, feature_px)
+
+
+def bins_check(rig: Rig, params: ObstacleParams) -> None:
+    """Raise if the field of view holds no whole bearing bin."""
+    if bearing_bin_centres_deg(rig, params.bin_width_deg).size == 0:
+        hfov = rig.fov_deg()[0]
+        raise SlitcliError(f"--bin-width {params.bin_width_deg} deg leaves no bearing bin in "
+                           f"the {hfov:.1f} deg field of view; use narrower bins")
+
+
+__all__ = ["BearingRanges", "ObstacleParams", "PixelGeometry", "bearing_bin_centres_deg",
+           "bearing_ranges", "bins_check", "depth_from_disparity", "obstacle_points",
+           "pixel_geometry"]

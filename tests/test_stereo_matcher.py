@@ -1,0 +1,207 @@
+"""The Eq. 10 matcher against a brute-force Eq. 10, Middlebury, and exact synthetic pairs."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from stereo_synth import occlusion_pair, plane_pair
+
+from slitcli.errors import SlitcliError
+from slitcli.stereo.matcher import (
+    REASON_LEFT_RIGHT,
+    REASON_VALID,
+    MatcherParams,
+    compute_disparity,
+    prefilter_image,
+)
+
+PLAIN = dict(prefilter="none", texture_min_dn=0.0, uniqueness_ratio=0.0, lr_max_diff_px=-1,
+             support_min_zncc=0.0, speckle_window_px=0, subpixel="none")
+
+
+def brute_force_eq10(pl: np.ndarray, pr: np.ndarray, dmin: int, num: int, m: int, n: int
+                     ) -> np.ndarray:
+    """Eq. 10 for every pixel and disparity by explicit window sums (float64).
+
+    The window is clipped to the rows of the image and to the columns both images
+    cover (left column c and right column c - d both inside); +inf where the centre's
+    partner lies outside the right image.
+    """
+    h, w = pl.shape
+    pl = pl.astype(np.float64)
+    pr = pr.astype(np.float64)
+    out = np.full((num, h, w), np.inf)
+    for i in range(num):
+        d = dmin + i
+        for y in range(h):
+            for x in range(w):
+                if not 0 <= x - d < w:
+                    continue
+                ys = slice(max(0, y - n), min(h, y + n + 1))
+                c0, c1 = max(x - m, d, 0), min(x + m, w - 1, w - 1 + d)
+                a = pl[ys, c0:c1 + 1]
+                b = pr[ys, c0 - d:c1 + 1 - d]
+                den = np.sqrt((a * a).sum()) * np.sqrt((b * b).sum())
+                out[i, y, x] = ((a - b) ** 2).sum() / den if den > 0 else np.inf
+    return out
+
+
+@pytest.mark.parametrize("window,dmin", [((5, 5), 0), ((7, 3), 2)])
+def test_cost_and_winner_equal_brute_force_eq10(window, dmin):
+    rng = np.random.default_rng(3)
+    left = rng.integers(20, 236, (18, 40)).astype(np.uint8)
+    right = np.roll(left, -4, axis=1)  # a shift of 4 px plus fresh noise at the seam
+    right[:, -4:] = rng.integers(20, 236, (18, 4))
+    num = 9
+    p = MatcherParams(num_disparities=num, min_disparity_px=dmin, window_w_px=window[0],
+                      window_h_px=window[1], **PLAIN)
+    res = compute_disparity(left, right, p)
+    ref = brute_force_eq10(left, right, dmin, num, window[0] // 2, window[1] // 2)
+    ref_min = ref.min(axis=0)
+    ref_d = (ref.argmin(axis=0) + dmin).astype(float)
+    ref_d[~np.isfinite(ref_min)] = np.nan
+    np.testing.assert_array_equal(res.disparity_px, ref_d)
+    finite = np.isfinite(ref_min)
+    np.testing.assert_allclose(res.match_cost[finite], ref_min[finite], rtol=2e-5, atol=1e-6)
+    # every column u can still be matched with any disparity d <= u: no columns are lost
+    assert np.isfinite(res.disparity_px[:, dmin:]).all()
+    assert np.isnan(res.disparity_px[:, :dmin]).all()
+
+
+def test_prefiltered_cost_is_eq10_of_the_prefiltered_images():
+    rng = np.random.default_rng(5)
+    left = cv2.GaussianBlur(rng.integers(0, 256, (16, 36)).astype(np.uint8), (3, 3), 0)
+    right = np.roll(left, -3, axis=1)
+    p = MatcherParams(num_disparities=8, window_w_px=5, window_h_px=5,
+                      **{**PLAIN, "prefilter": "mean"})
+    res = compute_disparity(left, right, p)
+    ref = brute_force_eq10(prefilter_image(left, p), prefilter_image(right, p), 0, 8, 2, 2)
+    finite = np.isfinite(ref.min(axis=0))
+    np.testing.assert_allclose(res.match_cost[finite], ref.min(axis=0)[finite], rtol=2e-5,
+                               atol=1e-6)
+
+
+# ------------------------------------------------------------------ Middlebury
+@pytest.fixture(scope="module")
+def motorcycle():
+    """Middlebury 2014 motorcycle from scikit-image, protocol of issue 5."""
+    data = pytest.importorskip("skimage.data")
+    left, right, gt = data.stereo_motorcycle()
+    size = (320, 240)
+    lg = cv2.resize(cv2.cvtColor(left, cv2.COLOR_RGB2GRAY), size, interpolation=cv2.INTER_AREA)
+    rg = cv2.resize(cv2.cvtColor(right, cv2.COLOR_RGB2GRAY), size,
+                    interpolation=cv2.INTER_AREA)
+    g = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST) * (320.0 / 741.0)
+    return lg, rg, g
+
+
+def bad2(disp: np.ndarray, gt: np.ndarray) -> tuple[float, float, float]:
+    """(bad2 on valid pixels, density, bad2 counting invalid as bad) over finite GT."""
+    has_gt = np.isfinite(gt)
+    valid = has_gt & np.isfinite(disp)
+    bad = valid & (np.abs(disp - gt) > 2.0)
+    return (bad.sum() / valid.sum(), valid.sum() / has_gt.sum(),
+            (bad.sum() + (has_gt & ~valid).sum()) / has_gt.sum())
+
+
+def test_middlebury_plain_winner_take_all_reproduces_eq10(motorcycle):
+    lg, rg, gt = motorcycle
+    res = compute_disparity(lg, rg, MatcherParams(num_disparities=64, **PLAIN))
+    b, density, _ = bad2(res.disparity_px, gt)
+    assert density == 1.0
+    assert 0.185 <= b <= 0.205  # earlier measurement of plain Eq. 10 WTA: 0.193
+
+
+def test_middlebury_default_filters(motorcycle):
+    lg, rg, gt = motorcycle
+    res = compute_disparity(lg, rg, MatcherParams(num_disparities=64))
+    b_valid, density, b_all = bad2(res.disparity_px, gt)
+    assert b_valid <= 0.08
+    assert density >= 0.75
+    assert b_all <= 0.25
+    # StereoBM leaves its 63 leftmost columns empty; here a column u keeps the pixels
+    # whose true disparity is at most u (the others are not in the right image at all)
+    cols = np.arange(gt.shape[1])[None, :]
+    possible = np.isfinite(gt) & (gt <= cols - 1) & (cols < 63)
+    assert np.isfinite(res.disparity_px[possible]).mean() >= 0.6
+    bm = cv2.StereoBM_create(numDisparities=64, blockSize=9).compute(lg, rg)
+    assert (bm[:, :63] < 0).all()
+
+
+# ------------------------------------------------------------------ synthetic
+@pytest.mark.parametrize("d", [7.4, 12.3, 16.75, 21.6])
+def test_subpixel_disparity_of_a_textured_plane(d):
+    # 22 px = 1 m, 7.33 px = 3 m for the paper rig; fractions sweep the pixel-locking bias
+    left, right = plane_pair(d, noise_dn=1.0)
+    res = compute_disparity(left, right, MatcherParams())
+    region = res.disparity_px[:, 32:]
+    valid = np.isfinite(region)
+    assert valid.mean() >= 0.95
+    err = region[valid] - d
+    assert np.median(np.abs(err)) <= 0.1
+    assert np.percentile(np.abs(err), 99) <= 0.5
+
+
+def test_textureless_patch_is_invalid_not_guessed():
+    d = 12.3
+    left, right = plane_pair(d, noise_dn=2.0, plain_cols=(120, 220))
+    res = compute_disparity(left, right, MatcherParams())
+    inner = res.valid[:, 124:216]  # at least half a window away from the texture
+    assert 1.0 - inner.mean() >= 0.95
+    err = np.abs(res.disparity_px[:, 120:220] - d)
+    guessed = np.isfinite(err) & (err > 1.0)
+    assert guessed.mean() <= 0.01
+    assert res.valid[:, 40:110].mean() >= 0.95  # the textured part of the same plane
+
+
+def test_left_right_check_marks_the_occluded_band():
+    # square at 20 px in front of a background at 8 px: in the left image the 12 px to
+    # the left of the square are hidden from the right camera
+    left, right, truth = occlusion_pair(8.0, 20.0, (140, 220, 60, 180))
+    res = compute_disparity(left, right, MatcherParams(num_disparities=32))
+    occluded = np.zeros_like(res.valid)
+    occluded[66:174, 128:140] = True  # away from the square's top and bottom edges
+    assert (~res.valid[occluded]).mean() >= 0.8
+    assert (res.invalid_reason[occluded] == REASON_LEFT_RIGHT).mean() >= 0.3
+    seen = res.valid & ~occluded
+    assert np.median(np.abs(res.disparity_px[seen] - truth[seen])) <= 0.1
+    assert (res.invalid_reason[~occluded] == REASON_VALID).mean() >= 0.85
+
+
+@pytest.mark.parametrize("matcher", ["bm", "sgbm"])
+def test_opencv_matchers_behind_the_same_interface(matcher):
+    d = 12.3
+    left, right = plane_pair(d)
+    res = compute_disparity(cv2.cvtColor(left, cv2.COLOR_GRAY2BGR),
+                            cv2.cvtColor(right, cv2.COLOR_GRAY2BGR),
+                            MatcherParams(matcher=matcher, num_disparities=48))
+    assert res.disparity_px.dtype == np.float32
+    valid = np.isfinite(res.disparity_px)
+    assert (res.invalid_reason[valid] == REASON_VALID).all()
+    assert np.median(np.abs(res.disparity_px[valid] - d)) <= 0.3
+    assert valid[:, 64:-8].mean() >= 0.9
+
+
+@pytest.mark.parametrize("kwargs,fragment", [
+    (dict(num_disparities=0), "--num-disparities 0"),
+    (dict(num_disparities=-5), "--num-disparities -5"),
+    (dict(window_w_px=8), "--window width 8"),
+    (dict(window_h_px=4), "--window height 4"),
+    (dict(matcher="bm", num_disparities=40), "multiple of 16"),
+    (dict(prefilter="median"), "--prefilter"),
+])
+def test_impossible_parameters_are_one_line_errors(kwargs, fragment):
+    with pytest.raises(SlitcliError, match=fragment) as e:
+        MatcherParams(**kwargs)
+    assert "\n" not in str(e.value)
+
+
+def test_sizes_checked_against_the_images():
+    left, right = plane_pair(5.0, width=64, height=48)
+    with pytest.raises(SlitcliError, match="wider than the image"):
+        compute_disparity(left, right, MatcherParams(window_w_px=65, num_disparities=8))
+    with pytest.raises(SlitcliError, match="exceeds the image width"):
+        compute_disparity(left, right, MatcherParams(num_disparities=80))
+    with pytest.raises(SlitcliError, match="differ in size"):
+        compute_disparity(left, right[:, :60], MatcherParams(num_disparities=8))
