@@ -116,9 +116,19 @@ def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
     return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
 
 
-# The sensing modes of ``simulate-dwa --sensing``. The vision mode (render -> detect ->
-# fuse) joins here as a second factory once the per-frame detect API exists.
-SENSING_MODES: Mapping[str, SensorFactory] = MappingProxyType({"perfect": perfect_sensor})
+def vision_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
+                  bin_deg: float = 1.0) -> Sensor:
+    """Render -> detect -> fuse at every step (:mod:`slitcli.sim.vision`)."""
+    # imported here: the vision pipeline pulls in the detectors, which perfect sensing
+    # and the planner tests do not need
+    from slitcli.sim.vision import vision_sensor as make
+
+    return make(scene, rig, sensing_range_m, bin_deg=bin_deg)
+
+
+# The sensing modes of ``simulate-dwa --sensing``.
+SENSING_MODES: Mapping[str, SensorFactory] = MappingProxyType({"perfect": perfect_sensor,
+                                                                "vision": vision_sensor})
 
 
 @dataclass(frozen=True, kw_only=True)
