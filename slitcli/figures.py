@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+import cv2
 import matplotlib
 import numpy as np
 import pandas as pd
@@ -21,6 +22,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
 from slitcli.errors import SlitcliError
+from slitcli.evaluate import range_errors
 
 FORMATS = ("png", "svg", "pdf")
 CASE_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
@@ -175,9 +177,12 @@ def draw_accuracy(ax: Axes, errors: pd.DataFrame, *, bin_m: float = 0.25) -> dic
         ok = np.isfinite(med)
         ax.plot(centres[ok], 100 * med[ok], "o-", color=colour, label=name)
         drawn[name] = int(ok.sum())
+    ax.set_yscale("log")
+    ax.axvspan(0.0, 0.6, color="0.9", zorder=0, label="below both sensors' range")
+    ax.set_xlim(left=0.0)
     ax.set_xlabel("true distance (m)")
     ax.set_ylabel("median |range error| (cm)")
-    ax.set_title("Range accuracy against the truth")
+    ax.set_title("Range accuracy against the truth (rendered scenes)")
     ax.grid(alpha=0.3)
     ax.legend()
     return drawn
@@ -201,3 +206,80 @@ def check_format(fmt: str, dpi: int) -> None:
         raise SlitcliError(f"--format {fmt!r} is unknown; use one of {', '.join(FORMATS)}")
     if not 20 <= dpi <= 1200:
         raise SlitcliError(f"--dpi {dpi} is out of range; give 20-1200")
+
+
+# ----------------------------------------------------------------------------- make
+PAPER_CASES = ("range_0.6m", "range_1m", "range_1.5m", "range_2m")
+
+
+def _read_rgb(path: Path) -> np.ndarray:
+    from slitcli.io.sequence import read_image
+
+    return read_image(path)[..., ::-1]
+
+
+def _need(path: Path, made_by: str) -> Path:
+    if not path.exists():
+        raise SlitcliError(f"{path}: not found; it is written by `{made_by}` (see "
+                           "docs/reproduction.md for the folder layout)")
+    return path
+
+
+def make_figures(work: str | Path, out: str | Path, *, fmt: str = "png", dpi: int = 150
+                 ) -> list[Path]:
+    """Draw Figs. 4, 7, 8, 9 and the range-accuracy figure from a work folder.
+
+    ``work`` holds what ``make reproduce-figures`` writes: ``sequences/<scene>/`` (render),
+    ``detect/<scene>/`` (detect --save-images) and ``dwa/`` (simulate-dwa --scenario
+    paper). Returns the paths written (``fig4``, ``fig7``, ``fig8``, ``fig9``,
+    ``accuracy``, with the chosen extension).
+    """
+    check_format(fmt, dpi)
+    w, o = Path(work), Path(out)
+    written = []
+
+    seq, det = w / "sequences" / "fig4", w / "detect" / "fig4"
+    laser = pd.read_csv(_need(det / "laser.csv", "slitcli detect --save-images"))
+    truth = pd.read_csv(_need(seq / "gt" / "laser.csv", "slitcli render"))
+    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
+    draw_fig4(fig.subplots(), _read_rgb(seq / "left" / "000000.png"),
+              laser[laser["frame"] == 0], truth[truth["frame"] == 0])
+    written.append(save(fig, o / f"fig4.{fmt}", dpi=dpi))
+
+    seq, det = w / "sequences" / "corridor", w / "detect" / "corridor"
+    mask = cv2.imread(str(_need(det / "mask" / "000000.png", "slitcli detect --save-images")),
+                      cv2.IMREAD_UNCHANGED) > 0
+    dist_mm = cv2.imread(str(det / "distance" / "000000.png"), cv2.IMREAD_UNCHANGED)
+    dist = np.where(dist_mm > 0, dist_mm / 1000.0, np.nan)
+    fig = Figure(figsize=(10, 7.5), layout="constrained")
+    draw_fig7(fig.subplots(2, 2).ravel(), _read_rgb(seq / "left" / "000000.png"),
+              _read_rgb(seq / "right" / "000000.png"), mask, dist)
+    written.append(save(fig, o / f"fig7.{fmt}", dpi=dpi))
+
+    dwa = w / "dwa"
+    from slitcli.sim.scene import footprints, load_scene
+
+    world = load_scene(_need(dwa / "world.yaml", "slitcli simulate-dwa --scenario paper"))
+    fp = footprints(world, z_low_m=0.0, z_high_m=np.inf)
+    metrics = pd.read_csv(dwa / "metrics.csv").set_index("case")
+    trajs = {}
+    for case in PAPER_CASES:
+        label = f"sensing {metrics.loc[case, 'sensing_range_m']:g} m"
+        trajs[label] = pd.read_csv(_need(dwa / f"trajectory_{case}.csv", "simulate-dwa"))
+    fig = Figure(figsize=(12, 7.5), layout="constrained")
+    draw_fig8(fig.subplots(2, 2).ravel(), trajs, fp.segments_xy, fp.circles_xyr,
+              world.goal_xy_m, world.robot.radius_m)
+    written.append(save(fig, o / f"fig8.{fmt}", dpi=dpi))
+    fig = Figure(figsize=(7, 4.5), layout="constrained")
+    draw_fig9(fig.subplots(), trajs)
+    written.append(save(fig, o / f"fig9.{fmt}", dpi=dpi))
+
+    errors = []
+    for d in sorted((w / "detect").iterdir()):
+        gt = w / "sequences" / d.name / "gt" / "ranges.csv"
+        if (d / "ranges.csv").exists() and gt.exists():
+            errors.append(range_errors(pd.read_csv(d / "ranges.csv"), pd.read_csv(gt)))
+    fig = Figure(figsize=(7, 4.5), layout="constrained")
+    draw_accuracy(fig.subplots(), pd.concat(errors, ignore_index=True))
+    written.append(save(fig, o / f"accuracy.{fmt}", dpi=dpi))
+    return written

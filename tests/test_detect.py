@@ -17,7 +17,7 @@ from bagwriter import write_bag
 from click.testing import CliRunner
 
 from slitcli.cli import cli
-from slitcli.detect import DetectParams, Detector
+from slitcli.detect import Detector, DetectParams
 from slitcli.evaluate import range_errors
 from slitcli.io.sequence import StereoSequence
 from slitcli.rig import paper_rig
