@@ -72,7 +72,7 @@ def _dwa_params(kw: dict[str, Any], footprint_radius_m: float | None = None) -> 
     return DwaParams(**{k: kw.pop(k) for k in names}, **extra)
 
 
-@cli.command("dwa")
+@cli.command("dwa", short_help="Offline modified DWA over a recorded range table.")
 @click.argument("ranges", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--goal", required=True, metavar="X,Y",
               callback=_floats(2, "two numbers X,Y in metres"),

@@ -21,7 +21,7 @@ def _laser_defaults() -> dict[str, Any]:
 _LD = _laser_defaults()
 
 
-@cli.command("laser")
+@cli.command("laser", short_help="Laser stripe rows and ranges of a sequence.")
 @click.argument("seq", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
               help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")

@@ -89,7 +89,7 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
                                  max_range_m=max_range))
 
 
-@cli.command("stereo")
+@cli.command("stereo", short_help="Disparity, distance and obstacle images (Eq. 10).")
 @click.argument("seq", type=click.Path(file_okay=False, path_type=Path))
 @click.option("-o", "--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output folder for disparity/, distance/, mask/ and stereo_ranges.csv.")
