@@ -1,6 +1,14 @@
-"""Numba kernel of the Eq. 10 matcher: cost rows, winner-take-all, uniqueness, left-right.
+"""Compiled (numba) kernels of the stereo pipeline.
 
-The kernel walks the image one row at a time and keeps, per column, the running
+- :func:`nssd_rows`: the Eq. 10 matcher (cost, winner-take-all, subpixel, uniqueness,
+  left-right) for a band of rows;
+- :func:`warp_rows`, :func:`support_rows`: the local-support correlation;
+- :func:`clip_quantise`: the prefilter's clip and quantisation;
+- :func:`reproject`, :func:`bin_percentile`: depth, sensor-frame points, obstacle
+  tests and the per-bearing range percentile.
+
+All release the GIL (``nogil``) so bands of rows can run on plain threads. The matcher
+walks the image one row at a time and keeps, per column, the running
 vertical window sums of squared differences of all disparities (``width x
 num_disparities`` floats per thread, disparity-contiguous), so the full cost volume
 is never stored: a window sum slides along x with one add and one subtract per
@@ -24,8 +32,8 @@ BIG_INV = np.float32(1e30)
 SSD_EPS = np.float32(1e-3)
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}  # no nnan/ninf: +inf marks impossible costs
 
-# invalid_reason codes (documented in docs/stereo.md); 2 (texture) and 5 (speckle) are
-# set by the caller
+# invalid_reason codes (docs/stereo.md); texture (2), speckle (5) and support (7) are
+# set by slitcli.stereo.matcher
 REASON_VALID = 0
 REASON_NO_CANDIDATE = 1
 REASON_UNIQUENESS = 3
