@@ -159,19 +159,6 @@ def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> None:
 
 
 # ----------------------------------------------------------------------------- accuracy
-def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
-    """Join a detect range table with the true ranges (same frame and bearing) and give
-    the error of each sensor: columns ``true_m``, ``fused_err_m``, ``laser_err_m``,
-    ``stereo_err_m`` (NaN where that sensor has no return)."""
-    t = truth.rename(columns={"range_m": "true_m"})[["frame", "bearing_deg", "true_m"]]
-    j = ranges.merge(t, on=["frame", "bearing_deg"], how="inner")
-    j = j[np.isfinite(j["true_m"])]
-    out = pd.DataFrame({"true_m": j["true_m"]})
-    for k in ("fused", "laser", "stereo"):
-        out[f"{k}_err_m"] = j[f"{k}_range_m"] - j["true_m"]
-    return out.reset_index(drop=True)
-
-
 def draw_accuracy(ax: Axes, errors: pd.DataFrame, *, bin_m: float = 0.25) -> dict[str, int]:
     """Median absolute range error against the true distance, per sensor.
 

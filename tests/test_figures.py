@@ -5,13 +5,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from slitcli.evaluate import range_errors
 from slitcli.figures import (
     draw_accuracy,
     draw_fig4,
     draw_fig7,
     draw_fig8,
     draw_fig9,
-    range_errors,
     stripe_segments,
 )
 

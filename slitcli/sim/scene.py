@@ -104,21 +104,22 @@ class LaserLook:
     The sheet itself (its plane) comes from the rig. Across the sheet the light is a
     Gaussian of standard deviation ``width_m``; its peak on a white surface is
     ``power_dn * (ref_range_m / r) ** falloff_exponent`` digital numbers at range ``r``
-    from the emitter, so by default it is strong at 0.6 m, faint past 1.2 m and lost in
-    the noise by 2 m. The red light leaks ``crosstalk`` of itself into green and blue,
-    so a very bright core saturates towards white. Points farther than ``fan_deg`` off
+    from the emitter, so by default it saturates at 0.6 m, is about 80 DN on a grey wall
+    at 1 m, fades past 1.3 m and is lost in the noise by 2 m. The red light leaks
+    ``crosstalk`` of itself into green and blue, so a very bright core saturates towards
+    white. Points farther than ``fan_deg`` off
     the forward direction are not lit. ``visible_min_dn`` is the peak below which the
     truth reports no stripe.
     """
 
     enabled: bool = True
     width_m: float = 0.004
-    power_dn: float = 500.0
+    power_dn: float = 900.0
     ref_range_m: float = 0.6
     falloff_exponent: float = 4.0
     crosstalk: float = 0.12
     fan_deg: float = 60.0
-    visible_min_dn: float = 12.0
+    visible_min_dn: float = 20.0
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,5 @@
+"""``python -m slitcli``: the command line."""
+
+from slitcli.cli import main
+
+main()

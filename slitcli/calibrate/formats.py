@@ -1,0 +1,383 @@
+"""Import and export of stereo calibrations: ROS camera_info, OpenCV FileStorage, Kalibr.
+
+All three carry the raw calibration (``K1 D1 K2 D2 R T``, :class:`slitcli.rig.RawCalibration`
+conventions: ``X_right = R X_left + T``); the rectified rig is rebuilt from it with
+:mod:`.rectify`. Mount, laser and range limits are not in these files: they come from
+a base rig (default: the paper rig). Formats, as written and read (docs/calibration.md):
+
+``ros``
+    ``left.yaml`` and ``right.yaml``, camera_info YAML (camera_calibration_parsers):
+    ``image_width``, ``image_height``, ``camera_name``, ``camera_matrix``,
+    ``distortion_model`` (``plumb_bob`` or ``rational_polynomial``),
+    ``distortion_coefficients``, ``rectification_matrix`` (R1 / R2) and
+    ``projection_matrix`` (P1 / P2). The baseline is ``-P[0,3] / P[0,0]`` of the right
+    camera; on import ``R = R2^T R1`` and ``T = R2^T (P2[0,3] / P2[0,0], 0, 0)``.
+``opencv``
+    ``intrinsics.yml`` (``M1 D1 M2 D2``, ``image_width``, ``image_height``) and
+    ``extrinsics.yml`` (``R T R1 R2 P1 P2 Q``), :class:`cv2.FileStorage` YAML as in
+    OpenCV's stereo_calib sample; read with :class:`cv2.FileStorage` (PyYAML cannot parse
+    ``!!opencv-matrix``). One file holding all keys is read too.
+``kalibr``
+    ``camchain.yaml``: ``cam0``/``cam1`` with ``camera_model: pinhole``,
+    ``intrinsics [fu, fv, pu, pv]``, ``distortion_model: radtan``,
+    ``distortion_coeffs [k1, k2, r1, r2]``, ``resolution [w, h]``, and ``cam1.T_cn_cnm1``
+    (4x4, cam0 to cam1: exactly ``[R T; 0 1]``). Rectification is recomputed on import.
+
+Other camera or distortion models (fisheye/equidistant, omni, fov, ...) are refused.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from slitcli.calibrate.rectify import ideal_raw, rectify_raw, rig_with_raw
+from slitcli.errors import SlitcliError
+from slitcli.io.atomic import write_text_atomic
+from slitcli.rig import RawCalibration, Rig, load_rig
+
+FORMATS = ("ros", "opencv", "kalibr")
+_ROS_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,)}
+
+
+# ---------------------------------------------------------------------- helpers
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise SlitcliError(f"{path}: file not found; check the path") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise SlitcliError(f"{path}: cannot read it ({e.__class__.__name__}); give a YAML "
+                           "calibration file") from None
+
+
+def _yaml(path: Path, text: str) -> Any:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise SlitcliError(f"{path}: not valid YAML; give a ROS camera_info, OpenCV or Kalibr "
+                           "calibration file") from None
+
+
+def _matrix(path: Path, value: Any, key: str, shape: tuple[int, int]) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.size != shape[0] * shape[1] or not np.all(np.isfinite(a)):
+        raise SlitcliError(f"{path}: '{key}' must hold {shape[0]}x{shape[1]} finite numbers; "
+                           "fix the file")
+    return a.reshape(shape)
+
+
+def _raw_of(rig: Rig) -> RawCalibration:
+    return rig.raw if rig.raw is not None else ideal_raw(rig)
+
+
+def _size(path: Path, w: Any, h: Any) -> tuple[int, int]:
+    if not (isinstance(w, int) and isinstance(h, int) and w >= 8 and h >= 8):
+        raise SlitcliError(f"{path}: image size {w!r} x {h!r} is not valid; give whole numbers "
+                           "of pixels")
+    return int(w), int(h)
+
+
+# ---------------------------------------------------------------------- ROS
+def _ros_camera(name: str, size: tuple[int, int], K: np.ndarray, D: np.ndarray,
+                Rr: np.ndarray, P: np.ndarray) -> str:
+    d = np.asarray(D, dtype=float).ravel()
+    if d.size == 4:
+        d = np.append(d, 0.0)
+    if d.size == 5:
+        model = "plumb_bob"
+    elif d.size == 8:
+        model = "rational_polynomial"
+    else:
+        raise SlitcliError(f"rig: {d.size} distortion coefficients have no ROS camera_info "
+                           "model (plumb_bob has 5, rational_polynomial 8)")
+
+    def mat(a: np.ndarray, rows: int, cols: int) -> dict[str, Any]:
+        return {"rows": rows, "cols": cols, "data": [float(x) for x in np.ravel(a)]}
+
+    doc = {"image_width": int(size[0]), "image_height": int(size[1]), "camera_name": name,
+           "camera_matrix": mat(K, 3, 3), "distortion_model": model,
+           "distortion_coefficients": mat(d, 1, d.size), "rectification_matrix": mat(Rr, 3, 3),
+           "projection_matrix": mat(P, 3, 4)}
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
+
+
+def _read_ros(path: Path, data: Any) -> dict[str, Any]:
+    def block(key: str, shape: tuple[int, int]) -> np.ndarray:
+        node = data.get(key)
+        if not isinstance(node, dict) or "data" not in node:
+            raise SlitcliError(f"{path}: missing '{key}' (with rows, cols, data); not a "
+                               "complete ROS camera_info file")
+        return _matrix(path, node["data"], f"{key}.data", shape)
+
+    model = data.get("distortion_model")
+    dist = data.get("distortion_coefficients", {})
+    coeffs = np.asarray(dist.get("data", []) if isinstance(dist, dict) else [], dtype=float)
+    if model not in _ROS_MODELS:
+        raise SlitcliError(f"{path}: distortion_model '{model}' is not supported; slitcli reads "
+                           "plumb_bob and rational_polynomial (pinhole) only, recalibrate with "
+                           "one of those")
+    if coeffs.size not in _ROS_MODELS[model] or not np.all(np.isfinite(coeffs)):
+        raise SlitcliError(f"{path}: {model} needs {' or '.join(map(str, _ROS_MODELS[model]))} "
+                           f"distortion coefficients, found {coeffs.size}; fix the file")
+    return {"size": _size(path, data.get("image_width"), data.get("image_height")),
+            "K": block("camera_matrix", (3, 3)), "D": coeffs,
+            "R": block("rectification_matrix", (3, 3)), "P": block("projection_matrix", (3, 4))}
+
+
+def import_ros(paths: list[Path], docs: list[Any]) -> RawCalibration:
+    """Two camera_info files (any order) to a raw calibration."""
+    if len(paths) != 2:
+        raise SlitcliError(f"{paths[0]}: ROS camera_info needs two files, the left and the "
+                           "right camera's; give both")
+    cams = [_read_ros(p, d) for p, d in zip(paths, docs, strict=True)]
+    if cams[0]["P"][0, 3] < cams[1]["P"][0, 3]:
+        cams.reverse()
+        paths = paths[::-1]
+    left, right = cams
+    if right["P"][0, 3] >= 0 or abs(left["P"][0, 3]) > 1e-6 * abs(right["P"][0, 3]):
+        raise SlitcliError(f"{paths[1]}: projection_matrix[0,3] must be -fx * baseline < 0 for "
+                           "the right camera and 0 for the left; these files are not a "
+                           "rectified stereo pair")
+    if left["size"] != right["size"]:
+        raise SlitcliError(f"{paths[1]}: image size {right['size']} differs from the left "
+                           f"camera's {left['size']}")
+    R1, R2, P1, P2 = left["R"], right["R"], left["P"], right["P"]
+    R = R2.T @ R1
+    T = R2.T @ np.array([P2[0, 3] / P2[0, 0], 0.0, 0.0])
+    f = rectify_raw(left["K"], left["D"], right["K"], right["D"], left["size"], R, T,
+                    source=str(paths[0]))
+    return RawCalibration(image_size_px=f.image_size_px, K1=f.K1, D1=f.D1, K2=f.K2, D2=f.D2,
+                          R=f.R, T=f.T, R1=_tup(R1), R2=_tup(R2), P1=_tup(P1), P2=_tup(P2))
+
+
+def _tup(a: np.ndarray) -> tuple:
+    return tuple(tuple(float(x) for x in row) for row in np.asarray(a, dtype=float))
+
+
+# ---------------------------------------------------------------------- OpenCV
+def _fs_text(entries: dict[str, Any]) -> str:
+    fs = cv2.FileStorage("out.yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    for k, v in entries.items():
+        fs.write(k, v)
+    return fs.releaseAndGetString()
+
+
+def _q_matrix(P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+    tx = P2[0, 3] / P2[0, 0]
+    return np.array([[1.0, 0.0, 0.0, -P1[0, 2]], [0.0, 1.0, 0.0, -P1[1, 2]],
+                     [0.0, 0.0, 0.0, P1[0, 0]], [0.0, 0.0, -1.0 / tx, (P1[0, 2] - P2[0, 2]) / tx]])
+
+
+def import_opencv(paths: list[Path]) -> RawCalibration:
+    """OpenCV FileStorage stereo files (keys M1 D1 M2 D2 R T [R1 R2 P1 P2], image size)."""
+    values: dict[str, np.ndarray] = {}
+    size: dict[str, int] = {}
+    for p in paths:
+        try:
+            fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+            opened = fs.isOpened()
+        except cv2.error:
+            opened = False
+        if not opened:
+            raise SlitcliError(f"{p}: OpenCV FileStorage cannot parse it; give the .yml/.xml "
+                               "files written by cv2.FileStorage")
+        for key in ("M1", "D1", "M2", "D2", "R", "T", "R1", "R2", "P1", "P2"):
+            node = fs.getNode(key)
+            if not node.empty():
+                m = node.mat()
+                if m is None:
+                    raise SlitcliError(f"{p}: '{key}' is not a matrix; fix the file")
+                values[key] = np.asarray(m, dtype=float)
+        for key in ("image_width", "image_height"):
+            node = fs.getNode(key)
+            if not node.empty():
+                size[key] = int(node.real())
+        fs.release()
+    missing = [k for k in ("M1", "D1", "M2", "D2", "R", "T") if k not in values]
+    if missing:
+        raise SlitcliError(f"{paths[0]}: missing {', '.join(missing)}; OpenCV stereo files need "
+                           "M1 D1 M2 D2 (intrinsics) and R T (extrinsics)")
+    if len(size) != 2:
+        raise SlitcliError(f"{paths[0]}: no image_width / image_height; add them to the "
+                           "intrinsics file (the raw image size in pixels)")
+    src = Path(paths[0])
+    wh = _size(src, size["image_width"], size["image_height"])
+    for k in ("D1", "D2"):
+        n = values[k].size
+        if n not in (4, 5, 8):
+            raise SlitcliError(f"{src}: {k} has {n} coefficients; slitcli supports the pinhole "
+                               "models with 4, 5 or 8 (k1 k2 p1 p2 [k3 [k4 k5 k6]])")
+    M1, M2 = (_matrix(src, values[k], k, (3, 3)) for k in ("M1", "M2"))
+    R, T = _matrix(src, values["R"], "R", (3, 3)), _matrix(src, values["T"], "T", (3, 1))
+    f = rectify_raw(M1, values["D1"].ravel(), M2, values["D2"].ravel(), wh, R, T.ravel(),
+                    source=str(src))
+    if all(k in values for k in ("R1", "R2", "P1", "P2")):
+        return RawCalibration(image_size_px=f.image_size_px, K1=f.K1, D1=f.D1, K2=f.K2,
+                              D2=f.D2, R=f.R, T=f.T,
+                              R1=_tup(_matrix(src, values["R1"], "R1", (3, 3))),
+                              R2=_tup(_matrix(src, values["R2"], "R2", (3, 3))),
+                              P1=_tup(_matrix(src, values["P1"], "P1", (3, 4))),
+                              P2=_tup(_matrix(src, values["P2"], "P2", (3, 4))))
+    return f
+
+
+# ---------------------------------------------------------------------- Kalibr
+def _kalibr_camera(path: Path, cam: Any, name: str) -> dict[str, Any]:
+    if not isinstance(cam, dict):
+        raise SlitcliError(f"{path}: '{name}' is missing or not a mapping; a Kalibr camchain "
+                           "needs cam0 and cam1")
+    model = cam.get("camera_model")
+    if model != "pinhole":
+        raise SlitcliError(f"{path}: {name}.camera_model '{model}' is not supported; slitcli "
+                           "reads pinhole cameras only (recalibrate with pinhole-radtan)")
+    dmodel = cam.get("distortion_model")
+    if dmodel not in ("radtan", "none"):
+        raise SlitcliError(f"{path}: {name}.distortion_model '{dmodel}' is not supported; "
+                           "slitcli reads radtan (or none) only")
+    intr = _matrix(path, cam.get("intrinsics"), f"{name}.intrinsics", (1, 4)).ravel()
+    coeffs = np.asarray(cam.get("distortion_coeffs") or [0.0, 0.0, 0.0, 0.0], dtype=float)
+    if coeffs.size != 4 or not np.all(np.isfinite(coeffs)):
+        raise SlitcliError(f"{path}: {name}.distortion_coeffs must be 4 numbers [k1, k2, r1, r2]")
+    res = cam.get("resolution")
+    if not isinstance(res, list) or len(res) != 2:
+        raise SlitcliError(f"{path}: {name}.resolution must be [width, height]")
+    K = np.array([[intr[0], 0.0, intr[2]], [0.0, intr[1], intr[3]], [0.0, 0.0, 1.0]])
+    return {"K": K, "D": coeffs, "size": _size(path, res[0], res[1])}
+
+
+def import_kalibr(path: Path, data: Any) -> RawCalibration:
+    """A Kalibr camchain (cam0 = left, cam1 = right, ``cam1.T_cn_cnm1``)."""
+    c0 = _kalibr_camera(path, data.get("cam0"), "cam0")
+    c1 = _kalibr_camera(path, data.get("cam1"), "cam1")
+    if not isinstance(data.get("cam1"), dict) or "T_cn_cnm1" not in data["cam1"]:
+        raise SlitcliError(f"{path}: cam1.T_cn_cnm1 (4x4, cam0 to cam1) is missing")
+    Tm = _matrix(path, data["cam1"]["T_cn_cnm1"], "cam1.T_cn_cnm1", (4, 4))
+    if c0["size"] != c1["size"]:
+        raise SlitcliError(f"{path}: cam1.resolution {c1['size']} differs from cam0's "
+                           f"{c0['size']}; slitcli needs one image size")
+    return rectify_raw(c0["K"], c0["D"], c1["K"], c1["D"], c0["size"], Tm[:3, :3], Tm[:3, 3],
+                       source=str(path))
+
+
+# ---------------------------------------------------------------------- entry points
+def detect_format(path: Path, text: str) -> str:
+    """``opencv``, ``kalibr`` or ``ros`` from a file's content."""
+    head = text.lstrip()[:40]
+    if head.startswith("%YAML") or "!!opencv-" in text or head.startswith("<?xml"):
+        return "opencv"
+    data = _yaml(path, text)
+    if isinstance(data, dict) and "cam0" in data:
+        return "kalibr"
+    if isinstance(data, dict) and "camera_matrix" in data:
+        return "ros"
+    raise SlitcliError(f"{path}: not a ROS camera_info, OpenCV FileStorage or Kalibr camchain "
+                       "file; give one of those (or --format)")
+
+
+def import_raw(paths: list[str | Path], fmt: str = "auto") -> RawCalibration:
+    """Read calibration files (format ``auto`` detects it from the content)."""
+    ps = [Path(p) for p in paths]
+    if not ps:
+        raise SlitcliError("rig import: give at least one calibration file")
+    texts = [_read_text(p) for p in ps]
+    kinds = [detect_format(p, t) if fmt == "auto" else fmt for p, t in zip(ps, texts,
+                                                                           strict=True)]
+    if len(set(kinds)) != 1:
+        raise SlitcliError(f"{ps[1]}: is {kinds[1]} but {ps[0]} is {kinds[0]}; give files of one "
+                           "format")
+    kind = kinds[0]
+    if kind == "opencv":
+        return import_opencv(ps)
+    docs = [_yaml(p, t) for p, t in zip(ps, texts, strict=True)]
+    for p, d in zip(ps, docs, strict=True):
+        if not isinstance(d, dict):
+            raise SlitcliError(f"{p}: not a YAML mapping; give a {kind} calibration file")
+    if kind == "ros":
+        return import_ros(ps, docs)
+    if kind == "kalibr":
+        if len(ps) != 1:
+            raise SlitcliError(f"{ps[1]}: a Kalibr camchain is one file; give only it")
+        return import_kalibr(ps[0], docs[0])
+    raise SlitcliError(f"--format {kind}: unknown; use one of {', '.join(FORMATS)}")
+
+
+def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "auto",
+                   base_rig: str | Path | None = None, name: str | None = None) -> Rig:
+    """``slitcli rig import``: calibration files to a rig file (written atomically)."""
+    from slitcli.rig import save_rig
+
+    raw = import_raw(paths, fmt)
+    base = load_rig(base_rig) if base_rig is not None else None
+    rig = rig_with_raw(raw, base, name=name or (base.name if base else "imported"),
+                       source=str(paths[0]))
+    save_rig(rig, out_rig)
+    return rig
+
+
+def export_texts(rig: Rig, fmt: str) -> dict[str, str]:
+    """File name -> content of a rig exported in ``fmt`` (nothing is written here)."""
+    raw = _raw_of(rig)
+    K1, K2, D1, D2 = raw.array("K1"), raw.array("K2"), raw.array("D1"), raw.array("D2")
+    R, T = raw.array("R"), raw.array("T")
+    R1, R2, P1, P2 = raw.array("R1"), raw.array("R2"), raw.array("P1"), raw.array("P2")
+    size = raw.image_size_px
+    if fmt == "ros":
+        return {"left.yaml": _ros_camera("left", size, K1, D1, R1, P1),
+                "right.yaml": _ros_camera("right", size, K2, D2, R2, P2)}
+    if fmt == "opencv":
+        intr = _fs_text({"image_width": int(size[0]), "image_height": int(size[1]),
+                         "M1": K1, "D1": D1.reshape(1, -1), "M2": K2, "D2": D2.reshape(1, -1)})
+        extr = _fs_text({"R": R, "T": T.reshape(3, 1), "R1": R1, "R2": R2, "P1": P1, "P2": P2,
+                         "Q": _q_matrix(P1, P2)})
+        return {"intrinsics.yml": intr, "extrinsics.yml": extr}
+    if fmt == "kalibr":
+        cams = {}
+        for i, (K, D) in enumerate(((K1, D1), (K2, D2))):
+            if D.size > 4 and np.any(D[4:] != 0):
+                raise SlitcliError(f"rig: camera {i} has distortion beyond k1 k2 p1 p2 "
+                                   f"({np.round(D[4:], 6).tolist()}); Kalibr's radtan cannot "
+                                   "hold it, export to ros or opencv instead")
+            if K[0, 1] != 0:
+                raise SlitcliError(f"rig: camera {i} has skew K[0,1] = {K[0, 1]:g}; Kalibr's "
+                                   "pinhole has none, export to ros or opencv instead")
+            cam: dict[str, Any] = {}
+            if i == 1:
+                Tm = np.eye(4)
+                Tm[:3, :3], Tm[:3, 3] = R, T
+                cam["T_cn_cnm1"] = [[float(x) for x in row] for row in Tm]
+            cam.update({"camera_model": "pinhole",
+                        "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]),
+                                       float(K[1, 2])],
+                        "distortion_model": "radtan",
+                        "distortion_coeffs": [float(x) for x in np.append(D, [0.0] * 4)[:4]],
+                        "resolution": [int(size[0]), int(size[1])],
+                        "rostopic": f"/cam{i}/image_raw", "cam_overlaps": [1 - i]})
+            cams[f"cam{i}"] = cam
+        return {"camchain.yaml": yaml.safe_dump(cams, sort_keys=False, default_flow_style=None)}
+    raise SlitcliError(f"--format {fmt}: unknown; use one of {', '.join(FORMATS)}")
+
+
+def run_rig_export(rig_path: str | Path, fmt: str, out_dir: str | Path) -> list[Path]:
+    """``slitcli rig export``: write the rig's calibration files into ``out_dir``.
+
+    All contents are built (and checked) before the first file is written; each file is
+    written atomically.
+    """
+    rig = load_rig(rig_path)
+    texts = export_texts(rig, fmt)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise SlitcliError(f"{out}: exists and is not a folder; give an output folder")
+    written = []
+    for name, text in texts.items():
+        write_text_atomic(out / name, text)
+        written.append(out / name)
+    return written

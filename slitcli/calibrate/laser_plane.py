@@ -1,0 +1,332 @@
+"""``slitcli calibrate laser``: the laser plane from chessboard views crossed by the stripe.
+
+For each view of the left camera (DESIGN §9):
+
+1. the board's inner corners are found on the raw image, mapped to rectified pixels and
+   the board pose in the rig's (rectified left) camera frame is solved with
+   :func:`cv2.solvePnP`;
+2. the stripe is extracted per image column on the rectified image (the laser module,
+   paper Eqs. 1-4), giving subpixel rows ``v_px``;
+3. each stripe pixel's ray ``K^-1 (u, v, 1)`` is intersected with the board plane; points
+   off the printed checker area are dropped (the stripe may continue on the background).
+
+The points of all views are fitted with a plane ``n . X = d`` by SVD with iterative
+2-sigma outlier rejection (sigma from the median absolute residual, so that rejection
+does not shrink it). Degenerate input — one pose, or points that are nearly collinear
+— is refused by a singular-value ratio test: the stripe of one board pose is a line,
+which leaves the plane's rotation about it undetermined.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from slitcli.calibrate.board import BoardSpec, View, find_corners, list_views
+from slitcli.calibrate.rectify import rectify_pair, rectify_points
+from slitcli.errors import SlitcliError
+from slitcli.io.sequence import read_image
+from slitcli.rig import Rig, load_rig, save_rig
+
+#: (rectified BGR image (H, W, 3) uint8, search mask (H, W) bool: the board) ->
+#: stripe row per column (W,), NaN where none
+StripeExtractor = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def extract_stripe_rows(rectified_bgr: np.ndarray, search_mask: np.ndarray) -> np.ndarray:
+    """Per-column subpixel stripe rows of a rectified left image (the laser module).
+
+    This is the one place where calibration calls the laser extraction (paper Eqs. 1-4).
+    The search is limited to the board (``search_mask``): the rig's own laser plane,
+    which the detector would otherwise use to bound its search, is what is being
+    calibrated.
+    """
+    try:
+        from slitcli import laser  # type: ignore[attr-defined]
+    except ImportError:
+        raise SlitcliError("this slitcli has no laser extraction module (slitcli.laser); "
+                           "`calibrate laser` needs it: update slitcli") from None
+    found = laser.extract_stripe(rectified_bgr, laser.LaserParams(), search_mask=search_mask)
+    return np.asarray(found.v_px, dtype=float)
+
+
+def board_mask(rig: Rig, R_board: np.ndarray, t_board: np.ndarray, board: BoardSpec, *,
+               inset_m: float = 0.0) -> np.ndarray:
+    """Pixels (H, W) bool of the rectified left image covered by the checker area."""
+    sq = board.square_m
+    x0, x1 = -sq + inset_m, board.cols * sq - inset_m
+    y0, y1 = -sq + inset_m, board.rows * sq - inset_m
+    quad = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+    u, v = rig.project_cam(quad @ R_board.T + t_board)
+    mask = np.zeros((rig.height_px, rig.width_px), dtype=np.uint8)
+    if np.all(np.isfinite(u)) and np.all(np.isfinite(v)):
+        cv2.fillConvexPoly(mask, np.round(np.stack([u, v], axis=-1)).astype(np.int32), 1)
+    return mask.astype(bool)
+
+
+@dataclass(frozen=True)
+class LaserPlaneParams:
+    """Options of the laser-plane calibration.
+
+    ``min_views``: board poses with stripe points required (one pose is degenerate).
+    ``min_points_per_view``: stripe points on the board for a view to count.
+    ``reject_sigma``: outlier threshold in robust standard deviations (2-sigma rule).
+    ``max_iterations``: rejection rounds.
+    ``min_spread_ratio``: smallest accepted ratio of the second to the first singular
+    value of the centred points (0 = collinear, a single pose).
+    ``inset_squares``: stripe points closer than this many squares to the edge of the
+    checker area are dropped (the board edge and quiet zone are not measured).
+    """
+
+    board: BoardSpec
+    min_views: int = 2
+    min_points_per_view: int = 10
+    reject_sigma: float = 2.0
+    max_iterations: int = 20
+    min_spread_ratio: float = 0.05
+    inset_squares: float = 0.25
+
+
+@dataclass(frozen=True)
+class PlaneFit:
+    """A fitted plane ``normal . X = offset_m`` (unit normal, offset > 0), camera frame."""
+
+    normal: tuple[float, float, float]
+    offset_m: float
+    residual_std_m: float
+    inliers: int
+    points: int
+    spread_ratio: float
+    inlier_mask: np.ndarray
+
+
+def fit_plane_svd(points_xyz: np.ndarray, *, reject_sigma: float = 2.0,
+                  max_iterations: int = 20, min_spread_ratio: float = 0.05,
+                  source: str = "laser points") -> PlaneFit:
+    """Least-squares plane by SVD with iterative outlier rejection.
+
+    Parameters
+    ----------
+    points_xyz : ndarray, shape (N, 3), metres, camera frame.
+    reject_sigma : points with ``|residual| > reject_sigma * sigma`` are outliers; sigma
+        is ``1.4826 * median |residual|`` over all points for the current fit.
+    max_iterations : rejection rounds (stops early when the inlier set is stable).
+    min_spread_ratio : refuse when ``s2 / s1 < min_spread_ratio`` (``s`` the singular
+        values of the centred inliers): the points are (nearly) on a line.
+    source : named in errors.
+
+    Returns
+    -------
+    PlaneFit
+        ``residual_std_m`` is the RMS distance of the inliers to the plane.
+    """
+    p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    if p.shape[0] < 3:
+        raise SlitcliError(f"{source}: only {p.shape[0]} stripe points; a plane needs points "
+                           "from at least two board poses")
+    keep = np.ones(p.shape[0], dtype=bool)
+    normal = np.zeros(3)
+    centroid = np.zeros(3)
+    spread = 0.0
+    for _ in range(max(1, max_iterations)):
+        centroid = p[keep].mean(axis=0)
+        _, s, vt = np.linalg.svd(p[keep] - centroid, full_matrices=False)
+        spread = float(s[1] / s[0]) if s[0] > 0 else 0.0
+        if spread < min_spread_ratio:
+            raise SlitcliError(f"{source}: the stripe points are nearly collinear (singular-"
+                               f"value ratio {spread:.4f} < {min_spread_ratio:g}), as from a "
+                               "single board pose; add views with the board at different "
+                               "distances")
+        normal = vt[2]
+        r = (p - centroid) @ normal
+        sigma = 1.4826 * float(np.median(np.abs(r)))
+        new_keep = np.abs(r) <= reject_sigma * max(sigma, 1e-12)
+        if new_keep.sum() < 3:
+            break
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    offset = float(normal @ centroid)
+    if offset < 0:
+        normal, offset = -normal, -offset
+    r = p[keep] @ normal - offset
+    return PlaneFit(normal=tuple(float(v) for v in normal), offset_m=offset,
+                    residual_std_m=float(np.sqrt(np.mean(r**2))), inliers=int(keep.sum()),
+                    points=int(p.shape[0]), spread_ratio=spread, inlier_mask=keep)
+
+
+def board_pose_rectified(corners_raw_px: np.ndarray, rig: Rig,
+                         board: BoardSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Board pose in the rig's camera frame from raw-image corners: ``X = R X_board + t``."""
+    uv = rectify_points(rig, corners_raw_px, camera="left")
+    ok, rvec, tvec = cv2.solvePnP(board.object_points().astype(np.float64), uv,
+                                  rig.left.K, None, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise SlitcliError("solvePnP failed on a detected board; the view is unusable")
+    rvec, tvec = cv2.solvePnPRefineLM(board.object_points().astype(np.float64), uv, rig.left.K,
+                                      None, rvec, tvec)
+    return cv2.Rodrigues(rvec)[0], tvec.ravel()
+
+
+def stripe_points_on_board(v_px: np.ndarray, rig: Rig, R_board: np.ndarray,
+                           t_board: np.ndarray, board: BoardSpec, *,
+                           inset_m: float = 0.0) -> np.ndarray:
+    """Intersect the rays of per-column stripe rows with the board plane.
+
+    Parameters
+    ----------
+    v_px : ndarray, shape (W,)
+        Stripe row per column ``u = 0..W-1`` of the rectified left image, NaN = none.
+    rig : Rig
+    R_board, t_board : board pose in the rig's camera frame (``X = R X_board + t``).
+    board : BoardSpec
+    inset_m : keep only points at least this far inside the checker area.
+
+    Returns
+    -------
+    points_cam_xyz : ndarray, shape (M, 3)
+        Lit points on the board, rig (rectified left) camera frame, metres.
+    """
+    v = np.asarray(v_px, dtype=float).ravel()
+    u = np.arange(v.size, dtype=float)
+    ok = np.isfinite(v)
+    rays = rig.pixel_rays_cam(u[ok], v[ok])
+    m = R_board[:, 2]
+    denom = rays @ m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = float(m @ t_board) / denom
+    x = rays * s[:, None]
+    bxy = (x - t_board) @ R_board
+    keep = (np.abs(denom) > 1e-9) & (s > 0) & board.contains(bxy, inset_m=inset_m)
+    return x[keep]
+
+
+@dataclass(frozen=True)
+class LaserViewReport:
+    """One view: used or skipped (reason), stripe points kept, its RMS residual (mm)."""
+
+    name: str
+    used: bool
+    reason: str = ""
+    points: int = 0
+    residual_rms_mm: float = float("nan")
+
+
+@dataclass(frozen=True)
+class LaserCalibration:
+    """The fitted plane, the rig carrying it, and per-view statistics."""
+
+    rig: Rig
+    fit: PlaneFit
+    views: tuple[LaserViewReport, ...]
+
+    def report_lines(self) -> list[str]:
+        n = self.fit.normal
+        tilt = math.degrees(math.asin(max(-1.0, min(1.0, n[2]))))
+        used = [v for v in self.views if v.used]
+        lines = [f"views: {len(used)} used of {len(self.views)}",
+                 f"laser plane (rig camera frame): normal [{n[0]:.5f}, {n[1]:.5f}, {n[2]:.5f}]"
+                 f", offset_m {self.fit.offset_m:.5f} (normal {tilt:.3f} deg from the image "
+                 "plane)",
+                 f"residual_std_mm: {1000 * self.fit.residual_std_m:.3f} over "
+                 f"{self.fit.inliers} of {self.fit.points} points (2-sigma rejection); "
+                 f"singular-value ratio {self.fit.spread_ratio:.3f}",
+                 "per view: points, residual_rms_mm"]
+        lines += [f"  {v.name}: {v.points} {v.residual_rms_mm:.3f}" for v in used]
+        lines += [f"skipped {v.name}: {v.reason}" for v in self.views if not v.used]
+        return lines
+
+
+def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: Rig,
+                           params: LaserPlaneParams, *,
+                           extractor: StripeExtractor | None = None,
+                           source: str = "views") -> LaserCalibration:
+    """Fit the laser plane from left-camera board views (raw if ``rig.raw`` is set).
+
+    Parameters
+    ----------
+    names : view names for reports.
+    images_bgr : (H, W, 3) uint8 images of the left camera.
+    rig : the stereo-calibrated rig; its laser plane is replaced.
+    params : LaserPlaneParams
+    extractor : stripe rows per column of a rectified image within a mask; default
+        :func:`extract_stripe_rows` (the laser module).
+    source : named in errors.
+    """
+    extract = extractor if extractor is not None else extract_stripe_rows
+    board = params.board
+    want = rig.raw.image_size_px if rig.raw is not None else rig.image_size_px
+    reports: list[LaserViewReport] = []
+    per_view: list[np.ndarray] = []
+    for name, img in zip(names, images_bgr, strict=True):
+        if (img.shape[1], img.shape[0]) != tuple(want):
+            raise SlitcliError(f"{source}/{name}: size {img.shape[1]}x{img.shape[0]} does not "
+                               f"match the rig's {want[0]}x{want[1]}; use the rig of this "
+                               "camera (--rig)")
+        corners = find_corners(img, board)
+        if corners is None:
+            reports.append(LaserViewReport(name, False, f"no {board.cols}x{board.rows} board "
+                                           "found"))
+            continue
+        R_b, t_b = board_pose_rectified(corners, rig, board)
+        rect, _ = rectify_pair(rig, img)
+        v = extract(rect, board_mask(rig, R_b, t_b, board))
+        pts = stripe_points_on_board(v, rig, R_b, t_b, board,
+                                     inset_m=params.inset_squares * board.square_m)
+        if pts.shape[0] < params.min_points_per_view:
+            reports.append(LaserViewReport(name, False, f"only {pts.shape[0]} stripe points on "
+                                           "the board (laser off, or the stripe misses it)"))
+            continue
+        reports.append(LaserViewReport(name, True, points=int(pts.shape[0])))
+        per_view.append(pts)
+    if not per_view:
+        detail = "; ".join(f"{r.name}: {r.reason}" for r in reports[:3])
+        raise SlitcliError(f"{source}: no view shows both the board and the laser stripe "
+                           f"({detail}); check --board and that the stripe crosses the board")
+    if len(per_view) < params.min_views:
+        raise SlitcliError(f"{source}: only {len(per_view)} usable board pose(s); the laser "
+                           f"plane needs at least {max(params.min_views, 2)} poses at different"
+                           " distances (a single pose only gives a line)")
+    pts_all = np.concatenate(per_view)
+    fit = fit_plane_svd(pts_all, reject_sigma=params.reject_sigma,
+                        max_iterations=params.max_iterations,
+                        min_spread_ratio=params.min_spread_ratio, source=source)
+    n = np.asarray(fit.normal)
+    final: list[LaserViewReport] = []
+    k = 0
+    for r in reports:
+        if r.used:
+            res = per_view[k] @ n - fit.offset_m
+            final.append(replace(r, residual_rms_mm=float(1000 * np.sqrt(np.mean(res**2)))))
+            k += 1
+        else:
+            final.append(r)
+    laser = replace(rig.laser, normal=fit.normal, offset_m=fit.offset_m)
+    return LaserCalibration(rig=replace(rig, laser=laser), fit=fit, views=tuple(final))
+
+
+def laser_views(images_dir: str | Path) -> list[View]:
+    """The left-camera views: ``images_dir/left/`` if it exists, else ``images_dir``."""
+    d = Path(images_dir)
+    return list_views(d / "left" if (d / "left").is_dir() else d, "laser views")
+
+
+def run_calibrate_laser(rig_path: str | Path, images_dir: str | Path, params: LaserPlaneParams,
+                        *, out_rig: str | Path | None = None) -> LaserCalibration:
+    """``slitcli calibrate laser``: fit the plane and write it into the rig (atomically).
+
+    ``out_rig`` defaults to ``rig_path`` (updated in place). Nothing is written on error.
+    """
+    rig = load_rig(rig_path)
+    views = laser_views(images_dir)
+    images = [read_image(v.path) for v in views]
+    result = calibrate_laser_images([v.name for v in views], images, rig, params,
+                                    source=str(images_dir))
+    save_rig(result.rig, out_rig if out_rig is not None else rig_path)
+    return result

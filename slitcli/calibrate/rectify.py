@@ -1,0 +1,157 @@
+"""From a raw (distorted, unrectified) stereo calibration to the rectified rig, and back.
+
+The rig (DESIGN §12) describes the *rectified* pair: ``rig.left`` is the rectified left
+camera (from ``P1``), ``rig.baseline_m = -P2[0,3] / P2[0,0]``, and the rig's camera frame
+(laser plane, mount) is the rectified left camera frame, which differs from the raw left
+camera frame by the rotation ``R1`` about the same optical centre. The raw calibration
+is kept in ``rig.raw`` so that raw input images can be rectified.
+
+Rectification uses :func:`cv2.stereoRectify` with ``CALIB_ZERO_DISPARITY`` and
+``alpha = 0`` by default: the rectified image (same size as the raw one) shows only
+valid pixels, so no black borders reach stereo matching or the laser extraction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from slitcli.errors import SlitcliError
+from slitcli.rig import Intrinsics, RawCalibration, Rig, paper_rig
+
+
+def _freeze(a: np.ndarray) -> tuple:
+    a = np.asarray(a, dtype=float)
+    return tuple(_freeze(x) for x in a) if a.ndim > 1 else tuple(float(x) for x in a)
+
+
+def rectify_raw(K1: np.ndarray, D1: np.ndarray, K2: np.ndarray, D2: np.ndarray,
+                image_size_px: tuple[int, int], R: np.ndarray, T: np.ndarray, *,
+                alpha: float = 0.0, source: str = "calibration") -> RawCalibration:
+    """Run :func:`cv2.stereoRectify` and bundle everything as a :class:`RawCalibration`.
+
+    Parameters
+    ----------
+    K1, K2 : (3, 3) camera matrices, pixels.
+    D1, D2 : (N,) OpenCV distortion (k1, k2, p1, p2[, k3[, k4, k5, k6]]).
+    image_size_px : (width, height) of the raw images.
+    R, T : (3, 3), (3,) pose of the right camera, ``X_right = R X_left + T`` (metres).
+    alpha : free scaling of :func:`cv2.stereoRectify` (0: only valid pixels).
+    source : what to name in error messages.
+
+    Raises
+    ------
+    SlitcliError
+        If the right camera is not to the right of the left one (swapped inputs) or
+        the pair is stacked vertically.
+    """
+    K1, K2, R = (np.asarray(a, dtype=float).reshape(3, 3) for a in (K1, K2, R))
+    D1, D2 = (np.asarray(a, dtype=float).ravel() for a in (D1, D2))
+    T = np.asarray(T, dtype=float).ravel()
+    if T.shape != (3,) or not np.all(np.isfinite(T)) or np.linalg.norm(T) <= 0:
+        raise SlitcliError(f"{source}: translation T = {T.tolist()} is not a valid baseline; "
+                           "give the right camera's position (metres, 3 values, not all zero)")
+    if abs(T[1]) > abs(T[0]) or abs(T[2]) > abs(T[0]):
+        raise SlitcliError(f"{source}: the cameras are not side by side (T = "
+                           f"{np.round(T, 4).tolist()} m); slitcli needs a horizontal pair")
+    if T[0] > 0:
+        raise SlitcliError(f"{source}: the right camera is to the left of the left camera "
+                           f"(T[0] = {T[0]:+.4f} m); swap the left and right inputs")
+    size = (int(image_size_px[0]), int(image_size_px[1]))
+    R1, R2, P1, P2, _q, _r1, _r2 = cv2.stereoRectify(
+        K1, D1, K2, D2, size, R, T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha,
+        newImageSize=size)
+    return RawCalibration(image_size_px=size, K1=_freeze(K1), D1=_freeze(D1), K2=_freeze(K2),
+                          D2=_freeze(D2), R=_freeze(R), T=_freeze(T), R1=_freeze(R1),
+                          R2=_freeze(R2), P1=_freeze(P1), P2=_freeze(P2))
+
+
+def rig_with_raw(raw: RawCalibration, base: Rig | None = None, *, name: str | None = None,
+                 source: str = "calibration") -> Rig:
+    """The rectified rig of a raw calibration; mount, laser and limits from ``base``.
+
+    ``rig.left`` comes from ``P1``, ``rig.baseline_m`` from ``P2``, ``image_size_px``
+    is the raw size (the rectified images have the raw size).
+    """
+    base = base or paper_rig()
+    P1, P2 = raw.array("P1"), raw.array("P2")
+    if P1[0, 0] <= 0 or P2[0, 0] <= 0:
+        raise SlitcliError(f"{source}: projection matrices P1/P2 have no positive focal "
+                           "length; the rectification is invalid")
+    baseline = -P2[0, 3] / P2[0, 0]
+    if not baseline > 0:
+        raise SlitcliError(f"{source}: the rectified right camera is not to the right "
+                           f"(P2[0,3] = {P2[0, 3]:.4g}); swap the left and right inputs")
+    if abs(P2[1, 3]) > 1e-6 * abs(P2[0, 3]):
+        raise SlitcliError(f"{source}: P2[1,3] = {P2[1, 3]:.4g} describes a vertical "
+                           "rectification; slitcli needs a horizontal pair")
+    w, h = raw.image_size_px
+    left = Intrinsics(fx_px=float(P1[0, 0]), fy_px=float(P1[1, 1]), cx_px=float(P1[0, 2]),
+                      cy_px=float(P1[1, 2]))
+    if not (0 <= left.cx_px <= w - 1 and 0 <= left.cy_px <= h - 1):
+        raise SlitcliError(f"{source}: the rectified principal point ({left.cx_px:.1f}, "
+                           f"{left.cy_px:.1f}) lies outside the {w}x{h} image; the "
+                           "calibration is unusable (recalibrate with more varied views)")
+    return replace(base, name=name or base.name, image_size_px=(int(w), int(h)), left=left,
+                   baseline_m=float(baseline), raw=raw)
+
+
+def ideal_raw(rig: Rig) -> RawCalibration:
+    """The raw calibration of an already rectified rig (no distortion, no rotation)."""
+    K = rig.left.K
+    B = rig.baseline_m
+    P1 = np.hstack([K, np.zeros((3, 1))])
+    P2 = P1.copy()
+    P2[0, 3] = -K[0, 0] * B
+    eye = np.eye(3)
+    return RawCalibration(image_size_px=tuple(int(v) for v in rig.image_size_px),
+                          K1=_freeze(K), D1=_freeze(np.zeros(5)), K2=_freeze(K),
+                          D2=_freeze(np.zeros(5)), R=_freeze(eye), T=_freeze([-B, 0.0, 0.0]),
+                          R1=_freeze(eye), R2=_freeze(eye), P1=_freeze(P1), P2=_freeze(P2))
+
+
+def rectification_maps(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Remap tables (left x, left y, right x, right y), each float32 (H, W), raw -> rectified."""
+    if rig.raw is None:
+        raise SlitcliError("rig has no 'raw' calibration; its images are already rectified")
+    raw = rig.raw
+    size = tuple(int(v) for v in rig.image_size_px)
+    m1x, m1y = cv2.initUndistortRectifyMap(raw.array("K1"), raw.array("D1"), raw.array("R1"),
+                                           raw.array("P1"), size, cv2.CV_32FC1)
+    m2x, m2y = cv2.initUndistortRectifyMap(raw.array("K2"), raw.array("D2"), raw.array("R2"),
+                                           raw.array("P2"), size, cv2.CV_32FC1)
+    return m1x, m1y, m2x, m2y
+
+
+def rectify_pair(rig: Rig, left_bgr: np.ndarray,
+                 right_bgr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Rectify raw images with ``rig.raw`` (bilinear); returned unchanged without ``raw``.
+
+    Images are (H, W[, 3]) arrays of the raw size; the results have ``rig.image_size_px``.
+    """
+    if rig.raw is None:
+        return left_bgr, right_bgr
+    m1x, m1y, m2x, m2y = rectification_maps(rig)
+    left = cv2.remap(left_bgr, m1x, m1y, cv2.INTER_LINEAR)
+    right = None if right_bgr is None else cv2.remap(right_bgr, m2x, m2y, cv2.INTER_LINEAR)
+    return left, right
+
+
+def rectify_points(rig: Rig, uv_raw_px: np.ndarray, *, camera: str = "left") -> np.ndarray:
+    """Raw pixel positions (N, 2) of one camera to rectified pixels (N, 2) of the rig."""
+    uv = np.asarray(uv_raw_px, dtype=float).reshape(-1, 1, 2)
+    if rig.raw is None:
+        return uv.reshape(-1, 2).copy()
+    raw = rig.raw
+    k, d, r, p = (("K1", "D1", "R1", "P1") if camera == "left" else ("K2", "D2", "R2", "P2"))
+    out = cv2.undistortPoints(uv, raw.array(k), raw.array(d), R=raw.array(r), P=raw.array(p),
+                              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30,
+                                        1e-9))
+    return out.reshape(-1, 2)
+
+
+def R_rect_from_raw_left(rig: Rig) -> np.ndarray:
+    """Rotation from the raw left camera frame to the rig's (rectified) camera frame."""
+    return np.eye(3) if rig.raw is None else rig.raw.array("R1")

@@ -1,0 +1,85 @@
+"""Command ``laser``: the laser slit table of a sequence (Eqs. 1-7)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from slitcli.cli import cli
+
+
+def _laser_defaults() -> dict[str, Any]:
+    from dataclasses import fields
+
+    from slitcli.laser.params import LaserParams
+
+    return {f.name: f.default for f in fields(LaserParams)}
+
+
+_LD = _laser_defaults()
+
+
+@cli.command("laser")
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
+              help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Rig file (default: SEQ/rig.yaml, else the paper rig).")
+@click.option("--overlay", is_flag=True,
+              help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
+                   "(paper Fig. 4 style).")
+@click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
+              help="Eq. 2: minimum red chromaticity R = r/(r+g+b) (unitless; grey is 0.333).")
+@click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
+              help="Eq. 2: minimum R - max(G, B) (unitless).")
+@click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
+              help="Eq. 3 white-brightness rejection (paper 0.32): red contrast minus white "
+                   "contrast must exceed alpha x red contrast (unitless).")
+@click.option("--beta", type=float, default=_LD["beta"], show_default=True,
+              help="Eq. 4 weight of the continuity term f(y) (paper 0.25).")
+@click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
+              help="Eq. 4 weight of the narrowness term g(I) (paper 0.25).")
+@click.option("--max-width-px", type=float, default=_LD["max_width_px"], show_default=True,
+              help="Widest stripe run (equivalent width = sum / peak of red contrast), px.")
+@click.option("--background-window-px", type=int, default=_LD["background_window_px"],
+              show_default=True,
+              help="Vertical window of the background estimate (odd, > 2 x max width), px.")
+@click.option("--min-peak-dn", type=float, default=_LD["min_peak_dn"], show_default=True,
+              help="Minimum red contrast of the stripe above its background, DN.")
+@click.option("--noise-k", type=float, default=_LD["noise_k"], show_default=True,
+              help="Stripe contrast must also exceed noise-k x the estimated noise sigma.")
+@click.option("--seed-fraction", type=float, default=_LD["seed_fraction"], show_default=True,
+              help="Pixels join a candidate run above this fraction of the acceptance "
+                   "contrast (unitless).")
+@click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
+              help="Red level from which a pixel counts as saturated, DN.")
+@click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
+              help="Scale of the continuity term f(y), px.")
+@click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
+              help="Largest row step between neighbouring columns of one segment, px.")
+@click.option("--min-segment-cols", type=int, default=_LD["min_segment_cols"],
+              show_default=True, help="Shorter stripe segments are dropped, columns.")
+@click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
+              show_default=True,
+              help="Search only rows whose laser-plane range is at most this, m.")
+def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
+              **tuning: Any) -> None:
+    """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
+
+    Reads the left images of the sequence SEQ and writes OUT/laser.csv: one row per
+    frame and image column with a stripe (frame, u_px, v_px, strength [DN], x_m,
+    y_m, range_m, bearing_deg in the sensor frame, in_band = 1 inside the rig's
+    laser band). Points outside the band stay in the table, flagged in_band = 0.
+
+    Example: slitcli laser out/corridor -o out/laser --overlay
+    """
+    from slitcli.laser.batch import run_laser
+    from slitcli.laser.params import LaserParams
+
+    params = LaserParams(**tuning)
+    path = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay)
+    click.echo(f"wrote {path}")
+
+

@@ -1,0 +1,39 @@
+"""Laser slit: stripe extraction (paper Eqs. 1-4) and triangulation (Eqs. 5-7, DESIGN §4).
+
+Per-frame API for fusion and the simulator: :func:`detect_laser` (image -> per-column
+stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points ->
+nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
+"""
+
+from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
+from slitcli.laser.extract import StripeColumns, candidate_mask, chromaticity, extract_stripe
+from slitcli.laser.frame import (
+    LaserBins,
+    LaserFrame,
+    LaserGeometry,
+    bearing_bin_centres_deg,
+    detect_laser,
+    nearest_range_per_bin,
+    triangulate_stripe,
+)
+from slitcli.laser.overlay import draw_overlay
+from slitcli.laser.params import LaserParams
+
+__all__ = [
+    "TABLE_COLUMNS",
+    "LaserBins",
+    "LaserFrame",
+    "LaserGeometry",
+    "LaserParams",
+    "StripeColumns",
+    "bearing_bin_centres_deg",
+    "candidate_mask",
+    "chromaticity",
+    "detect_laser",
+    "draw_overlay",
+    "extract_stripe",
+    "laser_table",
+    "nearest_range_per_bin",
+    "run_laser",
+    "triangulate_stripe",
+]

@@ -1,0 +1,205 @@
+"""Per-frame laser API: extraction plus triangulation (paper Eqs. 5-7 via DESIGN §4).
+
+:func:`detect_laser` is what fusion (``detect``) and the closed-loop simulator
+call for every frame; :func:`nearest_range_per_bin` reduces its points to the
+per-bearing range table of DESIGN §6.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slitcli.laser.extract import extract_stripe
+from slitcli.laser.params import LaserParams
+from slitcli.rig import Rig
+
+
+@dataclass(frozen=True)
+class LaserGeometry:
+    """What the extractor needs from a rig, computed once per rig and parameter set.
+
+    Attributes
+    ----------
+    search_mask : ndarray, shape (H, W) bool
+        Pixels whose ray meets the laser plane in front of the camera at a
+        horizontal range (sensor frame) of at most ``max_search_range_m``.
+    """
+
+    search_mask: np.ndarray
+
+    @classmethod
+    def from_rig(cls, rig: Rig, params: LaserParams) -> LaserGeometry:
+        """Build the geometry of ``rig`` for ``params.max_search_range_m``."""
+        h, w = rig.height_px, rig.width_px
+        v, u = np.mgrid[0:h, 0:w]
+        pts = rig.cam_to_sensor(rig.intersect_laser_plane(rig.pixel_rays_cam(u, v)))
+        rng = np.hypot(pts[..., 0], pts[..., 1])
+        with np.errstate(invalid="ignore"):
+            mask = np.isfinite(rng) & (rng <= params.max_search_range_m)
+        return cls(search_mask=mask)
+
+
+@dataclass(frozen=True)
+class LaserFrame:
+    """The laser stripe of one frame, per image column, with its triangulated points.
+
+    All arrays have shape (W,) (one entry per image column ``u_px = 0..W-1``);
+    columns without a stripe hold NaN (``in_band`` and ``saturated`` False).
+    Points are in the sensor frame (x forward, y left, metres; bearing positive
+    to the left, degrees).
+
+    Attributes
+    ----------
+    u_px, v_px : column and sub-pixel stripe row, pixels.
+    strength_dn : red contrast of the stripe above its local background, DN.
+    saturated : the stripe core is clipped.
+    x_m, y_m : sensor-frame position of the lit point, metres.
+    range_m : horizontal distance ``hypot(x, y)`` from the point below the left camera.
+    bearing_deg : ``atan2(y, x)`` in degrees.
+    in_band : the range lies in the rig's trusted laser band
+        ``[laser.min_range_m, laser.max_range_m]``.
+    noise_sigma_dn, threshold_dn : estimated image noise and the acceptance
+        threshold used, DN.
+    """
+
+    u_px: np.ndarray
+    v_px: np.ndarray
+    strength_dn: np.ndarray
+    saturated: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    range_m: np.ndarray
+    bearing_deg: np.ndarray
+    in_band: np.ndarray
+    noise_sigma_dn: float
+    threshold_dn: float
+
+    @property
+    def found(self) -> np.ndarray:
+        """Columns with a stripe (bool, shape (W,))."""
+        return np.isfinite(self.v_px)
+
+
+def triangulate_stripe(rig: Rig, u_px: np.ndarray, v_px: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Sensor-frame points of stripe pixels by exact ray/laser-plane intersection.
+
+    Replaces the paper's Eqs. 5-7 (valid only for an untilted camera) with
+    DESIGN §4: ``X = d / (n . r) r`` for the ray ``r = K^-1 (u, v, 1)``, then the
+    camera-to-sensor transform of the rig.
+
+    Parameters
+    ----------
+    rig : Rig
+    u_px, v_px : array_like, same shape
+        Pixel coordinates of stripe points (NaN allowed).
+
+    Returns
+    -------
+    x_m, y_m, range_m, bearing_deg : ndarray, same shape as the inputs
+        Sensor frame forward and left coordinates, horizontal range and bearing
+        (positive left); NaN where the ray misses the plane or the input is NaN.
+    """
+    pts = rig.cam_to_sensor(rig.intersect_laser_plane(rig.pixel_rays_cam(u_px, v_px)))
+    x, y = pts[..., 0], pts[..., 1]
+    return x, y, np.hypot(x, y), np.degrees(np.arctan2(y, x))
+
+
+def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = None, *,
+                 previous: LaserFrame | np.ndarray | None = None,
+                 geometry: LaserGeometry | None = None) -> LaserFrame:
+    """Find the laser stripe in one left image and triangulate it (Eqs. 1-7).
+
+    Parameters
+    ----------
+    left_bgr : ndarray, shape (H, W, 3), uint8, BGR
+        Rectified left image of the rig's size.
+    rig : Rig
+    params : LaserParams, optional
+        Default: the paper's defaults.
+    previous : LaserFrame or ndarray (W,), optional
+        The previous frame's result (or its ``v_px``), for the continuity term of Eq. 4.
+    geometry : LaserGeometry, optional
+        ``LaserGeometry.from_rig(rig, params)``; pass it when processing many
+        frames so it is computed once.
+
+    Returns
+    -------
+    LaserFrame
+    """
+    params = LaserParams() if params is None else params
+    img = np.asarray(left_bgr)
+    if img.shape[:2] != (rig.height_px, rig.width_px):
+        raise ValueError(f"image is {img.shape[1]}x{img.shape[0]}, the rig's is "
+                         f"{rig.width_px}x{rig.height_px}")
+    geometry = LaserGeometry.from_rig(rig, params) if geometry is None else geometry
+    prev = previous.v_px if isinstance(previous, LaserFrame) else previous
+    stripe = extract_stripe(img, params, search_mask=geometry.search_mask, previous_v_px=prev)
+    u = np.arange(rig.width_px, dtype=np.float64)
+    x, y, rng, bearing = triangulate_stripe(rig, u, stripe.v_px)
+    with np.errstate(invalid="ignore"):
+        in_band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
+    return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,
+                      saturated=stripe.saturated, x_m=x, y_m=y, range_m=rng,
+                      bearing_deg=bearing, in_band=in_band,
+                      noise_sigma_dn=stripe.noise_sigma_dn, threshold_dn=stripe.threshold_dn)
+
+
+def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:
+    """Bearing bin centres (DESIGN §6): integer multiples of ``bin_deg`` within the
+    left camera's horizontal field of view, ascending (right to left), degrees."""
+    if not bin_deg > 0:
+        raise ValueError("bin_deg must be positive")
+    lo, hi = rig.bearing_limits_deg()
+    k0, k1 = math.ceil(lo / bin_deg - 1e-9), math.floor(hi / bin_deg + 1e-9)
+    return np.arange(k0, k1 + 1, dtype=np.float64) * bin_deg
+
+
+@dataclass(frozen=True)
+class LaserBins:
+    """Nearest laser range per bearing bin (shape (B,) each).
+
+    ``bearing_deg`` are the bin centres, ``range_m`` the nearest laser point in
+    the bin (NaN: no return), ``in_band`` whether that range lies in the rig's
+    laser band, ``count`` the number of stripe columns in the bin.
+    """
+
+    bearing_deg: np.ndarray
+    range_m: np.ndarray
+    in_band: np.ndarray
+    count: np.ndarray
+
+
+def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
+                          in_band_only: bool = False) -> LaserBins:
+    """Reduce a frame's laser points to the nearest range per bearing bin.
+
+    Parameters
+    ----------
+    frame : LaserFrame
+    rig : Rig
+    bin_deg : float
+        Bin width, degrees; bin ``c`` holds bearings in ``[c - bin/2, c + bin/2)``.
+    in_band_only : bool
+        Ignore points outside the rig's laser band.
+
+    Returns
+    -------
+    LaserBins
+    """
+    centres = bearing_bin_centres_deg(rig, bin_deg)
+    use = np.isfinite(frame.range_m) & np.isfinite(frame.bearing_deg)
+    if in_band_only:
+        use &= frame.in_band
+    k = np.floor(frame.bearing_deg[use] / bin_deg + 0.5).astype(np.int64)
+    idx = k - round(float(centres[0]) / bin_deg)
+    ok = (idx >= 0) & (idx < centres.size)
+    nearest = np.full(centres.size, np.inf)
+    np.minimum.at(nearest, idx[ok], frame.range_m[use][ok])
+    count = np.bincount(idx[ok], minlength=centres.size)
+    rng = np.where(np.isfinite(nearest), nearest, np.nan)
+    with np.errstate(invalid="ignore"):
+        band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
+    return LaserBins(bearing_deg=centres, range_m=rng, in_band=band, count=count)

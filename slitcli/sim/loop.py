@@ -1,0 +1,430 @@
+"""Closed-loop simulation: sense -> modified DWA -> unicycle motion (DESIGN §8, §10).
+
+Each control period T the robot senses a per-bearing range table from its pose,
+adds the points to a short-term obstacle memory (world frame), runs one DWA step
+(:func:`slitcli.dwa.plan_step`) and holds the command for T, integrated exactly as
+a unicycle. Collisions are checked against the true obstacle outlines at
+``substeps`` instants per period.
+
+Sensing is any :class:`Sensor`: a callable ``(pose, step) -> RangeScan``.
+``perfect`` (:class:`PerfectSensor`) returns the true ranges per bearing bin over the
+camera's field of view, cut at the sensing range: the paper's Matlab simulation.
+The vision pipeline (render -> detect -> fuse) is another Sensor with the same call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from types import MappingProxyType
+from typing import Protocol
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from slitcli.dwa import DwaParams, plan_step
+from slitcli.errors import SlitcliError
+from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.io.progress import progress_bar
+from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.rig import Rig
+from slitcli.sim.clearance import clearance_m, obstacle_geometry
+from slitcli.sim.scene import (
+    Footprints,
+    Pose2D,
+    Scene,
+    bearing_bins,
+    footprints,
+    sensor_origin_xy,
+    wedge_min_range,
+)
+from slitcli.sim.worlds import (
+    PAPER_SENSING_RANGES_M,
+    World,
+    load_world,
+    paper_world,
+    random_world,
+)
+
+TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
+RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
+                  "stereo_has_features", "fused_range_m", "fused_source")
+METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
+                   "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
+
+
+@dataclass(frozen=True)
+class RangeScan:
+    """One sensed frame: a per-bearing range table (DESIGN §6) in the sensor frame.
+
+    ``bearing_deg`` (B,) bin centres, positive left; ``range_m`` (B,) horizontal range
+    from the sensor origin, NaN = no return; the sensor origin is ``forward_m`` ahead
+    of the robot's rotation centre.
+    """
+
+    bearing_deg: np.ndarray
+    range_m: np.ndarray
+    forward_m: float
+
+
+class Sensor(Protocol):
+    """What the closed loop senses with: the range table seen from ``pose`` at ``step``."""
+
+    def __call__(self, pose: Pose2D, step: int) -> RangeScan: ...
+
+
+class SensorFactory(Protocol):
+    """Builds the sensor of one run: ``(scene, rig, sensing_range_m, bin_deg=...) -> Sensor``."""
+
+    def __call__(self, scene: Scene, rig: Rig, sensing_range_m: float, *,
+                 bin_deg: float = 1.0) -> Sensor: ...
+
+
+@dataclass(frozen=True)
+class PerfectSensor:
+    """True nearest range per bearing bin (exact, from the scene), cut at ``sensing_range_m``.
+
+    Bins cover the rig's horizontal field of view (``bin_deg`` wide); obstacles count
+    when they reach between the floor margin (2 cm) and the robot's height, as in
+    :func:`slitcli.sim.scene.true_ranges`, whose outlines are computed once here.
+    """
+
+    outlines: Footprints
+    bearing_deg: np.ndarray
+    bin_lo_deg: np.ndarray
+    bin_hi_deg: np.ndarray
+    forward_m: float
+    sensing_range_m: float
+
+    def __call__(self, pose: Pose2D, step: int) -> RangeScan:
+        r = wedge_min_range(self.outlines, sensor_origin_xy(pose, self.forward_m), pose.yaw_rad,
+                            self.bin_lo_deg, self.bin_hi_deg)
+        return RangeScan(self.bearing_deg, np.where(r <= self.sensing_range_m, r, np.nan),
+                         self.forward_m)
+
+
+def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
+                   bin_deg: float = 1.0) -> PerfectSensor:
+    """The ``perfect`` sensing mode for a scene seen through ``rig``'s field of view."""
+    if not sensing_range_m > 0:
+        raise SlitcliError(f"--sensing-range {sensing_range_m:g} must be > 0 m")
+    centres, lo, hi = bearing_bins(rig.bearing_limits_deg(), bin_deg)
+    outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
+    return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
+
+
+def vision_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
+                  bin_deg: float = 1.0) -> Sensor:
+    """Render -> detect -> fuse at every step (:mod:`slitcli.sim.vision`)."""
+    # imported here: the vision pipeline pulls in the detectors, which perfect sensing
+    # and the planner tests do not need
+    from slitcli.sim.vision import vision_sensor as make
+
+    return make(scene, rig, sensing_range_m, bin_deg=bin_deg)
+
+
+# The sensing modes of ``simulate-dwa --sensing``.
+SENSING_MODES: Mapping[str, SensorFactory] = MappingProxyType({"perfect": perfect_sensor,
+                                                                "vision": vision_sensor})
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimParams:
+    """Closed-loop settings.
+
+    Attributes
+    ----------
+    safety_margin_m : float
+        Added to the robot radius to give the planner's footprint radius.
+    memory_s : float
+        How long sensed points are remembered (world frame); 0 = no memory.
+    memory_cell_m : float
+        One remembered point per grid cell of this size.
+    substeps : int
+        Collision checks per control period (0.2 m/s x 0.2 s / 10 = 4 mm apart).
+    max_time_s : float
+        Give up (outcome ``timeout``) after this simulated time.
+    stuck_timeout_s, stuck_progress_m : float
+        Outcome ``stuck`` when the best distance to the goal so far has not improved by
+        ``stuck_progress_m`` within ``stuck_timeout_s``.
+    """
+
+    safety_margin_m: float = 0.05
+    memory_s: float = 10.0
+    memory_cell_m: float = 0.05
+    substeps: int = 10
+    max_time_s: float = 300.0
+    stuck_timeout_s: float = 30.0
+    stuck_progress_m: float = 0.05
+
+    def __post_init__(self) -> None:
+        checks = {"safety_margin_m": self.safety_margin_m >= 0, "memory_s": self.memory_s >= 0,
+                  "memory_cell_m": self.memory_cell_m > 0, "substeps": self.substeps >= 1,
+                  "max_time_s": self.max_time_s > 0, "stuck_timeout_s": self.stuck_timeout_s > 0,
+                  "stuck_progress_m": self.stuck_progress_m > 0}
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not ok or isinstance(value, bool) or not math.isfinite(value):
+                raise SlitcliError(f"simulation parameter {name} (--{name.replace('_', '-')}) "
+                                   f"= {value!r} is out of range; see slitcli simulate-dwa "
+                                   "--help")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One closed-loop run: trajectory, metrics and what was sensed.
+
+    ``trajectory`` has TRAJECTORY_COLUMNS plus ``status`` (the planner's status per
+    step), ``metrics`` the METRICS_COLUMNS without ``case``, and ``ranges`` is what was
+    sensed, as a range table (RANGES_COLUMNS, DESIGN §12; fused_source
+    ``truth`` for perfect sensing) that ``slitcli dwa`` can replay.
+    """
+
+    trajectory: pd.DataFrame
+    metrics: dict[str, float | bool | str]
+    ranges: pd.DataFrame
+
+
+def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
+    """Drive the robot from the world's start towards its goal (one closed-loop run).
+
+    The run ends when the robot stands inside the goal radius, collides, gets stuck
+    or runs out of time.
+
+    The planner's footprint radius is the robot radius plus ``sim.safety_margin_m``
+    (``dwa.footprint_radius_m`` is replaced). Each trajectory row holds the pose at
+    ``t_s``, the command chosen there and held until the next row, and the true
+    clearance between the robot's disc and the nearest obstacle.
+    """
+    scene = world.scene
+    radius = scene.robot.radius_m
+    dwa = replace(dwa, footprint_radius_m=radius + sim.safety_margin_m)
+    geom = obstacle_geometry(scene)
+    goal = np.asarray(scene.goal_xy_m, dtype=float)
+    s0 = scene.robot.start
+    pose = (s0.x_m, s0.y_m, s0.yaw_rad)
+    v = w = 0.0
+    memory = PointMemory.empty()
+    steps = math.ceil(sim.max_time_s / dwa.dt_s)
+    sub_t = np.arange(1, sim.substeps + 1) * (dwa.dt_s / sim.substeps)
+    rows: list[tuple[float, ...]] = []
+    statuses: list[str] = []
+    scans: list[RangeScan] = []
+    here = float(clearance_m(geom, np.array([pose[:2]]))[0] - radius)
+    min_clear = initial = here
+    path = 0.0
+    best_goal = math.inf
+    best_t = 0.0
+    t_goal = math.nan
+    outcome = "timeout"
+    for k in range(steps + 1):
+        t = k * dwa.dt_s
+        dist = float(math.hypot(*(goal - pose[:2])))
+        if dist <= dwa.goal_close_m and math.isnan(t_goal):
+            t_goal = t
+        if here <= 0:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("collided")
+            outcome = "collided"
+            break
+        if dist <= dwa.goal_close_m and v <= 1e-12:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("goal")
+            outcome = "reached"
+            break
+        if dist < best_goal - sim.stuck_progress_m:
+            best_goal, best_t = dist, t
+        if t - best_t > sim.stuck_timeout_s:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("stuck")
+            outcome = "stuck"
+            break
+        if k == steps:
+            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
+            statuses.append("timeout")
+            break
+        p2 = Pose2D(*pose)
+        scan = sensor(p2, k)
+        scans.append(scan)
+        seen = to_world(pose, scan_points(scan.bearing_deg, scan.range_m, scan.forward_m))
+        memory = memory.update(seen, t, keep_s=sim.memory_s, cell_m=sim.memory_cell_m)
+        cmd = plan_step(v, w, to_robot(pose, goal[None])[0], to_robot(pose, memory.points_xy),
+                        dwa)
+        rows.append((t, *pose[:2], math.degrees(pose[2]), cmd.v_mps, cmd.w_dps, here))
+        statuses.append(cmd.status)
+        along = unicycle(pose, cmd.v_mps, cmd.w_rps, sub_t)
+        clear = clearance_m(geom, along[:, :2]) - radius
+        min_clear = min(min_clear, float(clear.min()))
+        hit = np.flatnonzero(clear <= 0)
+        if len(hit):  # stop at the first contact
+            along, clear = along[: hit[0] + 1], clear[: hit[0] + 1]
+        here = float(clear[-1])
+        path += cmd.v_mps * (len(along) * dwa.dt_s / sim.substeps)
+        pose = tuple(float(x) for x in along[-1])
+        v, w = cmd.v_mps, cmd.w_rps
+    traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
+    traj["status"] = statuses
+    ranges = _range_table(scans, dwa.dt_s)
+    metrics = {
+        "initial_distance_m": initial,
+        "reached_goal": outcome == "reached",
+        "collided": outcome == "collided",
+        "min_clearance_m": min_clear,
+        "time_to_goal_s": t_goal if outcome == "reached" else math.nan,
+        "path_length_m": path,
+        "outcome": outcome,
+    }
+    return RunResult(traj, metrics, ranges)
+
+
+def _range_table(scans: list[RangeScan], dt_s: float) -> pd.DataFrame:
+    """The scans of one run as a DESIGN §12 range table (sensed truth in fused_range_m)."""
+    if not scans:
+        return pd.DataFrame(columns=list(RANGES_COLUMNS))
+    n = np.array([len(s.bearing_deg) for s in scans])
+    frame = np.repeat(np.arange(len(scans)), n)
+    rng = np.concatenate([s.range_m for s in scans])
+    return pd.DataFrame({
+        "frame": frame, "time_s": frame * dt_s,
+        "bearing_deg": np.concatenate([s.bearing_deg for s in scans]),
+        "laser_range_m": np.nan, "stereo_range_m": np.nan, "stereo_has_features": np.nan,
+        "fused_range_m": rng, "fused_source": np.where(np.isfinite(rng), "truth", "none"),
+    }, columns=list(RANGES_COLUMNS))
+
+
+# ------------------------------------------------------------------ batches and output
+@dataclass(frozen=True)
+class Case:
+    """One run of a batch: a name (the ``case`` column), a world and a sensing range."""
+
+    name: str
+    world: World
+    sensing_range_m: float
+
+
+def run_cases(cases: Sequence[Case], rig: Rig, dwa: DwaParams, sim: SimParams, *,
+              sensing: str = "perfect", bin_deg: float = 1.0
+              ) -> tuple[pd.DataFrame, dict[str, RunResult]]:
+    """Run every case with the ``sensing`` mode; the metrics table and each case's result."""
+    factory = _sensor_factory(sensing)
+    rows = []
+    trajs: dict[str, RunResult] = {}
+    with progress_bar(len(cases), "simulate-dwa", unit="run") as bar:
+        for c in cases:
+            sensor = factory(c.world.scene, rig, c.sensing_range_m, bin_deg=bin_deg)
+            res = run_world(c.world, sensor, dwa, sim)
+            rows.append({"case": c.name, "sensing_range_m": c.sensing_range_m, **res.metrics})
+            trajs[c.name] = res
+            bar.update()
+    return pd.DataFrame(rows, columns=list(METRICS_COLUMNS)), trajs
+
+
+def _sensor_factory(sensing: str) -> SensorFactory:
+    if sensing not in SENSING_MODES:
+        raise SlitcliError(f"--sensing {sensing!r} is not available; use one of "
+                           f"{', '.join(SENSING_MODES)}")
+    return SENSING_MODES[sensing]
+
+
+def build_cases(*, world_path: str | Path | None = None, scenario: str | None = None,
+                sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
+                seed: int = 0, start: tuple[float, float, float] | None = None,
+                goal_xy_m: tuple[float, float] | None = None) -> list[Case]:
+    """The runs of one ``simulate-dwa`` call.
+
+    Exactly one of ``world_path`` (a world file) and ``scenario`` (``paper``: the paper's
+    scenario, default sensing ranges 0.6, 1, 1.5, 2 m; ``random``: ``worlds`` seeded
+    random worlds from ``seed`` on, default sensing range 3 m). A world file's default
+    sensing range is 3 m. Case names: ``range_<r>m`` per sensing range, ``random_<seed>``
+    per random world (with ``_range_<r>m`` appended when several ranges are given).
+    """
+    if (world_path is None) == (scenario is None):
+        raise SlitcliError("simulate-dwa: give either a WORLD.yaml file or --scenario "
+                           "(paper or random), not both and not neither")
+    if scenario is not None and (start is not None or goal_xy_m is not None):
+        raise SlitcliError("--start and --goal apply to a WORLD.yaml file, not to --scenario")
+    ranges = list(sensing_ranges_m) if sensing_ranges_m else None
+    for r in ranges or []:
+        if not (r > 0 and math.isfinite(r)):
+            raise SlitcliError(f"--sensing-range {r:g} must be > 0 m")
+
+    def tag(r: float) -> str:
+        return f"range_{r:g}m"
+
+    if scenario == "paper":
+        w = paper_world()
+        return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
+    if scenario == "random":
+        if worlds < 1:
+            raise SlitcliError(f"--worlds {worlds} must be at least 1")
+        ranges = ranges or [3.0]
+        out = []
+        for s in range(seed, seed + worlds):
+            w = random_world(s)
+            out.extend(Case(w.name if len(ranges) == 1 else f"{w.name}_{tag(r)}", w, r)
+                       for r in ranges)
+        return out
+    if scenario is not None:
+        raise SlitcliError(f"--scenario {scenario!r} is unknown; use paper or random")
+    w = load_world(world_path, start=start, goal_xy_m=goal_xy_m)
+    return [Case(tag(r), w, r) for r in (ranges or [3.0])]
+
+
+def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, *,
+                 sensing: str = "perfect", world_path: str | Path | None = None,
+                 scenario: str | None = None,
+                 sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
+                 seed: int = 0, start: tuple[float, float, float] | None = None,
+                 goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
+                 overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
+    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
+    if not (0 < bin_deg <= 10):
+        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in (0, 10] degrees")
+    cases = build_cases(world_path=world_path, scenario=scenario,
+                        sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
+                        start=start, goal_xy_m=goal_xy_m)
+    return simulate_to_folder(cases, out_dir, rig, dwa, sim, sensing=sensing,
+                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges)
+
+
+def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
+                       sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
+                       bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
+    """Run the cases and write OUT/ atomically (docs/dwa.md).
+
+    Files: ``trajectory_<case>.csv``, ``metrics.csv``, the world(s) (``world.yaml``, or
+    ``world_<name>.yaml`` for several), ``params.yaml`` (every planner and simulation
+    parameter used) and, with ``save_ranges``, ``ranges_<case>.csv`` (what was sensed).
+    Returns the metrics table.
+    """
+    if not cases:
+        raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
+    _sensor_factory(sensing)
+    metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
+    worlds = {c.world.name: c.world for c in cases}
+    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+        for name, res in trajs.items():
+            write_csv_atomic(tmp / f"trajectory_{name}.csv",
+                             res.trajectory[list(TRAJECTORY_COLUMNS)])
+            if save_ranges:
+                # ten digits: a replay with `slitcli dwa` then makes the same choices
+                write_csv_atomic(tmp / f"ranges_{name}.csv", res.ranges, float_format="%.10g")
+        out = metrics.copy()
+        out["reached_goal"] = out["reached_goal"].astype(int)
+        out["collided"] = out["collided"].astype(int)
+        write_csv_atomic(tmp / "metrics.csv", out)
+        for name, w in worlds.items():
+            fname = "world.yaml" if len(worlds) == 1 else f"world_{name}.yaml"
+            write_text_atomic(tmp / fname, w.yaml_text)
+        planner = {k: v for k, v in asdict(dwa).items() if k != "footprint_radius_m"}
+        params = {"slitcli_dwa_run": 1, "sensing": sensing, "bin_deg": bin_deg,
+                  "dwa": planner, "sim": asdict(sim),
+                  "cases": [{"case": c.name, "world": c.world.name,
+                             "sensing_range_m": c.sensing_range_m,
+                             "footprint_radius_m": c.world.scene.robot.radius_m
+                             + sim.safety_margin_m} for c in cases]}
+        write_text_atomic(tmp / "params.yaml", yaml.safe_dump(params, sort_keys=False))
+    return metrics

@@ -1,0 +1,236 @@
+"""Laser extraction (Eqs. 1-4) and triangulation on synthetic frames with exact truth.
+
+The frames come from tests/laser_synth.py: a textured grey wall a known distance
+ahead, the stripe drawn as a pixel-integrated Gaussian at the rig's true row per
+column, seeded noise, clipping, red and white distractors.
+"""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from laser_synth import make_frame, wall_stripe_rows
+
+from slitcli.errors import SlitcliError
+from slitcli.laser import (
+    LaserGeometry,
+    LaserParams,
+    bearing_bin_centres_deg,
+    candidate_mask,
+    chromaticity,
+    detect_laser,
+    extract_stripe,
+    nearest_range_per_bin,
+    triangulate_stripe,
+)
+from slitcli.rig import paper_rig
+
+RIG = paper_rig()
+PARAMS = LaserParams()
+GEOM = LaserGeometry.from_rig(RIG, PARAMS)
+
+
+def _errors(seeds, **kw):
+    """Row errors (px) where both truth and detection exist, found share, false columns."""
+    errs, vis, found, false = [], 0, 0, 0
+    for seed in seeds:
+        s = make_frame(RIG, seed=seed, **kw)
+        v = extract_stripe(s.bgr, PARAMS).v_px
+        t = s.stripe_v_px
+        m = np.isfinite(t)
+        vis += int(m.sum())
+        f = m & np.isfinite(v)
+        found += int(f.sum())
+        e = v[f] - t[f]
+        false += int((np.isfinite(v) & ~m).sum() + (np.abs(e) > 1.5).sum())
+        errs.append(e)
+    return np.concatenate(errs), found / max(vis, 1), false
+
+
+def _rms(e):
+    return float(np.sqrt(np.mean(e**2)))
+
+
+def test_chromaticity_eq1_and_black_guard():
+    bgr = np.array([[[30, 20, 10], [0, 0, 0], [0, 0, 255]]], dtype=np.uint8)
+    c = chromaticity(bgr)
+    np.testing.assert_allclose(c[0, 0], [10 / 60, 20 / 60, 30 / 60])
+    np.testing.assert_array_equal(c[0, 1], [0.0, 0.0, 0.0])  # r + g + b = 0
+    np.testing.assert_allclose(c[0, 2], [1.0, 0.0, 0.0])
+
+
+def test_candidate_mask_eq2_eq3():
+    # BGR pixels: laser-red, grey, white highlight, black, saturated white core
+    bgr = np.array([[[40, 45, 200], [100, 100, 100], [250, 250, 250], [0, 0, 0],
+                     [255, 255, 255]]], dtype=np.uint8)
+    red_contrast = np.array([[90.0, 10.0, 5.0, 0.0, 120.0]])
+    white_contrast = np.array([[10.0, 10.0, 150.0, 0.0, 150.0]])
+    red, sat = candidate_mask(bgr, red_contrast, white_contrast, PARAMS)
+    np.testing.assert_array_equal(red[0], [True, False, False, False, False])
+    np.testing.assert_array_equal(sat[0], [False, False, True, False, True])
+
+
+@pytest.mark.parametrize("forward_m", [0.6, 0.8, 1.0])
+def test_clean_stripe_rms_on_walls(forward_m):
+    e, found, false = _errors(range(3), forward_m=forward_m, sigma_px=1.2, noise_dn=2.5)
+    assert _rms(e) <= 0.10
+    assert found >= 0.99
+    assert false == 0
+
+
+@pytest.mark.parametrize(("sigma_px", "noise_dn"), [(1.0, 2.0), (1.5, 3.0)])
+def test_clean_stripe_rms_sigma_range(sigma_px, noise_dn):
+    e, found, false = _errors(range(3), sigma_px=sigma_px, noise_dn=noise_dn)
+    assert _rms(e) <= 0.10
+    assert found >= 0.99
+    assert false == 0
+
+
+@pytest.mark.parametrize(("laser_dn", "sigma_px"), [(400.0, 1.2), (600.0, 1.5)])
+def test_saturated_stripe_rms(laser_dn, sigma_px):
+    s = make_frame(RIG, laser_dn=laser_dn, sigma_px=sigma_px)
+    assert np.mean(s.bgr[np.rint(s.stripe_v_px).astype(int), np.arange(320), 2] == 255) > 0.9
+    e, found, false = _errors(range(3), laser_dn=laser_dn, sigma_px=sigma_px)
+    assert _rms(e) <= 0.20
+    assert found >= 0.99
+    assert false == 0
+
+
+@pytest.mark.parametrize("noise_dn", [6.0, 8.0])
+def test_noisy_stripe_rms(noise_dn):
+    e, found, false = _errors(range(3), noise_dn=noise_dn, sigma_px=1.2)
+    assert _rms(e) <= 0.20
+    assert found >= 0.99
+    assert false == 0
+
+
+def test_wide_red_object_crossed_by_laser():
+    for seed in range(3):
+        s = make_frame(RIG, seed=seed, red_rect=(100, 130, 220, 230),
+                       white_blob=(40, 150, 6))
+        v = extract_stripe(s.bgr, PARAMS).v_px
+        cols = s.red_object_cols
+        assert cols.sum() == 120
+        on_laser = np.abs(v[cols] - s.stripe_v_px[cols]) < 1.0
+        assert on_laser.mean() >= 0.95
+        assert _rms(v[cols] - s.stripe_v_px[cols]) <= 0.20
+
+
+def test_no_stripe_no_columns_highlight_and_texture():
+    for seed in range(3):
+        s = make_frame(RIG, seed=seed, stripe_cols=(0, 0), white_blob=(160, 190, 8),
+                       texture_contrast=0.25)
+        assert np.isnan(s.stripe_v_px).all()
+        res = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
+        assert not res.found.any()
+
+
+def test_partial_stripe_reports_only_its_columns():
+    s = make_frame(RIG, stripe_cols=(60, 200), white_blob=(260, 200, 7))
+    v = extract_stripe(s.bgr, PARAMS).v_px
+    assert np.isnan(v[:58]).all() and np.isnan(v[202:]).all()
+    inner = np.arange(62, 198)
+    assert np.isfinite(v[inner]).all()
+    assert _rms(v[inner] - s.stripe_v_px[inner]) <= 0.10
+
+
+def test_previous_frame_continuity_prefers_the_tracked_row():
+    # two equally strong stripes; the previous frame's row picks which one is the laser
+    s1 = make_frame(RIG, forward_m=0.8, seed=5)
+    s2 = make_frame(RIG, forward_m=0.95, seed=5)
+    both = np.maximum(s1.bgr, s2.bgr)
+    for truth in (s1.stripe_v_px, s2.stripe_v_px):
+        v = extract_stripe(both, PARAMS, previous_v_px=truth + 0.3).v_px
+        # beta = 0.25 bounds what continuity can overturn: where the texture makes the
+        # other stripe much brighter, Eq. 4 still takes it
+        assert np.mean(np.abs(v - truth) < 1.0) >= 0.90
+
+
+def test_triangulation_design_worked_check():
+    x, y, rng, _bearing = triangulate_stripe(RIG, np.array([159.5]), np.array([167.93]))
+    assert x[0] == pytest.approx(1.0, abs=2e-4)
+    assert y[0] == pytest.approx(0.0, abs=1e-12)
+    assert rng[0] == pytest.approx(1.0, abs=2e-4)
+    # DESIGN §4 closed form for the paper rig: Z = H / tan(theta + atan((v - cy) / f))
+    v = np.linspace(130.0, 239.0, 12)
+    x, _, _, _ = triangulate_stripe(RIG, np.full(12, 80.0), v)
+    expect = 0.6 / np.tan(math.radians(20.0) + np.arctan((v - 119.5) / 250.0))
+    np.testing.assert_allclose(x, expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("forward_m", [0.6, 0.7, 0.8, 0.9, 1.0])
+def test_forward_distance_error_walls(forward_m):
+    s = make_frame(RIG, forward_m=forward_m, seed=2)
+    f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
+    assert f.found.mean() >= 0.99
+    rel = np.abs(f.x_m[f.found] - forward_m) / forward_m
+    assert np.median(rel) <= 0.005
+    # the wall is a line y = const in x: lateral positions follow the bearing
+    np.testing.assert_allclose(np.degrees(np.arctan2(f.y_m, f.x_m))[f.found],
+                               f.bearing_deg[f.found])
+    np.testing.assert_allclose(f.range_m[f.found], np.hypot(f.x_m, f.y_m)[f.found])
+
+
+def test_band_flag_and_out_of_band_points_kept():
+    s = make_frame(RIG, forward_m=1.15, seed=1, laser_dn=80.0)
+    f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
+    assert f.found.mean() >= 0.99
+    assert not f.in_band[f.found].any()  # beyond max_range_m = 1.0, still reported
+    s = make_frame(RIG, forward_m=0.75, seed=1)
+    f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
+    centre = np.abs(f.bearing_deg) < 20
+    assert f.in_band[f.found & centre].all()
+
+
+def test_bearing_bins_nearest_range():
+    centres = bearing_bin_centres_deg(RIG)
+    np.testing.assert_array_equal(centres, np.arange(-32.0, 33.0))
+    s = make_frame(RIG, forward_m=0.8, seed=3)
+    f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
+    bins = nearest_range_per_bin(f, RIG)
+    # independent reduction with pandas
+    df = pd.DataFrame({"b": np.round(f.bearing_deg), "r": f.range_m}).dropna()
+    expect = df.groupby("b")["r"].min()
+    got = pd.Series(bins.range_m, index=bins.bearing_deg).dropna()
+    pd.testing.assert_series_equal(got, expect.loc[got.index], check_names=False)
+    # points beyond the camera's horizontal field of view at the optical-axis row
+    # (bearings past +-32.6 deg below the axis) fall outside the bins
+    inside = expect.index[(expect.index >= -32) & (expect.index <= 32)]
+    assert set(inside) <= set(got.index)
+    # a wall 0.8 m ahead: nearest range in the bin is 0.8 / cos(bearing), within a bin's slack
+    b = bins.bearing_deg[np.isfinite(bins.range_m)]
+    r = bins.range_m[np.isfinite(bins.range_m)]
+    lo = 0.8 / np.cos(np.radians(np.maximum(np.abs(b) - 0.5, 0.0)))
+    hi = 0.8 / np.cos(np.radians(np.abs(b) + 0.5))
+    assert np.all((r >= lo - 0.004) & (r <= hi + 0.004))
+    inband = nearest_range_per_bin(f, RIG, in_band_only=True)
+    assert np.all(np.isnan(inband.range_m) | inband.in_band)
+
+
+def test_search_mask_matches_range_limit():
+    m = GEOM.search_mask
+    # the paper rig's horizontal laser sheet: rows below the 3 m row of each column
+    v3 = 119.5 + 250.0 * math.tan(math.atan(0.6 / 3.0) - math.radians(20.0))
+    assert not m[math.floor(v3) - 1, 160]
+    assert m[math.ceil(v3) + 1:, 160].all()
+
+
+def test_params_validation():
+    with pytest.raises(SlitcliError, match="background_window_px"):
+        LaserParams(background_window_px=10)
+    with pytest.raises(SlitcliError, match="alpha"):
+        LaserParams(alpha=1.5)
+
+
+def test_inputs_not_modified():
+    s = make_frame(RIG)
+    img = s.bgr.copy()
+    detect_laser(img, RIG, PARAMS)
+    np.testing.assert_array_equal(img, s.bgr)
+
+
+def test_wall_rows_helper_is_the_rig_line():
+    rows = wall_stripe_rows(RIG, 0.8)
+    assert rows[160] == pytest.approx(RIG.stripe_row_on_wall(0.8, 160.0), abs=1e-9)
+    assert rows[17] == pytest.approx(RIG.stripe_row_on_wall(0.8, 17.0), abs=1e-9)

@@ -1,0 +1,279 @@
+"""Closed-loop DWA simulation, worlds, clearance geometry and the two commands."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from slitcli.cli import cli
+from slitcli.dwa import DwaParams
+from slitcli.errors import SlitcliError
+from slitcli.rig import paper_rig
+from slitcli.sim.clearance import clearance_m, object_distances, obstacle_geometry
+from slitcli.sim.loop import (
+    METRICS_COLUMNS,
+    TRAJECTORY_COLUMNS,
+    Case,
+    SimParams,
+    perfect_sensor,
+    run_cases,
+    run_world,
+)
+from slitcli.sim.scene import Pose2D, load_scene, scene_from_dict
+from slitcli.sim.worlds import (
+    RandomWorldParams,
+    _has_free_path,
+    paper_world,
+    random_world,
+    world_from_dict,
+)
+
+RIG = paper_rig()
+BOX_FACE_X = 2.85          # paper world: near face of the box, 3.0 - 0.3 / 2
+
+
+def _scene(objects, **extra):
+    return scene_from_dict({"slitcli_scene": 1, "name": "t", "objects": objects, **extra})
+
+
+# ---------------------------------------------------------------- clearance geometry
+def test_signed_distances_hand_values():
+    s = _scene([
+        {"type": "box", "centre_xy_m": [2.0, 0.0], "size_m": [1.0, 0.5, 0.5]},
+        {"type": "cylinder", "centre_xy_m": [0.0, 3.0], "radius_m": 0.5, "height_m": 0.5},
+        {"type": "wall", "from_xy_m": [-1.0, -2.0], "to_xy_m": [1.0, -2.0], "height_m": 1.0},
+        {"type": "box", "centre_xy_m": [0.0, 0.0], "size_m": [0.4, 0.4, 0.3], "z_min_m": 1.0},
+        {"type": "box", "centre_xy_m": [-3.0, 0.0], "size_m": [1.0, 1.0, 0.5], "yaw_deg": 45},
+    ])
+    g = obstacle_geometry(s)
+    pts = np.array([[2.0, 0.0], [3.5, 0.0], [3.5, 1.25], [0.0, 4.0], [0.0, 3.0], [0.0, -1.0],
+                    [2.0, -2.5], [-3.0 + 1.0, 0.0]])
+    d = object_distances(g, pts)
+    assert d[0, 0] == pytest.approx(-0.25)                 # inside the box, 0.25 from y edges
+    assert d[1, 0] == pytest.approx(1.0)
+    assert d[2, 0] == pytest.approx(math.hypot(1.0, 1.0))  # nearest is the corner (2.5, 0.25)
+    assert d[3, 1] == pytest.approx(0.5) and d[4, 1] == pytest.approx(-0.5)
+    assert d[5, 2] == pytest.approx(1.0)
+    assert d[6, 2] == pytest.approx(math.hypot(1.0, 0.5))  # beyond the wall's end (1, -2)
+    assert np.all(np.isinf(d[:, 3]))                       # hangs above the robot (0.8 m)
+    assert d[7, 4] == pytest.approx(1.0 - math.sqrt(0.5))  # 45 deg box: corner at x = -2.29
+    assert clearance_m(g, pts[:1])[0] == pytest.approx(-0.25)
+
+
+# ---------------------------------------------------------------- sensing
+def test_perfect_sensor_is_cut_at_the_sensing_range():
+    w = paper_world()
+    for r in (0.6, 1.0, 1.5, 2.0):
+        sen = perfect_sensor(w.scene, RIG, r)
+        assert np.all(np.isnan(sen(w.scene.robot.start, 0).range_m))      # never at the start
+        just_out = sen(Pose2D(BOX_FACE_X - r - 0.01, 0.0, 0.0), 0).range_m
+        just_in = sen(Pose2D(BOX_FACE_X - r + 0.01, 0.0, 0.0), 0).range_m
+        assert np.all(np.isnan(just_out))
+        assert np.nanmin(just_in) == pytest.approx(r - 0.01, abs=1e-9)    # straight ahead
+    sen = perfect_sensor(w.scene, RIG, 3.0)
+    assert sen.bearing_deg[0] == -32 and sen.bearing_deg[-1] == 32       # +-32.6 deg FOV
+
+
+# ---------------------------------------------------------------- the paper scenario
+@pytest.fixture(scope="module")
+def paper_runs():
+    w = paper_world()
+    return run_cases([Case(f"range_{r:g}m", w, r) for r in (0.6, 1.0, 1.5, 2.0)], RIG,
+                     DwaParams(), SimParams())
+
+
+def test_paper_scenario_four_cases_no_collision(paper_runs):
+    metrics, runs = paper_runs
+    assert list(metrics.columns) == list(METRICS_COLUMNS)
+    assert metrics["reached_goal"].all() and not metrics["collided"].any()
+    assert (metrics["min_clearance_m"] > 0).all()
+    assert metrics["initial_distance_m"].to_numpy() == pytest.approx(BOX_FACE_X - 0.25)
+    # no run can beat the straight 5.7 m to the goal circle at 0.2 m/s
+    assert (metrics["time_to_goal_s"] >= 5.7 / 0.2).all()
+    assert (metrics["path_length_m"] >= 5.7 - 1e-9).all()
+    for r, res in zip((0.6, 1.0, 1.5, 2.0), runs.values(), strict=True):
+        t = res.trajectory
+        # the cases differ only once the box is in sensing range: before that the robot
+        # drives straight along y = 0
+        before = t[t["x_m"] + r < BOX_FACE_X]
+        assert (before["w_dps"] == 0).all() and (before["y_m"].abs() < 1e-12).all()
+        assert len(before) > 5
+        final = t.iloc[-1]
+        assert final["v_mps"] == 0 and final["w_dps"] == 0
+        assert math.hypot(final["x_m"] - 6.0, final["y_m"]) <= DwaParams().goal_close_m
+
+
+def test_discrete_braking_keeps_the_safety_margin(paper_runs):
+    # At 0.6 m and 1 m sensing the robot cannot swerve at 0.2 m/s (turn radius 1.53 m)
+    # and stops in front of the box: it must stop before its inflated footprint touches.
+    metrics, _ = paper_runs
+    margin = SimParams().safety_margin_m
+    assert metrics["min_clearance_m"].min() >= margin - 1e-9
+    # the paper's continuous condition v <= sqrt(2 D acc) ignores the v T / 2 driven while
+    # the command is held, and the robot ends up about 1 cm inside its margin
+    lit, _ = run_cases([Case("range_1m", paper_world(), 1.0)], RIG,
+                       DwaParams(discrete_braking=False), SimParams())
+    assert 0 < lit["min_clearance_m"].iloc[0] < margin - 0.005
+
+
+def test_obstacle_memory_prevents_side_swipes():
+    # The camera sees +-32 deg only: without memory the robot turns away, loses sight of
+    # the box and clips it with its side.
+    w = paper_world()
+    cases = [Case("range_1m", w, 1.0), Case("range_2m", w, 2.0)]
+    without, _ = run_cases(cases, RIG, DwaParams(), SimParams(memory_s=0.0))
+    assert without["collided"].all()
+
+
+# ---------------------------------------------------------------- random worlds
+def test_random_worlds_subset_no_collision():
+    # docs/dwa.md reports all 100 (bench/dwa_worlds.py, simulate-dwa --scenario random)
+    worlds = [random_world(s) for s in range(10)]
+    metrics, _ = run_cases([Case(w.name, w, 3.0) for w in worlds], RIG, DwaParams(),
+                           SimParams())
+    assert not metrics["collided"].any()
+    assert metrics["reached_goal"].sum() >= 9
+    assert set(metrics.loc[~metrics["reached_goal"], "outcome"]) <= {"stuck", "timeout"}
+    assert (metrics["min_clearance_m"] > 0).all()
+
+
+def test_random_world_generator_is_seeded_and_has_a_free_path():
+    a, b = random_world(5), random_world(5)
+    assert a.yaml_text == b.yaml_text and a.yaml_text != random_world(6).yaml_text
+    p = RandomWorldParams()
+    for s in range(3):
+        w = random_world(s)
+        assert _has_free_path(w.scene, p)
+        kinds = {type(o).__name__ for o in w.scene.objects}
+        assert kinds <= {"Box", "Cylinder"}
+        assert p.min_objects <= len(w.scene.objects) <= p.max_objects
+    blocked = world_from_dict({"slitcli_scene": 1, "name": "blocked", "objects": [
+        {"type": "box", "centre_xy_m": [4.0, 0.0], "size_m": [0.5, 6.0, 0.5]}],
+        "robot": {"start": [0, 0, 0]}, "goal_xy_m": [8.0, 0.0]}, "t")
+    assert not _has_free_path(blocked.scene, p)
+
+
+# ---------------------------------------------------------------- stuck, arrival
+def test_unreachable_goal_is_reported_stuck_not_collided():
+    walls = [[3, -1, 3, 1], [3, 1, 5, 1], [5, 1, 5, -1], [5, -1, 3, -1]]      # a closed room
+    w = world_from_dict({"slitcli_scene": 1, "name": "room", "objects": [
+        {"type": "wall", "from_xy_m": q[:2], "to_xy_m": q[2:], "height_m": 0.5} for q in walls],
+        "robot": {"start": [0, 0, 0]}, "goal_xy_m": [4.0, 0.0]}, "t")
+    res = run_world(w, perfect_sensor(w.scene, RIG, 3.0), DwaParams(),
+                    SimParams(stuck_timeout_s=15.0))
+    assert res.metrics["outcome"] == "stuck"
+    assert not res.metrics["collided"] and res.metrics["min_clearance_m"] > 0
+    assert res.trajectory["status"].iloc[-1] == "stuck"
+
+
+def test_arrival_brakes_once_and_stops_without_dithering():
+    w = world_from_dict({"slitcli_scene": 1, "name": "open", "objects": [],
+                         "robot": {"start": [0, 0, 30]}, "goal_xy_m": [3.0, 0.5]}, "t")
+    res = run_world(w, perfect_sensor(w.scene, RIG, 3.0), DwaParams(), SimParams())
+    t = res.trajectory
+    assert res.metrics["outcome"] == "reached"
+    dist = np.hypot(t["x_m"] - 3.0, t["y_m"] - 0.5)
+    inside = np.flatnonzero(dist <= 0.3)
+    assert inside[0] > 0 and np.all(np.diff(inside) == 1)        # enters once, stays
+    v_in = t["v_mps"].to_numpy()[inside]
+    assert np.all(np.diff(v_in) <= 1e-12) and v_in[-1] == 0     # only braking inside
+    assert t["w_dps"].iloc[-1] == 0 and t["status"].iloc[-1] == "goal"
+    assert res.metrics["time_to_goal_s"] == pytest.approx(t["t_s"].iloc[inside[0]])
+
+
+# ---------------------------------------------------------------- bad worlds
+def test_start_in_collision_and_goal_inside_are_refused():
+    box = [{"type": "box", "centre_xy_m": [2.0, 0.0], "size_m": [1.0, 1.0, 0.5]}]
+    with pytest.raises(SlitcliError, match="collision with objects\\[0\\]"):
+        world_from_dict({"slitcli_scene": 1, "objects": box,
+                         "robot": {"start": [1.3, 0, 0]}, "goal_xy_m": [5, 0]}, "w.yaml")
+    with pytest.raises(SlitcliError, match="inside objects\\[0\\]"):
+        world_from_dict({"slitcli_scene": 1, "objects": box, "goal_xy_m": [2.2, 0.1]},
+                        "w.yaml")
+    with pytest.raises(SlitcliError, match="no goal"):
+        world_from_dict({"slitcli_scene": 1, "objects": box}, "w.yaml")
+
+
+# ---------------------------------------------------------------- the commands
+def _one_line_exit_2(result):
+    assert result.exit_code == 2, result.output
+    lines = [x for x in result.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and "Traceback" not in result.stderr
+    return lines[0]
+
+
+def test_simulate_dwa_and_offline_replay_end_to_end(tmp_path):
+    out = tmp_path / "dwa"
+    r = CliRunner().invoke(cli, ["simulate-dwa", "--scenario", "paper", "--sensing-range",
+                                 "1.5", "--save-ranges", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["metrics.csv", "params.yaml", "ranges_range_1.5m.csv",
+                     "trajectory_range_1.5m.csv", "world.yaml"]
+    m = pd.read_csv(out / "metrics.csv")
+    assert list(m.columns) == list(METRICS_COLUMNS)
+    assert m["reached_goal"].tolist() == [1] and m["collided"].tolist() == [0]
+    t = pd.read_csv(out / "trajectory_range_1.5m.csv")
+    assert list(t.columns) == list(TRAJECTORY_COLUMNS)
+    # the obstacle geometry is recoverable for the figures
+    scene = load_scene(out / "world.yaml")
+    assert scene.objects == paper_world().scene.objects and scene.goal_xy_m == (6.0, 0.0)
+    assert yaml.safe_load((out / "params.yaml").read_text())["dwa"]["v_max_mps"] == 0.2
+    # Offline DWA over the sensed range table: the simulated robot moved exactly as
+    # commanded, so the offline planner must reproduce every command and pose.
+    cmds = tmp_path / "cmds.csv"
+    r = CliRunner().invoke(cli, ["dwa", str(out / "ranges_range_1.5m.csv"), "--goal", "6,0",
+                                 "-o", str(cmds)])
+    assert r.exit_code == 0, r.output
+    c = pd.read_csv(cmds)
+    assert len(c) == len(t) - 1                        # the last row is the arrival
+    np.testing.assert_allclose(c["v_mps"], t["v_mps"].iloc[:-1], atol=1e-9)
+    np.testing.assert_allclose(c["w_dps"], t["w_dps"].iloc[:-1], atol=1e-6)
+    np.testing.assert_allclose(c[["x_m", "y_m"]], t[["x_m", "y_m"]].iloc[:-1], atol=1e-5)
+    # writing again into an existing folder needs --overwrite, and leaves it intact
+    r = CliRunner().invoke(cli, ["simulate-dwa", "--scenario", "paper", "-o", str(out)])
+    assert "--overwrite" in _one_line_exit_2(r)
+    assert (out / "ranges_range_1.5m.csv").exists()
+
+
+@pytest.mark.parametrize("world, extra, needle", [
+    ({"objects": [{"type": "box", "centre_xy_m": [2, 0], "size_m": [1, 1, 0.5]}],
+      "goal_xy_m": [2, 0]}, [], "inside objects[0]"),
+    ({"objects": [{"type": "cylinder", "centre_xy_m": [0.3, 0], "radius_m": 0.2,
+                   "height_m": 0.5}], "goal_xy_m": [4, 0]}, [], "in collision"),
+    ({"objects": [], "goal_xy_m": [4, 0]}, ["--v-max-mps", "0"], "--v-max-mps"),
+    ({"objects": [], "goal_xy_m": [4, 0]}, ["--v-max-mps", "-0.1"], "--v-max-mps"),
+    ({"objects": [], "goal_xy_m": [4, 0]}, ["--dt-s", "0"], "--dt-s"),
+    ({"objects": [], "goal_xy_m": [4, 0]}, ["--sensing-range", "1,x"], "--sensing-range"),
+    ({"objects": []}, [], "no goal"),
+])
+def test_simulate_dwa_bad_input_exit_2_one_line(tmp_path, world, extra, needle):
+    f = tmp_path / "w.yaml"
+    f.write_text(yaml.safe_dump({"slitcli_scene": 1, **world}))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(cli, ["simulate-dwa", str(f), "-o", str(out), *extra])
+    assert needle in _one_line_exit_2(r)
+    assert not out.exists()
+
+
+def test_dwa_offline_bad_input_exit_2_one_line(tmp_path):
+    table = tmp_path / "ranges.csv"
+    table.write_text("frame,time_s,bearing_deg,laser_range_m\n0,0,0,1.0\n")
+    out = tmp_path / "cmds.csv"
+    r = CliRunner().invoke(cli, ["dwa", str(table), "--goal", "3,0", "-o", str(out)])
+    assert "fused_range_m" in _one_line_exit_2(r)
+    r = CliRunner().invoke(cli, ["dwa", str(tmp_path / "none.csv"), "--goal", "3,0", "-o",
+                                 str(out)])
+    assert "not found" in _one_line_exit_2(r)
+    table.write_text("frame,time_s,bearing_deg,fused_range_m\n0,0,0,1.0\n1,0,0,1.0\n")
+    r = CliRunner().invoke(cli, ["dwa", str(table), "--goal", "3,0", "-o", str(out)])
+    assert "time_s" in _one_line_exit_2(r)
+    r = CliRunner().invoke(cli, ["dwa", str(table), "--goal", "3", "-o", str(out)])
+    assert "--goal" in _one_line_exit_2(r)
+    r = CliRunner().invoke(cli, ["dwa", str(table), "--goal", "3,0", "--dt-s", "-1", "-o",
+                                 str(out)])
+    assert "--dt-s" in _one_line_exit_2(r)
+    assert not out.exists()
