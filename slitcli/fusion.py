@@ -4,7 +4,8 @@ Inputs and outputs are per bearing bin (sensor frame, metres); NaN means "no ret
 
 Paper mode (Eq. 11 as read in DESIGN §7), per bin:
 
-1. stereo has no features there -> the laser range (which may be "no return");
+1. stereo has no features there (neither its flag nor a return) -> the laser range
+   (which may be "no return");
 2. the laser returns nearer than its maximum range -> ``min(laser, stereo)``;
 3. no laser return -> the stereo range, but not closer than the laser's maximum range:
    ``max(laser_max_range, stereo)``. This trusts the laser's negative reading, which is
@@ -74,8 +75,10 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     """
     laser = np.asarray(laser_range_m, dtype=float)
     stereo = np.asarray(stereo_range_m, dtype=float)
-    feat = np.asarray(stereo_has_features, dtype=bool)
-    stereo = np.where(feat & (stereo <= params.stereo_max_range_m), stereo, np.nan)
+    # a stereo return needs matched texture, so a bin with one has features even when the
+    # bin holds too few textured pixels for the stereo flag (e.g. the edge bins)
+    feat = np.asarray(stereo_has_features, dtype=bool) | np.isfinite(stereo)
+    stereo = np.where(stereo <= params.stereo_max_range_m, stereo, np.nan)
     has_l, has_s = np.isfinite(laser), np.isfinite(stereo)
     nearer_stereo = has_s & (~has_l | (stereo < laser))
     min_rng = np.where(nearer_stereo, stereo, laser)

@@ -1,0 +1,208 @@
+"""`slitcli detect`: accuracy against rendered truth, resume, parallel runs, bags, bad input."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from bagwriter import write_bag
+from click.testing import CliRunner
+
+from slitcli.cli import cli
+from slitcli.detect import DetectParams, Detector
+from slitcli.evaluate import range_errors
+from slitcli.io.sequence import StereoSequence
+from slitcli.rig import paper_rig
+from slitcli.sim.scene import load_scene, scene_from_dict
+from slitcli.sim.sequence import render_sequence
+
+ROOT = Path(__file__).resolve().parent.parent
+BUNDLED = ROOT / "sample_data" / "sequences" / "corridor"
+
+
+def _detect_table(seq_dir: Path, mode: str = "paper") -> pd.DataFrame:
+    seq = StereoSequence(seq_dir)
+    rig = seq.rig()
+    det = Detector(rig, DetectParams(fusion_mode=mode))
+    rows, prev = [], None
+    for f in seq.frames(rig):
+        rows.append(det(f.left_bgr, f.right_bgr, previous_left_bgr=prev).table(f.index,
+                                                                                f.time_s))
+        prev = f.left_bgr
+    return pd.concat(rows, ignore_index=True)
+
+
+def _scores(seq_dir: Path, mode: str = "paper") -> dict:
+    table = _detect_table(seq_dir, mode)
+    truth = pd.read_csv(seq_dir / "gt" / "ranges.csv")
+    err = range_errors(table, truth)
+    err["bearing_deg"] = table.merge(truth, on=["frame", "bearing_deg"])[
+        "bearing_deg"].to_numpy()[truth.merge(table, on=["frame", "bearing_deg"])[
+            "range_m"].notna().to_numpy()]
+    band = err[(err["true_m"] >= 0.6) & (err["true_m"] <= 3.0)]
+    ok = band["fused_err_m"].abs() <= np.maximum(0.05, 0.05 * band["true_m"])
+    j = table.merge(truth, on=["frame", "bearing_deg"])
+    free = j[j["range_m"].isna() | (j["range_m"] > 3.0)]
+    limit = np.where(free["range_m"].isna(), np.inf, free["range_m"]) - 0.2
+    phantom = free["fused_range_m"] < limit
+    return {"detected": float(ok.mean()), "bins": len(band), "phantom": float(phantom.mean()),
+            "free": len(free), "errors": err}
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    base = tmp_path_factory.mktemp("scenes")
+    rig = paper_rig()
+    out = {}
+    for name, frames in (("distractors", 2), ("overhang", 3)):
+        out[name] = base / name
+        render_sequence(load_scene(ROOT / "sample_data" / f"{name}.yaml"), rig, out[name],
+                        frames=frames)
+    return out
+
+
+@pytest.mark.parametrize("name", ["corridor", "distractors"])
+def test_fused_ranges_against_truth(rendered, name):
+    seq = BUNDLED if name == "corridor" else rendered[name]
+    s = _scores(seq)
+    assert s["bins"] > 50
+    assert s["detected"] >= 0.99, s["errors"]
+    assert s["phantom"] <= 0.01
+
+
+def test_textureless_obstacle_within_1m_is_ranged_by_the_laser(tmp_path):
+    scene = scene_from_dict({"slitcli_scene": 1, "seed": 2, "objects": [
+        {"type": "box", "centre_xy_m": [0.95, 0.0], "size_m": [0.3, 0.6, 0.5],
+         "surface": {"colour_rgb": [0.7, 0.7, 0.68], "texture": "plain"}},
+        {"type": "wall", "from_xy_m": [3.0, -3], "to_xy_m": [3.0, 3], "height_m": 2.0}]})
+    render_sequence(scene, paper_rig(), tmp_path / "s", frames=1)
+    table = _detect_table(tmp_path / "s")
+    truth = pd.read_csv(tmp_path / "s" / "gt" / "ranges.csv")
+    j = table.merge(truth, on=["frame", "bearing_deg"])
+    box = j[j["range_m"] < 1.0]  # the bins whose nearest obstacle is the plain box
+    assert len(box) >= 20
+    assert (box["fused_source"] == "laser").mean() >= 0.95
+    rel = (box["fused_range_m"] - box["range_m"]).abs() / box["range_m"]
+    assert rel.max() <= 0.01
+
+
+def test_overhang_paper_mode_trusts_the_missing_laser_return(rendered):
+    paper = _scores(rendered["overhang"], "paper")["errors"]
+    cons = _scores(rendered["overhang"], "conservative")["errors"]
+    # the shelf (true 0.8 m) is seen by stereo only; paper fusion pushes it out to the
+    # laser's 1.0 m reach, the conservative minimum keeps it
+    def shelf(e: pd.DataFrame) -> pd.DataFrame:  # the shelf spans bearings -26..7 degrees
+        return e[((e["true_m"] - 0.8).abs() < 0.03) & (e["bearing_deg"] < 5)]
+
+    shelf_p, shelf_c = shelf(paper), shelf(cons)
+    assert len(shelf_p) >= 5
+    assert (shelf_p["fused_range_m"] >= 0.99).mean() >= 0.8
+    assert (shelf_c["fused_err_m"].abs() <= 0.05).mean() >= 0.8
+
+
+def _run(args, **kw):
+    return CliRunner().invoke(cli, [str(a) for a in args], **kw)
+
+
+def test_cli_detect_jobs_and_resume_are_byte_identical(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    res = _run(["detect", BUNDLED, "-o", a])
+    assert res.exit_code == 0, res.stderr
+    assert "8 frames (0 already done)" in res.output
+    res = _run(["detect", BUNDLED, "-o", b, "--jobs", "2"])
+    assert res.exit_code == 0, res.stderr
+    assert (a / "ranges.csv").read_bytes() == (b / "ranges.csv").read_bytes()
+    table = pd.read_csv(a / "ranges.csv")
+    assert list(table.columns) == ["frame", "time_s", "bearing_deg", "laser_range_m",
+                                   "stereo_range_m", "stereo_has_features", "fused_range_m",
+                                   "fused_source"]
+    assert len(table) == 8 * 65 and set(table["fused_source"]) <= {"laser", "stereo", "none"}
+    # a re-run with the same arguments does nothing new; other arguments are refused
+    res = _run(["detect", BUNDLED, "-o", a])
+    assert "8 already done" in res.output
+    res = _run(["detect", BUNDLED, "-o", a, "--fusion", "conservative"])
+    assert res.exit_code == 2 and "--overwrite" in res.stderr
+    res = _run(["detect", BUNDLED, "-o", a, "--fusion", "conservative", "--overwrite"])
+    assert res.exit_code == 0 and "0 already done" in res.output
+
+
+def test_kill_9_then_rerun_gives_the_same_table(tmp_path):
+    seq = tmp_path / "seq"
+    names = sorted(p.name for p in (BUNDLED / "left").iterdir())
+    for side in ("left", "right"):
+        (seq / side).mkdir(parents=True)
+        for i in range(40):
+            os.link(BUNDLED / side / names[i % len(names)], seq / side / f"{i:04d}.png")
+    shutil.copy(BUNDLED / "rig.yaml", seq / "rig.yaml")
+    full = tmp_path / "full"
+    assert _run(["detect", seq, "-o", full]).exit_code == 0
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "slitcli", "detect", str(seq), "-o", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    parts = out / ".slitcli" / "detect" / "parts"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(parts.glob("*.rows.csv"))
+                                              if parts.exists() else []) < 10:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done = len(list(parts.glob("*.rows.csv")))
+    assert 10 <= done < 40 and not (out / "ranges.csv").exists()
+    res = _run(["detect", seq, "-o", out])
+    assert res.exit_code == 0
+    assert f"({done} already done)" in res.output
+    assert (out / "ranges.csv").read_bytes() == (full / "ranges.csv").read_bytes()
+
+
+@pytest.mark.parametrize("ros,storage", [(1, ""), (2, "sqlite3"), (2, "mcap")])
+def test_bags_give_the_folder_table(tmp_path, ros, storage):
+    seq = tmp_path / "seq"
+    shutil.copytree(BUNDLED, seq, ignore=shutil.ignore_patterns("gt"))
+    frames = list(StereoSequence(seq).frames())[:3]
+    for p in (seq / "left").iterdir():
+        if p.name not in {f.name + ".png" for f in frames}:
+            p.unlink()
+            (seq / "right" / p.name).unlink()
+    t0 = 1_700_000_000
+    (seq / "times.csv").write_text("frame,time_s\n" + "".join(
+        f"{i},{t0 + 0.2 * i}\n" for i in range(3)))
+    bag = write_bag(tmp_path / ("run.bag" if ros == 1 else "run"),
+                    [(f.left_bgr, f.right_bgr) for f in frames], ros=ros, storage=storage,
+                    t0_ns=t0 * 10**9, right_offset_ns=1_000_000)
+    assert _run(["detect", seq, "-o", tmp_path / "f"]).exit_code == 0
+    res = _run(["detect", bag, "-o", tmp_path / "b", "--rig", seq / "rig.yaml"])
+    assert res.exit_code == 0, res.stderr
+    assert (tmp_path / "f" / "ranges.csv").read_text() == \
+        (tmp_path / "b" / "ranges.csv").read_text()
+
+
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path):
+    empty = tmp_path / "empty"
+    (empty / "left").mkdir(parents=True)
+    (empty / "right").mkdir()
+    unpaired = tmp_path / "unpaired"
+    shutil.copytree(BUNDLED, unpaired, ignore=shutil.ignore_patterns("gt"))
+    next((unpaired / "right").iterdir()).unlink()
+    bag = write_bag(tmp_path / "bag", [(np.zeros((240, 320, 3), np.uint8),) * 2], ros=2)
+    cases = [
+        ([empty], "no images"),
+        ([unpaired], "missing right frame"),
+        ([BUNDLED, "--fusion", "best"], "--fusion"),
+        ([bag, "--rig", BUNDLED / "rig.yaml", "--left-topic", "/nope"], "no topic '/nope'"),
+        ([BUNDLED, "--window", "8"], "window"),
+    ]
+    for i, (args, text) in enumerate(cases):
+        out = tmp_path / f"out{i}"
+        res = _run(["detect", *args[:1], "-o", out, *args[1:]])
+        assert res.exit_code == 2, (args, res.output, res.stderr)
+        lines = res.stderr.strip().splitlines()
+        assert len(lines) == 1 and text in lines[0], lines
+        assert not out.exists()
