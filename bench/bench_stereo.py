@@ -10,11 +10,12 @@ Rows:
 - first call: the numba kernel's compile on an empty cache, and loading it from the
   cache, each in a fresh interpreter;
 - accuracy (no timing): Middlebury motorcycle bad2 / density for each filter setting
-  (protocol of issue 5), and the rendered corridor scene.
+  (protocol of issue 5), and the rendered scene of tests/test_stereo_rendered.py.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -212,10 +213,14 @@ def _accuracy_rows() -> list[dict]:
 def _rendered_row() -> dict:
     from slitcli.rig import paper_rig
     from slitcli.sim.render import render_frame
-    from slitcli.sim.scene import load_scene
+    from slitcli.sim.scene import scene_from_dict
     from slitcli.stereo.pipeline import process_stereo_pair
 
-    scene = load_scene(ROOT / "sample_data" / "corridor.yaml")
+    spec = importlib.util.spec_from_file_location(
+        "stereo_rendered_test", ROOT / "tests" / "test_stereo_rendered.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    scene = scene_from_dict(module.SCENE, "stereo-test scene")
     rig = paper_rig()
     fr = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
     res = process_stereo_pair(fr.left_bgr, fr.right_bgr, rig)
@@ -225,7 +230,7 @@ def _rendered_row() -> dict:
     err = np.abs(res.disparity_px - t.disparity_px)
     plain = ~t.textured & np.isfinite(t.disparity_px)
     inner = cv2.erode(plain.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    return {"name": "rendered corridor frame 0 (nssd defaults)",
+    return {"name": "rendered test corridor (tests/test_stereo_rendered.py), nssd defaults",
             "note": f"textured <=3 m: valid {valid[near].mean():.3f}, median |err| "
                     f"{np.median(err[near & valid]):.3f} px; textureless invalid "
                     f"{(~valid[plain]).mean():.3f} (1 px inside: {(~valid[inner]).mean():.3f}),"

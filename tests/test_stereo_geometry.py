@@ -182,3 +182,33 @@ def test_rectify_checks_the_raw_size():
         rectify_pair(img, img, rig)
     with pytest.raises(SlitcliError, match="image_size_px is 320x240"):
         rectify_pair(img, img, paper_rig())
+
+
+def test_pipeline_rectifies_raw_pairs_before_matching():
+    from stereo_synth import plane_pair
+
+    from slitcli.stereo.pipeline import process_stereo_pair
+
+    rig = paper_rig()
+    k = rig.left.K
+    eye = np.eye(3)
+    p1 = np.hstack([k, np.zeros((3, 1))])
+    p2 = np.hstack([k, [[-rig.focal_px * rig.baseline_m], [0.0], [0.0]]])
+    t = lambda a: tuple(map(tuple, np.asarray(a, float)))  # noqa: E731
+    # raw images 20 px wider and taller than the rectified ones, same intrinsics with
+    # the principal point shifted by (10, 10): rectification is a pure crop
+    kr = k.copy()
+    kr[:2, 2] += 10.0
+    raw = RawCalibration(image_size_px=(340, 260), K1=t(kr), D1=(0.0,) * 5, K2=t(kr),
+                         D2=(0.0,) * 5, R=t(eye), T=(-rig.baseline_m, 0.0, 0.0), R1=t(eye),
+                         R2=t(eye), P1=t(p1), P2=t(p2))
+    raw_rig = replace(rig, raw=raw)
+    left, right = plane_pair(14.5, width=340, height=260)
+    bgr = [cv2.cvtColor(a, cv2.COLOR_GRAY2BGR) for a in (left, right)]
+    res = process_stereo_pair(bgr[0], bgr[1], raw_rig)
+    assert res.disparity_px.shape == (240, 320)
+    valid = np.isfinite(res.disparity_px)
+    assert valid[:, 32:].mean() >= 0.95
+    assert np.median(np.abs(res.disparity_px[valid] - 14.5)) <= 0.1
+    with pytest.raises(SlitcliError, match=r"raw\.image_size_px is 340x260"):
+        process_stereo_pair(bgr[0][:240, :320], bgr[1][:240, :320], raw_rig)

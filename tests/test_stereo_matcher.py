@@ -47,7 +47,7 @@ def brute_force_eq10(pl: np.ndarray, pr: np.ndarray, dmin: int, num: int, m: int
     return out
 
 
-@pytest.mark.parametrize("window,dmin", [((5, 5), 0), ((7, 3), 2)])
+@pytest.mark.parametrize("window,dmin", [((5, 5), 0), ((7, 3), 2), ((3, 5), -2)])
 def test_cost_and_winner_equal_brute_force_eq10(window, dmin):
     rng = np.random.default_rng(3)
     left = rng.integers(20, 236, (18, 40)).astype(np.uint8)
@@ -65,8 +65,8 @@ def test_cost_and_winner_equal_brute_force_eq10(window, dmin):
     finite = np.isfinite(ref_min)
     np.testing.assert_allclose(res.match_cost[finite], ref_min[finite], rtol=2e-5, atol=1e-6)
     # every column u can still be matched with any disparity d <= u: no columns are lost
-    assert np.isfinite(res.disparity_px[:, dmin:]).all()
-    assert np.isnan(res.disparity_px[:, :dmin]).all()
+    assert np.isfinite(res.disparity_px[:, max(dmin, 0):]).all()
+    assert np.isnan(res.disparity_px[:, :max(dmin, 0)]).all()
 
 
 def test_prefiltered_cost_is_eq10_of_the_prefiltered_images():

@@ -2,25 +2,53 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
 
 from slitcli.rig import paper_rig
 from slitcli.sim.render import render_frame
-from slitcli.sim.scene import load_scene
+from slitcli.sim.scene import scene_from_dict
 from slitcli.stereo.pipeline import process_stereo_pair
 
-SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "corridor.yaml"
+
+def _surface(texture: str, rgb: list[float], scale_m: float = 0.04,
+             contrast: float = 0.5) -> dict:
+    if texture == "plain":
+        return {"colour_rgb": rgb, "texture": "plain"}
+    return {"colour_rgb": rgb, "texture": "noise", "scale_m": scale_m, "contrast": contrast}
+
+
+# A corridor with textured walls and floor, a textured box 1.5 m ahead (left of centre),
+# a textured cylinder, and two large textureless boxes (0.8 m ahead on the right, 3.2 m
+# ahead on the left); 2 DN sensor noise (the renderer's default).
+SCENE = {
+    "slitcli_scene": 1, "name": "stereo-test", "seed": 11,
+    "floor": _surface("noise", [0.55, 0.5, 0.45], 0.03),
+    "objects": [
+        {"type": "wall", "from_xy_m": [0.0, 1.1], "to_xy_m": [6.0, 1.1], "height_m": 1.5,
+         "surface": _surface("noise", [0.7, 0.66, 0.6])},
+        {"type": "wall", "from_xy_m": [0.0, -1.1], "to_xy_m": [6.0, -1.1], "height_m": 1.5,
+         "surface": _surface("noise", [0.66, 0.68, 0.7])},
+        {"type": "wall", "from_xy_m": [6.0, -1.1], "to_xy_m": [6.0, 1.1], "height_m": 1.5,
+         "surface": _surface("noise", [0.7, 0.7, 0.7])},
+        {"type": "box", "centre_xy_m": [0.95, -0.35], "size_m": [0.3, 0.3, 0.5],
+         "surface": _surface("plain", [0.75, 0.75, 0.72])},
+        {"type": "box", "centre_xy_m": [1.6, 0.4], "size_m": [0.3, 0.4, 0.6], "yaw_deg": 15,
+         "surface": _surface("noise", [0.55, 0.6, 0.5], 0.02, 0.7)},
+        {"type": "cylinder", "centre_xy_m": [2.4, -0.3], "radius_m": 0.15, "height_m": 0.8,
+         "surface": _surface("noise", [0.6, 0.5, 0.45], 0.02, 0.7)},
+        {"type": "box", "centre_xy_m": [3.2, 0.45], "size_m": [0.3, 0.5, 0.7],
+         "surface": _surface("plain", [0.5, 0.5, 0.55])},
+    ],
+    "robot": {"start": [0.0, 0.0, 0.0], "motion": "static", "frames": 1},
+}
 
 
 @pytest.fixture(scope="module")
 def corridor():
-    """Frame 0 of the corridor scene: textured walls, floor, boxes and cylinders, two
-    textureless boxes (0.95 m and 3.2 m ahead); 2 DN sensor noise."""
-    scene = load_scene(SAMPLE)
+    """Frame 0 of :data:`SCENE` and the stereo pipeline's result on it."""
+    scene = scene_from_dict(SCENE, "stereo-test scene")
     rig = paper_rig()
     frame = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
     return rig, frame, process_stereo_pair(frame.left_bgr, frame.right_bgr, rig)

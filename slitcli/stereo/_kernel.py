@@ -1,6 +1,14 @@
-"""Numba kernel of the Eq. 10 matcher: cost rows, winner-take-all, uniqueness, left-right.
+"""Compiled (numba) kernels of the stereo pipeline.
 
-The kernel walks the image one row at a time and keeps, per column, the running
+- :func:`nssd_rows`: the Eq. 10 matcher (cost, winner-take-all, subpixel, uniqueness,
+  left-right) for a band of rows;
+- :func:`warp_rows`, :func:`support_rows`: the local-support correlation;
+- :func:`clip_quantise`: the prefilter's clip and quantisation;
+- :func:`reproject`, :func:`bin_percentile`: depth, sensor-frame points, obstacle
+  tests and the per-bearing range percentile.
+
+All release the GIL (``nogil``) so bands of rows can run on plain threads. The matcher
+walks the image one row at a time and keeps, per column, the running
 vertical window sums of squared differences of all disparities (``width x
 num_disparities`` floats per thread, disparity-contiguous), so the full cost volume
 is never stored: a window sum slides along x with one add and one subtract per
@@ -24,8 +32,8 @@ BIG_INV = np.float32(1e30)
 SSD_EPS = np.float32(1e-3)
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}  # no nnan/ninf: +inf marks impossible costs
 
-# invalid_reason codes (documented in docs/stereo.md); 2 (texture) and 5 (speckle) are
-# set by the caller
+# invalid_reason codes (docs/stereo.md); texture (2), speckle (5) and support (7) are
+# set by slitcli.stereo.matcher
 REASON_VALID = 0
 REASON_NO_CANDIDATE = 1
 REASON_UNIQUENESS = 3
@@ -65,9 +73,22 @@ def _window_energy(v, prefix, inv, m):
     for c in range(width):
         acc += v[c]
         prefix[c + 1] = acc
-    for x in range(width):
-        e = prefix[min(x + m, width - 1) + 1] - prefix[max(x - m, 0)]
-        inv[x] = BIG_INV if e < 0.5 else np.float32(1.0 / np.sqrt(e))
+    # interior windows in one vectorised float32 pass (the sums are exact integers
+    # below 2**24 for the default 9 x 9 window), the clipped ones at the edges apart
+    a = min(m, width)
+    b = max(width - m, a)
+    ua = _U(a)
+    um = _U(m)
+    for k in range(_U(b - a)):
+        x = ua + k
+        e = np.float32(prefix[x + um + _U(1)] - prefix[x - um])
+        inv[x] = np.float32(1.0) / np.sqrt(e) if e >= 0.5 else BIG_INV
+    for x in range(0, a):
+        e = np.float32(prefix[min(x + m, width - 1) + 1] - prefix[0])
+        inv[x] = np.float32(1.0) / np.sqrt(e) if e >= 0.5 else BIG_INV
+    for x in range(b, width):
+        e = np.float32(prefix[width] - prefix[max(x - m, 0)])
+        inv[x] = np.float32(1.0) / np.sqrt(e) if e >= 0.5 else BIG_INV
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")

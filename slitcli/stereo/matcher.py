@@ -114,7 +114,7 @@ class MatcherParams:
     uniqueness_ratio: float = 0.15
     lr_max_diff_px: int = 1
     support_radius_px: int = 1
-    support_min_zncc: float = 0.4
+    support_min_zncc: float = 0.45
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
