@@ -145,3 +145,22 @@ def test_bad_scene_names_the_key(patch, key):
     with pytest.raises(SlitcliError) as e:
         scene_from_dict(d, source="s.yaml")
     assert "s.yaml" in str(e.value) and key in str(e.value)
+
+
+def test_bundled_sequence_is_reproduced_by_the_renderer():
+    from pathlib import Path
+
+    from slitcli.io.sequence import read_image
+    from slitcli.rig import load_rig
+    from slitcli.sim.scene import load_scene
+
+    seq = Path(__file__).resolve().parent.parent / "sample_data" / "sequences" / "corridor"
+    scene = load_scene(seq / "scene.yaml")
+    rig = load_rig(seq / "rig.yaml")
+    k = 5
+    fr = render_frame(scene, rig, scene.poses()[k], frame_index=k)
+    np.testing.assert_array_equal(fr.left_bgr, read_image(seq / "left" / f"{k:06d}.png"))
+    np.testing.assert_array_equal(fr.right_bgr, read_image(seq / "right" / f"{k:06d}.png"))
+    truth = np.load(seq / "gt" / f"frame_{k:06d}.npz")
+    np.testing.assert_array_equal(fr.truth.range_m, truth["range_m"])
+    np.testing.assert_array_equal(fr.truth.stripe_v_px, truth["stripe_v_px"])
