@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing
 import shutil
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -115,7 +116,10 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
         for t in tasks:
             yield work(t)
         return
-    with ProcessPoolExecutor(max_workers=jobs, initializer=initializer) as pool:
+    # forkserver, not fork: this process may already run threads (OpenCV, the stereo
+    # kernels' pool, numba), and a child forked while one holds a lock waits forever
+    ctx = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=jobs, initializer=initializer, mp_context=ctx) as pool:
         inflight: deque[Future] = deque()
         for t in tasks:
             inflight.append(pool.submit(work, t))
