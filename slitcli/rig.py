@@ -508,22 +508,10 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
 
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig YAML file (DESIGN §12)."""
+    from slitcli.io.yamlfile import read_yaml
+
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise SlitcliError(f"{p}: rig file not found; write one with `slitcli rig init {p}`") \
-            from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SlitcliError(f"{p}: cannot read the rig file ({e.__class__.__name__}); "
-                           "check the path and permissions") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise SlitcliError(f"{p}: not valid YAML{where}; fix the syntax or re-create it with "
-                           "`slitcli rig init`") from None
+    data = read_yaml(p, kind="rig file", missing_hint=f"write one with `slitcli rig init {p}`")
     return rig_from_dict(data, source=str(p))
 
 

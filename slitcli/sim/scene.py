@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from slitcli.errors import SlitcliError
 
@@ -616,19 +615,9 @@ def _robot(r: _Keys, v: Any) -> Robot:
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene YAML file."""
+    from slitcli.io.yamlfile import read_yaml
+
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise SlitcliError(f"{p}: scene file not found; check the path (examples in "
-                           "sample_data/)") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SlitcliError(f"{p}: cannot read the scene file ({e.__class__.__name__}); check "
-                           "the path and permissions") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise SlitcliError(f"{p}: not valid YAML{where}; fix the syntax") from None
+    data = read_yaml(p, kind="scene file", missing_hint="check the path (examples in "
+                     "sample_data/)")
     return scene_from_dict(data, source=str(p))

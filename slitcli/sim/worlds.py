@@ -61,19 +61,11 @@ def world_from_dict(data: dict[str, Any], source: str, *,
 def load_world(path: str | Path, *, start: tuple[float, float, float] | None = None,
                goal_xy_m: tuple[float, float] | None = None) -> World:
     """Read a world (scene) YAML file; see :func:`world_from_dict`."""
+    from slitcli.io.yamlfile import read_yaml
+
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except FileNotFoundError:
-        raise SlitcliError(f"{p}: world file not found; check the path or use "
-                           "--scenario paper") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SlitcliError(f"{p}: cannot read the world file ({e.__class__.__name__}); check "
-                           "the path and permissions") from None
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise SlitcliError(f"{p}: not valid YAML{where}; fix the syntax") from None
+    data = read_yaml(p, kind="world file", missing_hint="check the path or use --scenario "
+                     "paper")
     return world_from_dict(data, str(p), start=start, goal_xy_m=goal_xy_m)
 
 
