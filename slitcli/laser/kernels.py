@@ -1,24 +1,21 @@
-"""Compiled (numba) kernels of the stripe extractor: per-line candidates and their fit.
+"""Compiled (numba) kernels of the stripe extractor: candidate crossings per column.
 
-A *line* is one image column (the main pass) or one image row (the pass for steep
-stripe parts); the caller hands in images laid out line-major, ``(L, N, 3)`` BGR
-uint8, so that every line is contiguous. All loops over pixels live here, compiled.
+Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row,
+contiguous); all loops over pixels live here, compiled.
 
-Signal model of one line, per channel c in (r, g, b) and position j along the line::
+Signal model of one column, per channel c in (r, g, b) and row v::
 
-    x_c(j) = s(j) k_c + A p(j) l_c + n_c(j)
+    x_c(v) = s(v) k_c + A p(v) l_c + n_c(v)
 
-``s(j) k_c``: the surface (colour ``k``, texture and shading ``s``); ``A p(j) l_c``:
-the laser, a Gaussian profile ``p`` of peak ``A`` (red DN) with the colour
-``l = (1, XT, XT)`` (a red laser leaks ``XT`` of itself into green and blue);
-``n``: sensor noise of standard deviation ``sigma`` per channel. After the local
-background (a morphological opening along the line) is removed, the colour
-direction of the surface is known and the best linear estimate of ``A p(j)`` per
-position is the weighted channel sum ``w . d`` with ``w . l = 1`` that minimises
-noise plus texture variance (generalised least squares, see :func:`_row_weights`):
-on grey or coloured surfaces the texture cancels, on a red surface (colour parallel
-to the laser) it cannot and is counted as noise. Saturated channels are left out
-of the sum of their position.
+``s(v) k_c``: the surface (colour ``k``; texture and shading ``s`` scale all channels
+alike); ``A p(v) l_c``: the laser, a Gaussian profile ``p`` of peak ``A`` (red DN) and
+colour ``l = (1, XT, XT)`` (a red diode leaks ``XT`` of itself into green and blue);
+``n``: sensor noise, standard deviation ``sigma`` per channel. White light (lamp
+highlights) adds ``(1, 1, 1)``. The best linear estimate of ``A p(v)`` per row is the
+channel sum ``w . (x - background)`` with ``w . l = 1`` that minimises noise plus
+texture variance (generalised least squares, :func:`_gls`): on a grey or coloured
+surface the texture cancels; on a red surface (colour parallel to the laser) it
+cannot, and counts as noise. Saturated channels are left out of their row's sum.
 """
 
 from __future__ import annotations
@@ -26,31 +23,52 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 #: green and blue response to the red laser, fraction of the red response (a red
-#: diode seen by a Bayer colour sensor; the renderer's default crosstalk)
+#: diode seen through a Bayer colour filter; the renderer's default crosstalk)
 XT = 0.12
 #: |l|^2 of the laser colour l = (1, XT, XT)
 A_LASER = 1.0 + 2.0 * XT * XT
-#: share of the surface-colour direction removed by the detection signal (see
-#: :func:`line_candidates`): 1 would remove all texture and amplify noise without
-#: bound on surfaces whose colour is the laser's
+#: share of the surface-colour direction the per-pixel evidence removes: 1 would
+#: remove all texture but amplify noise without bound on surfaces of the laser's colour
 LAM_DETECT = 0.99
-FIT_HALF = 8  # half-length of the fit window along the line, px
-MIN_ROWS = 5  # fewest usable positions for a fit
+FIT_HALF = 8  # half-length of the fit window, px
+NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
+MIN_ROWS = 5  # fewest usable rows for a fit
+MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
+CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
+QUICK_Z = 2.0  # candidates less significant at their start are not fitted further
+CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
+#: a candidate whose evidence is below this share of a strong first candidate's is not
+#: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
+#: paper weights 0.25) cannot beat the first's
+SECONDARY_SHARE = 0.3
+NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
+CLUTTER_HALF = 24  # half-window of the clutter level, px
+CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
+#: a candidate must stand MIN_CLUTTER_RATIO times (in quadrature with the noise)
+#: above all but CLUTTER_SHARE of the evidence around it
+MIN_CLUTTER_RATIO = 1.5
+CLUTTER_SHARE = 0.2
+N_BLOCKS = 8  # column blocks processed in parallel
+
+#: fields of a candidate row (last axis of the candidate table)
+(C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
+ C_HVAR) = range(11)
+N_FIELDS = 11
+N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
 
 
 @njit(cache=True, nogil=True)
 def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma: no cover
-    """Robust per-channel noise sigma (DN) from the colour component orthogonal to the
-    surface colour.
+    """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
 
     Texture and shading scale all channels of a surface alike, so the part of a pixel
-    orthogonal to its background colour (the opening ``bg``) holds only noise (two
-    dimensions) plus rare edges, highlights and the laser. Its second difference along
-    the line has ``E|d2|^2 = 12 sigma^2`` (chi-square, 2 dof, median ``2 ln 2``
-    times the mean / 2). Every ``step``-th line is used.
+    orthogonal to its background colour (the opening ``bg``) is noise (two dimensions)
+    plus rare edges, highlights and the laser. Its second difference along the column
+    has ``E|d2|^2 = 12 sigma^2``, a scaled chi-square with 2 degrees of freedom whose
+    median is ``2 ln 2`` times its mean over 2. Every ``step``-th column is used.
     """
     n_lines, n = img.shape[0], img.shape[1]
     vals = np.empty(((n_lines + step - 1) // step) * max(n - 2, 0))
@@ -62,13 +80,10 @@ def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma:
             cg = bg[i, j, 1] + 0.5
             cr = bg[i, j, 2] + 0.5
             nn = math.sqrt(cb * cb + cg * cg + cr * cr)
-            cb /= nn
-            cg /= nn
-            cr /= nn
             xb = float(img[i, j, 0])
             xg = float(img[i, j, 1])
             xr = float(img[i, j, 2])
-            q = xb * cb + xg * cg + xr * cr
+            q = (xb * cb + xg * cg + xr * cr) / (nn * nn)
             p[j, 0] = xb - q * cb
             p[j, 1] = xg - q * cg
             p[j, 2] = xr - q * cr
@@ -86,10 +101,29 @@ def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma:
 
 
 @njit(cache=True, nogil=True)
-def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
-    """Solve the symmetric 4x4 system ``a x = b`` in place (Gaussian elimination with
-    partial pivoting); False if it is singular."""
-    m = np.empty((4, 5))
+def smooth_across(img: np.ndarray, sat_dn: int) -> np.ndarray:  # pragma: no cover
+    """Average each column with its neighbours, weights (1, 2, 1) / 4 (transposed
+    layout: along axis 0), rounded to uint8. A pixel next to a saturated one is set
+    to saturation, so the average never hides a clipped value."""
+    w, h = img.shape[0], img.shape[1]
+    out = np.empty_like(img)
+    for i in range(w):
+        a = max(i - 1, 0)
+        b = min(i + 1, w - 1)
+        for j in range(h):
+            for c in range(3):
+                x0, x1, x2 = img[a, j, c], img[i, j, c], img[b, j, c]
+                if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
+                    out[i, j, c] = 255
+                else:
+                    out[i, j, c] = (int(x0) + 2 * int(x1) + int(x2) + 2) // 4
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray, m: np.ndarray) -> bool:  # pragma: no cover
+    """Solve the 4x4 system ``a x = b`` (Gaussian elimination, partial pivoting) using
+    the (4, 5) scratch ``m``; False if singular."""
     for r in range(4):
         for c in range(4):
             m[r, c] = a[r, c]
@@ -119,12 +153,13 @@ def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no 
 
 
 @njit(cache=True, nogil=True)
-def _gls(m: np.ndarray, l: np.ndarray, w: np.ndarray) -> float:  # pragma: no cover
-    """Best linear unbiased weights for a signal of colour ``l`` in noise of covariance
-    ``m`` (3x3): ``w = m^-1 l / (l' m^-1 l)`` written to ``w``; returns the information
-    ``l' m^-1 l`` (the inverse variance of ``w . x``), 0 if ``m`` is singular."""
-    a, b, c = m[0, 0], m[0, 1], m[0, 2]
-    d, e, f = m[1, 1], m[1, 2], m[2, 2]
+def _gls(cov: np.ndarray, lr: float, lg: float, lb: float, w: np.ndarray) -> float:  # pragma: no cover
+    """Best linear unbiased weights for a signal of colour ``l = (lr, lg, lb)`` in noise
+    of covariance ``cov`` (3x3, RGB): ``w = cov^-1 l / (l' cov^-1 l)`` written to ``w``;
+    returns the information ``l' cov^-1 l`` (inverse variance of ``w . x``), 0 if
+    ``cov`` is singular."""
+    a, b, c = cov[0, 0], cov[0, 1], cov[0, 2]
+    d, e, f = cov[1, 1], cov[1, 2], cov[2, 2]
     i00 = d * f - e * e
     i01 = c * e - b * f
     i02 = b * e - c * d
@@ -134,10 +169,10 @@ def _gls(m: np.ndarray, l: np.ndarray, w: np.ndarray) -> float:  # pragma: no co
     det = a * i00 + b * i01 + c * i02
     if abs(det) < 1e-300:
         return 0.0
-    v0 = (i00 * l[0] + i01 * l[1] + i02 * l[2]) / det
-    v1 = (i01 * l[0] + i11 * l[1] + i12 * l[2]) / det
-    v2 = (i02 * l[0] + i12 * l[1] + i22 * l[2]) / det
-    info = l[0] * v0 + l[1] * v1 + l[2] * v2
+    v0 = (i00 * lr + i01 * lg + i02 * lb) / det
+    v1 = (i01 * lr + i11 * lg + i12 * lb) / det
+    v2 = (i02 * lr + i12 * lg + i22 * lb) / det
+    info = lr * v0 + lg * v1 + lb * v2
     if info <= 0.0:
         return 0.0
     w[0] = v0 / info
@@ -147,277 +182,398 @@ def _gls(m: np.ndarray, l: np.ndarray, w: np.ndarray) -> float:  # pragma: no co
 
 
 @njit(cache=True, nogil=True)
-def fit_profile(img: np.ndarray, bg: np.ndarray, i: int, centre: float, run_n: int,
-                sigma: float, sat_dn: int, out: np.ndarray) -> bool:  # pragma: no cover
-    """Fit the laser profile around ``centre`` of line ``i`` (see the module notes).
+def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
+                sat_dn: int, s_max: float, averaged: bool, ws: np.ndarray,
+                out: np.ndarray) -> bool:  # pragma: no cover
+    """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
-    Writes ``out[:] = (position, amplitude A (red DN), Gaussian sigma (px), standard
-    error of A, standard error of the position, reduced chi-square, saturated 0/1)``
-    and returns whether the fit converged to a peak inside the window.
+    Background: per channel a straight line through the flank rows (at least
+    ``max(4, run_n / 2 + 2)`` rows from the centre; a constant where one side is cut
+    off by the image border). Texture: the surface colour above and below (two
+    colours where the window straddles an edge between surfaces), with the variance
+    of each flank about its line along its colour. Per row ``y = w . d`` (:func:`_gls`,
+    saturated channels left out) with its information as weight; then a weighted
+    Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
+
+    Writes ``out[:10] = (v0, A (red DN), s (px), significance, standard error of v0,
+    reduced chi-square, saturated 0/1, texture sigma (DN), -, edge)``; significance
+    is ``A`` over its standard error or, for a clipped core, the margin of saturation
+    over the surface's red level in units of noise and texture; ``edge`` is one minus
+    the cosine between the surface colours just above and just below. Returns whether
+    the fit converged to a peak inside the window; it stops early once the width
+    passes ``s_max`` (px, wider than any stripe). ``averaged``: fit column ``i``
+    averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
+    one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
     """
     n = img.shape[1]
     c = int(math.floor(centre + 0.5))
     flank = max(4, run_n // 2 + 2)
-    half = max(FIT_HALF, flank + 3)
+    half = min(max(FIT_HALF, flank + 3), (N_WORK - 1) // 2)
     j0 = max(c - half, 0)
     j1 = min(c + half + 1, n)
     m = j1 - j0
-    # per-channel straight-line background through the flank positions (unsaturated);
-    # the surface colour is their mean colour
+    s2n = sigma * sigma
+    win = ws[5:8]  # the window's red, green, blue
+    ia = max(i - 1, 0)
+    ib = min(i + 1, img.shape[0] - 1)
+    for jj in range(m):
+        j = j0 + jj
+        for ch in range(3):
+            x1 = img[i, j, 2 - ch]
+            if averaged:
+                x0 = img[ia, j, 2 - ch]
+                x2 = img[ib, j, 2 - ch]
+                if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
+                    win[ch, jj] = 255.0
+                else:
+                    win[ch, jj] = 0.25 * (float(x0) + 2.0 * x1 + x2)
+            else:
+                win[ch, jj] = x1
+    # pass 1: flank sums for the per-channel lines, side colours and near colours
     sw = 0.0
     sj = 0.0
     sjj = 0.0
-    sx = np.zeros(3)
-    sxj = np.zeros(3)
+    sxr = sxg = sxb = 0.0
+    sjr = sjg = sjb = 0.0
+    n_up = 0
+    n_lo = 0
+    ur_ = ug_ = ub_ = 0.0
+    lr_ = lg_ = lb_ = 0.0
+    nur = nug = nub = 0.5
+    nlr = nlg = nlb = 0.5
     for j in range(j0, j1):
-        if abs(j - c) < flank:
+        d = j - c
+        if abs(d) < flank:
             continue
-        if img[i, j, 2] >= sat_dn or img[i, j, 1] >= sat_dn or img[i, j, 0] >= sat_dn:
+        xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
+        if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
             continue
-        dj = float(j - c)
+        fd = float(d)
         sw += 1.0
-        sj += dj
-        sjj += dj * dj
-        for ch in range(3):
-            sx[ch] += img[i, j, ch]
-            sxj[ch] += img[i, j, ch] * dj
+        sj += fd
+        sjj += fd * fd
+        sxr += xr
+        sxg += xg
+        sxb += xb
+        sjr += xr * fd
+        sjg += xg * fd
+        sjb += xb * fd
+        if d < 0:
+            n_up += 1
+            ur_ += xr
+            ug_ += xg
+            ub_ += xb
+            if -d < flank + NEAR_ROWS:
+                nur += xr
+                nug += xg
+                nub += xb
+        else:
+            n_lo += 1
+            lr_ += xr
+            lg_ += xg
+            lb_ += xb
+            if d < flank + NEAR_ROWS:
+                nlr += xr
+                nlg += xg
+                nlb += xb
     if sw < 3.0:
         return False
     det = sw * sjj - sj * sj
-    lvl = np.empty(3)
-    slope = np.empty(3)
-    for ch in range(3):
-        if det > 1e-9:
-            slope[ch] = (sw * sxj[ch] - sj * sx[ch]) / det
-        else:
-            slope[ch] = 0.0
-        lvl[ch] = (sx[ch] - slope[ch] * sj) / sw
-    # surface colour on either side (unit, RGB order) and the texture variance along
-    # it about the line: two colours where the window straddles an edge between
-    # surfaces, one where it does not
-    s2n = sigma * sigma
-    tex = np.zeros((3, 3))  # texture covariance, DN^2
+    if det > 1e-9 and n_up >= 2 and n_lo >= 2:
+        br = (sw * sjr - sj * sxr) / det
+        bg_ = (sw * sjg - sj * sxg) / det
+        bb = (sw * sjb - sj * sxb) / det
+    else:  # a straight line needs flanks on both sides (not so at the image border)
+        br = bg_ = bb = 0.0
+    ar = (sxr - br * sj) / sw
+    ag = (sxg - bg_ * sj) / sw
+    ab = (sxb - bb * sj) / sw
+    # pass 2: texture variance of each side along its own colour
+    cov = ws[4, :9].reshape((3, 3))
+    for r in range(9):
+        ws[4, r] = 0.0
     t2_max = 0.0
     for side in (-1, 1):
-        col = np.zeros(3)
-        cnt = 0
-        for j in range(j0, j1):
-            if (j - c) * side < flank:
-                continue
-            if img[i, j, 2] >= sat_dn or img[i, j, 1] >= sat_dn or img[i, j, 0] >= sat_dn:
-                continue
-            for ch in range(3):
-                col[ch] += img[i, j, 2 - ch]
-            cnt += 1
+        if side < 0:
+            cr, cg, cb, cnt = ur_, ug_, ub_, n_up
+        else:
+            cr, cg, cb, cnt = lr_, lg_, lb_, n_lo
         if cnt < 2:
             continue
-        nk = 0.0
-        for ch in range(3):
-            col[ch] = col[ch] / cnt + 0.5
-            nk += col[ch] * col[ch]
-        nk = math.sqrt(nk)
-        for ch in range(3):
-            col[ch] /= nk
+        nk = math.sqrt(cr * cr + cg * cg + cb * cb) + 1e-9
+        cr /= nk
+        cg /= nk
+        cb /= nk
         s2 = 0.0
         for j in range(j0, j1):
-            if (j - c) * side < flank:
+            d = j - c
+            if d * side < flank:
                 continue
-            if img[i, j, 2] >= sat_dn or img[i, j, 1] >= sat_dn or img[i, j, 0] >= sat_dn:
+            xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
+            if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
                 continue
-            dj = float(j - c)
-            q = 0.0
-            for ch in range(3):
-                q += (img[i, j, 2 - ch] - lvl[2 - ch] - slope[2 - ch] * dj) * col[ch]
+            q = ((xr - ar - br * d) * cr + (xg - ag - bg_ * d) * cg
+                 + (xb - ab - bb * d) * cb)
             s2 += q * q
         t2 = max(s2 / max(cnt - 1.0, 1.0) - s2n, 0.0)
         t2_max = max(t2_max, t2)
-        for r in range(3):
-            for q in range(3):
-                tex[r, q] += t2 * col[r] * col[q]
-    if t2_max == 0.0 and sw < 3.0:
-        return False
-    y = np.empty(m)
-    wt = np.empty(m)
-    pos = np.empty(m)
-    mm = np.empty((3, 3))
-    ll = np.empty(3)
-    wv = np.empty(3)
+        cov[0, 0] += t2 * cr * cr
+        cov[0, 1] += t2 * cr * cg
+        cov[0, 2] += t2 * cr * cb
+        cov[1, 1] += t2 * cg * cg
+        cov[1, 2] += t2 * cg * cb
+        cov[2, 2] += t2 * cb * cb
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]
+    # pass 3: per-row laser estimate y and its information (weights cached per
+    # saturation pattern: bit 0 red, 1 green, 2 blue)
+    y = ws[0]
+    wt = ws[1]
+    wc = ws[2, :24].reshape((8, 3))
+    info_c = ws[3, :8]
+    for p in range(8):
+        info_c[p] = -1.0
+    sub = ws[4, 9:18].reshape((3, 3))
+    wv = ws[4, 18:21]
     nsat = 0
     nuse = 0
     for jj in range(m):
         j = j0 + jj
-        dj = float(j - c)
-        pos[jj] = j
-        if img[i, j, 2] >= sat_dn:
+        d = j - c
+        xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
+        pat = (1 if xr >= sat_dn else 0) | (2 if xg >= sat_dn else 0) | \
+            (4 if xb >= sat_dn else 0)
+        if pat & 1:
             nsat += 1
-        for r in range(3):
-            unsat_r = img[i, j, 2 - r] < sat_dn
-            ll[r] = (1.0 if r == 0 else XT) if unsat_r else 0.0
-            for q in range(3):
-                unsat_q = img[i, j, 2 - q] < sat_dn
-                if unsat_r and unsat_q:
-                    mm[r, q] = tex[r, q] + (s2n if r == q else 0.0)
-                else:
-                    mm[r, q] = 1.0 if r == q else 0.0
-        info = _gls(mm, ll, wv)
-        a = ll[0] * ll[0] + ll[1] * ll[1] + ll[2] * ll[2]
-        if a == 0.0 or info * s2n <= 1e-4 * a:
+        if info_c[pat] < 0.0:
+            for r in range(3):
+                for q in range(3):
+                    if (pat >> r) & 1 or (pat >> q) & 1:
+                        sub[r, q] = 1.0 if r == q else 0.0
+                    else:
+                        sub[r, q] = cov[r, q] + (s2n if r == q else 0.0)
+            lr = 0.0 if pat & 1 else 1.0
+            lg = 0.0 if pat & 2 else XT
+            lb = 0.0 if pat & 4 else XT
+            a = lr * lr + lg * lg + lb * lb
+            info = _gls(sub, lr, lg, lb, wv) if a > 0.0 else 0.0
+            if info * max(s2n, 1e-6) <= 1e-4 * a:
+                info = 0.0
+            info_c[pat] = info
+            wc[pat, 0] = wv[0]
+            wc[pat, 1] = wv[1]
+            wc[pat, 2] = wv[2]
+        info = info_c[pat]
+        if info <= 0.0:
             wt[jj] = 0.0
             y[jj] = 0.0
             continue
-        acc = 0.0
-        for r in range(3):
-            acc += wv[r] * (img[i, j, 2 - r] - lvl[2 - r] - slope[2 - r] * dj)
-        y[jj] = acc
+        y[jj] = (wc[pat, 0] * (xr - ar - br * d) + wc[pat, 1] * (xg - ag - bg_ * d)
+                 + wc[pat, 2] * (xb - ab - bb * d))
         wt[jj] = info
         nuse += 1
     if nuse < MIN_ROWS:
         return False
-    # initial values: offset from the flanks, peak near the centre
-    v0 = centre
+    # start: the largest y within 1.5 rows of the centre, a log-parabola through it
+    kpk = -1
+    for jj in range(m):
+        if wt[jj] > 0.0 and abs(j0 + jj - centre) <= 1.5:
+            if kpk < 0 or y[jj] > y[kpk]:
+                kpk = jj
+    if kpk < 0 or y[kpk] <= 0.0:
+        return False
+    v0 = float(j0 + kpk)
     s = 1.2
-    amp = 0.0
+    amp = y[kpk]
+    if 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 and y[kpk - 1] > 0 \
+            and y[kpk + 1] > 0:
+        l0, lm_, lp = math.log(y[kpk]), math.log(y[kpk - 1]), math.log(y[kpk + 1])
+        curv = lm_ - 2.0 * l0 + lp
+        if curv < -1e-6:
+            off_pk = 0.5 * (lm_ - lp) / curv
+            if abs(off_pk) <= 1.0:
+                v0 += off_pk
+                s = min(max(math.sqrt(-1.0 / curv), 0.5), 3.0)
+                amp = y[kpk] * math.exp(0.5 * (off_pk / s) ** 2)
+    # a quick look: offset and amplitude by linear least squares at the starting
+    # centre and width; a candidate that is not even QUICK_Z significant there is
+    # reported as such without the (costlier) full fit
+    s00 = s01 = s11 = b0 = b1 = 0.0
+    t = (j0 - v0) / s
+    e_next = math.exp(-0.5 * t * t)
+    ratio = math.exp(-t / s - 0.5 / (s * s))
+    step = math.exp(-1.0 / (s * s))
     for jj in range(m):
-        if wt[jj] > 0 and abs(pos[jj] - centre) <= 1.5 and y[jj] > amp:
-            amp = y[jj]
-    if amp <= 0.0:
-        amp = 1.0
-    off = 0.0
-    jt = np.empty(4)
-    h = np.empty((4, 4))
-    g = np.empty(4)
-    dx = np.empty(4)
-    lm = 1e-3
-    converged = False
-    chi = _chi2(y, wt, pos, off, amp, v0, s)
-    for _ in range(30):
-        for r in range(4):
-            g[r] = 0.0
-            for q in range(4):
-                h[r, q] = 0.0
-        for jj in range(m):
-            if wt[jj] == 0.0:
-                continue
-            t = (pos[jj] - v0) / s
-            e = math.exp(-0.5 * t * t)
-            res = y[jj] - (off + amp * e)
-            jt[0] = 1.0
-            jt[1] = e
-            jt[2] = amp * e * t / s
-            jt[3] = amp * e * t * t / s
-            for r in range(4):
-                g[r] += wt[jj] * jt[r] * res
-                for q in range(4):
-                    h[r, q] += wt[jj] * jt[r] * jt[q]
-        improved = False
-        for _try in range(8):
-            hh = h.copy()
-            for r in range(4):
-                hh[r, r] *= 1.0 + lm
-            if not _solve4(hh, g, dx):
-                lm *= 10.0
-                continue
-            n_off, n_amp = off + dx[0], amp + dx[1]
-            n_v0, n_s = v0 + dx[2], s + dx[3]
-            if n_s < 0.3 or n_s > 8.0 or abs(n_v0 - centre) > FIT_HALF - 1:
-                lm *= 10.0
-                continue
-            n_chi = _chi2(y, wt, pos, n_off, n_amp, n_v0, n_s)
-            if n_chi <= chi:
-                converged = abs(dx[2]) < 1e-4 and abs(dx[3]) < 1e-4
-                off, amp, v0, s, chi = n_off, n_amp, n_v0, n_s, n_chi
-                lm = max(lm * 0.3, 1e-7)
-                improved = True
-                break
-            lm *= 10.0
-        if not improved or converged:
-            break
-    # covariance at the solution
-    for r in range(4):
-        for q in range(4):
-            h[r, q] = 0.0
-    for jj in range(m):
-        if wt[jj] == 0.0:
+        e = e_next
+        e_next = e * ratio
+        ratio *= step
+        wj = wt[jj]
+        if wj == 0.0:
             continue
-        t = (pos[jj] - v0) / s
-        e = math.exp(-0.5 * t * t)
-        jt[0] = 1.0
-        jt[1] = e
-        jt[2] = amp * e * t / s
-        jt[3] = amp * e * t * t / s
+        s00 += wj
+        s01 += wj * e
+        s11 += wj * e * e
+        b0 += wj * y[jj]
+        b1 += wj * e * y[jj]
+    det2 = s00 * s11 - s01 * s01
+    if det2 <= 0.0:
+        return False
+    off = (s11 * b0 - s01 * b1) / det2
+    amp = (s00 * b1 - s01 * b0) / det2
+    z_quick = amp / math.sqrt(s00 / det2)
+    if z_quick < QUICK_Z and nsat == 0:
+        if amp <= 0.0:
+            return False
+        out[C_POS] = v0
+        out[C_AMP] = amp
+        out[C_WIDTH] = s
+        out[C_Z] = z_quick
+        out[C_SE_POS] = np.inf
+        out[C_CHI2] = np.inf
+        out[C_SAT] = 0.0
+        out[C_TEX] = math.sqrt(t2_max)
+        out[C_EDGE] = 0.0
+        return True
+    h = ws[3, 8:24].reshape((4, 4))
+    g = ws[3, 24:28]
+    ht = ws[3, 28:44].reshape((4, 4))
+    gt = ws[3, 44:48]
+    dx = ws[3, 48:52]
+    scratch = ws[3, 52:72].reshape((4, 5))
+    chi = _normal_eq(y, wt, j0, m, off, amp, v0, s, h, g)
+    lam = 0.0
+    for _ in range(MAX_ITER):
         for r in range(4):
-            for q in range(4):
-                h[r, q] += wt[jj] * jt[r] * jt[q]
-    unit = np.zeros(4)
-    col = np.empty(4)
+            h[r, r] *= 1.0 + lam
+        solved = _solve4(h, g, dx, scratch)
+        for r in range(4):
+            h[r, r] /= 1.0 + lam
+        if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+            break  # at the minimum: h, the covariance, stays that of these parameters
+        n_v0, n_s = v0 + dx[2], s + dx[3]
+        if solved and 0.3 <= n_s <= 8.0 and abs(n_v0 - centre) <= half - 1:
+            n_chi = _normal_eq(y, wt, j0, m, off + dx[0], amp + dx[1], n_v0, n_s, ht, gt)
+            if n_chi <= chi * (1.0 + 1e-9):
+                off += dx[0]
+                amp += dx[1]
+                v0 = n_v0
+                s = n_s
+                chi = n_chi
+                for r in range(4):
+                    g[r] = gt[r]
+                    for q in range(4):
+                        h[r, q] = ht[r, q]
+                lam = 0.0 if lam <= 1e-4 else lam * 0.1
+                if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+                    break
+                if s > s_max:
+                    break  # wider than any stripe: rejected whatever its exact width
+                continue
+        lam = max(lam * 10.0, 1e-2)
+        if lam > 1e4:
+            break
+    # covariance of (A, v0): h holds J' W J at the solution
+    unit = ws[3, 72:76]
+    col = ws[3, 76:80]
+    for r in range(4):
+        unit[r] = 0.0
     unit[1] = 1.0
-    if not _solve4(h, unit, col):
+    if not _solve4(h, unit, col, scratch):
         return False
     var_a = col[1]
     unit[1] = 0.0
     unit[2] = 1.0
-    if not _solve4(h, unit, col):
+    if not _solve4(h, unit, col, scratch):
         return False
     var_v = col[2]
-    dof = max(nuse - 4, 1)
-    out[0] = v0
-    out[1] = amp
-    out[2] = s
-    z = amp / math.sqrt(max(var_a, 1e-12))
+    if not (amp > 0.0 and var_a > 0.0 and var_v > 0.0):
+        return False
+    z = amp / math.sqrt(var_a)
     if nsat > 0:
         # a clipped core: how far saturation lies above what the surface reaches
-        z = max(z, (sat_dn - lvl[2]) / math.sqrt(s2n + tex[0, 0]))
-    out[3] = z
-    out[4] = math.sqrt(max(var_v, 0.0))
-    out[5] = chi / dof
-    out[6] = 1.0 if nsat > 0 else 0.0
-    out[7] = math.sqrt(t2_max)
-    return amp > 0.0 and var_a > 0.0 and var_v > 0.0
+        z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
+    dot = nur * nlr + nug * nlg + nub * nlb
+    out[C_POS] = v0
+    out[C_AMP] = amp
+    out[C_WIDTH] = s
+    out[C_Z] = z
+    out[C_SE_POS] = math.sqrt(var_v)
+    out[C_CHI2] = chi / max(nuse - 4, 1)
+    out[C_SAT] = 1.0 if nsat > 0 else 0.0
+    out[C_TEX] = math.sqrt(t2_max)
+    out[C_EDGE] = 1.0 - dot / math.sqrt((nur * nur + nug * nug + nub * nub)
+                                        * (nlr * nlr + nlg * nlg + nlb * nlb))
+    return True
 
 
 @njit(cache=True, nogil=True)
-def _chi2(y: np.ndarray, wt: np.ndarray, pos: np.ndarray, off: float, amp: float, v0: float,
-          s: float) -> float:  # pragma: no cover
-    acc = 0.0
-    for jj in range(y.shape[0]):
-        if wt[jj] == 0.0:
+def _normal_eq(y: np.ndarray, wt: np.ndarray, j0: int, m: int, off: float, amp: float,
+               v0: float, s: float, h: np.ndarray, g: np.ndarray) -> float:  # pragma: no cover
+    """Weighted chi-square of the profile model at (off, amp, v0, s), with the
+    Gauss-Newton normal equations ``h = J' W J`` (4x4) and ``g = J' W r`` there."""
+    chi = 0.0
+    for r in range(4):
+        g[r] = 0.0
+        for q in range(r, 4):
+            h[r, q] = 0.0
+    # the Gaussian at successive rows by recurrence (two exponentials per pass)
+    t = (j0 - v0) / s
+    e_next = math.exp(-0.5 * t * t)
+    ratio = math.exp(-t / s - 0.5 / (s * s))
+    step = math.exp(-1.0 / (s * s))
+    for jj in range(m):
+        e = e_next
+        e_next = e * ratio
+        ratio *= step
+        t = (j0 + jj - v0) / s
+        wj = wt[jj]
+        if wj == 0.0:
             continue
-        t = (pos[jj] - v0) / s
-        r = y[jj] - (off + amp * math.exp(-0.5 * t * t))
-        acc += wt[jj] * r * r
-    return acc
-
-
-#: columns of the candidate table written by :func:`line_candidates`
-C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_PRE, C_RUN, C_CLUT = range(11)
-N_FIELDS = 11
-CLUTTER_HALF = 24  # half-window of the clutter estimate along the line, px
-CLUTTER_CORE = 4  # half-width left out around the candidate, px
-CLUTTER_QUANTILE = 0.8  # quantile of the laser evidence taken as the clutter level
+        res = y[jj] - (off + amp * e)
+        chi += wj * res * res
+        j2 = amp * e * t / s
+        j3 = j2 * t
+        g[0] += wj * res
+        g[1] += wj * e * res
+        g[2] += wj * j2 * res
+        g[3] += wj * j3 * res
+        h[0, 0] += wj
+        h[0, 1] += wj * e
+        h[0, 2] += wj * j2
+        h[0, 3] += wj * j3
+        h[1, 1] += wj * e * e
+        h[1, 2] += wj * e * j2
+        h[1, 3] += wj * e * j3
+        h[2, 2] += wj * j2 * j2
+        h[2, 3] += wj * j2 * j3
+        h[3, 3] += wj * j3 * j3
+    for r in range(4):
+        for q in range(r):
+            h[r, q] = h[q, r]
+    return chi
 
 
 @njit(cache=True, nogil=True)
-def detection_signal(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int,
-                     min_th: float, min_delta_th: float, alpha: float, sat_dn: int,
-                     score: np.ndarray, sat: np.ndarray, proj: np.ndarray
-                     ) -> None:  # pragma: no cover
-    """Per-pixel laser evidence of line ``i`` (paper Eqs. 1-3), written to ``score``.
+def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: float,
+             min_delta_th: float, alpha: float, sat_dn: int, score: np.ndarray,
+             sat: np.ndarray) -> None:  # pragma: no cover
+    """Per-pixel laser evidence of column ``i`` (paper Eqs. 1-3), into ``score``.
 
-    On the contrast ``t = x - bg`` (light above the local background): Eq. 1/2 on the
-    chromaticity of ``t`` (``t_r > min_th sum(t)``, ``t_r - max(t_g, t_b) >
-    min_delta_th sum(t)``) and Eq. 3, white rejection, ``y > alpha max(t_g, t_b)``
-    with ``y = w . t`` the laser estimate: ``w . l = 1`` and the surface colour (the
-    background's) removed to the share ``LAM_DETECT``, so texture and shading cancel
-    (white light on a grey surface too). ``score = y`` where all hold, -1 elsewhere;
-    a saturated red pixel (exempt, a clipped core turns white) gets its red contrast
-    and ``sat`` True. ``proj`` gets ``y`` everywhere (0 at saturated pixels and
-    outside the mask).
+    On the contrast ``t = x - bg`` (light above the local background, ``bg`` a
+    vertical opening): Eq. 1/2 on the chromaticity of ``t``, ``t_r > min_th sum(t)``
+    and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3, white rejection,
+    ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
+    the background's colour removed to the share ``LAM_DETECT``, so texture, shading
+    and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
+    elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
+    red contrast and ``sat`` True.
     """
     n = img.shape[1]
     for j in range(n):
         score[j] = -1.0
         sat[j] = False
-        proj[j] = 0.0
+    for j in range(n):
         if not mask[i, j]:
             continue
         tr = float(img[i, j, 2]) - bg[i, j, 2]
@@ -427,6 +583,10 @@ def detection_signal(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int,
             sat[j] = True
             score[j] = tr
             continue
+        ssum = tr + tg + tb
+        wht = max(tg, tb)
+        if ssum <= 0.0 or tr <= min_th * ssum or tr - wht <= min_delta_th * ssum:
+            continue
         kr = bg[i, j, 2] + 0.5
         kg = bg[i, j, 1] + 0.5
         kb = bg[i, j, 0] + 0.5
@@ -435,51 +595,80 @@ def detection_signal(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int,
         den = A_LASER - LAM_DETECT * b * b
         f = LAM_DETECT * b / nk
         y = ((1.0 - f * kr) * tr + (XT - f * kg) * tg + (XT - f * kb) * tb) / den
-        proj[j] = y
-        ssum = tr + tg + tb
-        wht = max(tg, tb)
-        if ssum <= 0 or tr <= min_th * ssum or tr - wht <= min_delta_th * ssum:
-            continue
         if y > alpha * wht:
             score[j] = y
 
 
-#: share of a candidate's peak evidence that bounds its extent along the line
-CORE_SHARE = 0.35
-#: half-width of the non-maximum suppression along the line, px
-NMS_HALF = 2
+@njit(cache=True, nogil=True)
+def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centre: float,
+             run_n: int, amp: float, sigma: float) -> float:  # pragma: no cover
+    """Share of the positive evidence within ``CLUTTER_HALF`` rows (the candidate's
+    core left out) that comes within ``MIN_CLUTTER_RATIO`` of the amplitude ``amp``
+    (in quadrature with the noise): texture of a red surface, which colour cannot
+    tell from the laser, makes it large."""
+    n = score.shape[0]
+    c = int(centre + 0.5)
+    hw = max(CLUTTER_CORE, run_n // 2 + 2)
+    lim = amp / MIN_CLUTTER_RATIO
+    lim = math.sqrt(max(lim * lim - sigma * sigma, 0.0))
+    nn = 0
+    above = 0
+    for jj in range(max(c - CLUTTER_HALF, 0), min(c + CLUTTER_HALF + 1, n)):
+        if abs(jj - c) > hw and mask[i, jj] and not sat[jj]:
+            nn += 1
+            if score[jj] > lim:
+                above += 1
+    return above / nn if nn > 0 else 0.0
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, out: np.ndarray,
+                      out_avg: np.ndarray) -> None:  # pragma: no cover
+    """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
+
+    Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
+    least ``seed_dn``, and saturated red plateaus next to a red pixel (one alone is
+    a white highlight). A candidate's extent is the stretch around it where the
+    evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
+    surface is cut out of the surface's texture); longer than ``max_run_px``, it is
+    a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
+    are not refined), with ``C_CLUT`` from
+    :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
+    faint stripe, or noise) is fitted again on the column averaged with its
+    neighbours (noise ``sigma_avg``) into ``out_avg``. ``out`` and ``out_avg`` have
+    shape (W, K, N_FIELDS); NaN where none.
+    """
+    n_lines = img.shape[0]
+    out[:] = np.nan
+    out_avg[:] = np.nan
+    for blk in prange(N_BLOCKS):
+        _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th,
+                          alpha, sat_dn, max_run_px, s_max, support_z, z_strong,
+                          blk * n_lines // N_BLOCKS, (blk + 1) * n_lines // N_BLOCKS,
+                          out, out_avg)
 
 
 @njit(cache=True, nogil=True)
-def line_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
-                    seed_dn: float, min_th: float, min_delta_th: float, alpha: float,
-                    sat_dn: int, max_run_px: int, k_best: int,
-                    out: np.ndarray) -> None:  # pragma: no cover
-    """Candidate stripe crossings of every line, fitted.
-
-    Evidence per pixel from :func:`detection_signal`. Candidates are its local maxima
-    (within ``NMS_HALF``) of at least ``seed_dn``, and saturated red plateaus; a
-    candidate's extent is the contiguous stretch around it whose evidence stays
-    above ``CORE_SHARE`` of its peak (so a stripe crossing a red surface is cut out of
-    the surface's own texture). Candidates wider than ``max_run_px`` or without an
-    unsaturated red pixel next to a saturated plateau (a white highlight) are
-    dropped; the ``k_best`` strongest of each line are fitted by :func:`fit_profile`.
-
-    ``out`` has shape (L, k_best, N_FIELDS); rows without a candidate get NaN.
-    """
-    n_lines, n = img.shape[0], img.shape[1]
-    out[:] = np.nan
-    res = np.empty(8)
+def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, i0: int, i1: int, out: np.ndarray,
+                      out_avg: np.ndarray) -> None:  # pragma: no cover
+    """:func:`column_candidates` for columns ``i0 .. i1 - 1`` (own workspace)."""
+    n = img.shape[1]
+    k_best = out.shape[1]
+    res = np.empty(N_FIELDS)
+    ws = np.empty((8, N_WORK))
     rs = np.empty(k_best)
     rc = np.empty(k_best)
     rn = np.empty(k_best, np.int64)
     score = np.empty(n)
     sat = np.empty(n, np.bool_)
-    proj = np.empty(n)
-    tmp = np.empty(2 * CLUTTER_HALF + 1)
-    for i in range(n_lines):
-        detection_signal(img, bg, mask, i, min_th, min_delta_th, alpha, sat_dn, score, sat,
-                         proj)
+    for i in range(i0, i1):
+        evidence(img, bg, mask, i, min_th, min_delta_th, alpha, sat_dn, score, sat)
         nk = 0
         j = 0
         while j < n:
@@ -487,32 +676,25 @@ def line_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: fl
                 j += 1
                 continue
             if sat[j]:
-                # a saturated plateau: one candidate at its centre
                 j0 = j
                 peak = score[j]
                 while j < n and sat[j] and score[j] >= seed_dn:
                     peak = max(peak, score[j])
                     j += 1
-                j1 = j  # exclusive
-                centre = 0.5 * (j0 + j1 - 1)
-                red_flank = (j0 > 0 and score[j0 - 1] >= seed_dn) or \
-                    (j1 < n and score[j1] >= seed_dn)
-                if not red_flank:
-                    continue  # no red next to the plateau: a white highlight
+                red = (j0 > 0 and score[j0 - 1] >= seed_dn) or (j < n and score[j] >= seed_dn)
+                if not red:
+                    continue
+                centre = 0.5 * (j0 + j - 1)
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j0
                 while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
                     a -= 1
-                b = j1
+                b = j
                 while b < n and score[b] >= lim and not sat[b]:
                     b += 1
-                run_n = b - a
             else:
-                # a local maximum of the evidence
-                lo = max(j - NMS_HALF, 0)
-                hi = min(j + NMS_HALF + 1, n)
                 is_max = True
-                for q in range(lo, hi):
+                for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
                     if q != j and (score[q] > score[j] or (score[q] == score[j] and q < j)
                                    or sat[q]):
                         is_max = False
@@ -529,11 +711,10 @@ def line_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: fl
                 b = j + 1
                 while b < n and score[b] >= lim and not sat[b]:
                     b += 1
-                run_n = b - a
                 j += 1
+            run_n = b - a
             if run_n > max_run_px:
                 continue
-            # keep the k_best strongest (insertion into a short sorted list)
             if nk < k_best:
                 slot = nk
                 nk += 1
@@ -550,21 +731,16 @@ def line_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: fl
             rc[slot] = centre
             rn[slot] = run_n
         for q in range(nk):
-            if fit_profile(img, bg, i, rc[q], rn[q], sigma, sat_dn, res):
-                for f in range(8):
-                    out[i, q, f] = res[f]
-                out[i, q, C_PRE] = rs[q]
-                out[i, q, C_RUN] = rn[q]
-                # clutter: robust spread of the laser estimate around the candidate,
-                # its core left out (texture a red surface adds where colour cannot
-                # separate it from the laser; robust to a neighbouring edge)
-                c = int(rc[q] + 0.5)
-                h = max(CLUTTER_CORE, rn[q] // 2 + 2)
-                nn = 0
-                for jj in range(max(c - CLUTTER_HALF, 0), min(c + CLUTTER_HALF + 1, n)):
-                    if abs(jj - c) > h and mask[i, jj] and not sat[jj]:
-                        tmp[nn] = max(score[jj], 0.0)
-                        nn += 1
-                if nn >= 4:
-                    srt = np.sort(tmp[:nn])
-                    out[i, q, C_CLUT] = srt[int(CLUTTER_QUANTILE * (nn - 1))]
+            if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
+                break  # Eq. 4 cannot prefer it to a strong first candidate
+            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, False, ws, res):
+                continue
+            for f in range(N_FIELDS):
+                out[i, q, f] = res[f]
+            out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
+            if support_z <= res[C_Z] < z_strong and \
+                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, True, ws, res):
+                for f in range(N_FIELDS):
+                    out_avg[i, q, f] = res[f]
+                out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
+                                                 res[C_AMP], sigma)

@@ -1,8 +1,8 @@
 """Compiled (numba) choice of one stripe crossing per column (paper Eq. 4) and segments.
 
-Input: the fitted candidates of every column from :func:`slitcli.laser.kernels.
-line_candidates`, an array ``(W, K, N_FIELDS)``. Output: per column the chosen
-row, amplitude and saturation flag, NaN where the column has no stripe.
+Input: the fitted candidates of every column (:func:`slitcli.laser.kernels.
+column_candidates`), an array ``(W, K, N_FIELDS)``; output per column the chosen
+row, amplitude, significance and saturation, NaN where the column has no stripe.
 """
 
 from __future__ import annotations
@@ -12,54 +12,108 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.kernels import C_AMP, C_CHI2, C_CLUT, C_POS, C_SAT, C_WIDTH, C_Z
+from slitcli.laser.kernels import (
+    C_AMP,
+    C_CHI2,
+    CLUTTER_SHARE,
+    C_CLUT,
+    C_EDGE,
+    C_HVAR,
+    C_POS,
+    C_SAT,
+    C_WIDTH,
+    C_Z,
+)
 
 #: narrowest plausible Gaussian sigma of a stripe across a column, px
 MIN_SIGMA_PX = 0.4
-#: sigma of a stripe is at most max_width_px / EQ_WIDTH (equivalent width of a Gaussian)
+#: a Gaussian's equivalent width (sum / peak) in sigmas, rounded: sigma <= max_width / 2.5
 EQ_WIDTH = 2.5
 #: reduced chi-square above which an unsaturated candidate is not a Gaussian stripe
 MAX_CHI2 = 8.0
-#: variance a pixel's width adds to the profile across a column, px^2 (the renderer's
-#: 3 x 3 supersampling; exact pixel integration gives 1/12)
+#: one minus the cosine between the surface colours above and below beyond which a
+#: candidate sits on an edge between two surfaces (a red band ending at the floor)
+MAX_EDGE = 0.02
+#: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
+#: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
 PIXEL_VAR = 2.0 / 27.0
-#: a stripe's sheet thickness may differ from the expected by this factor
+#: extra variance across columns of the (1, 2, 1) / 4 average, px^2
+SMOOTH_VAR = 0.5
+#: a stripe's implied sheet thickness may differ from the expected by this factor
 SHEET_TOLERANCE = 1.6
+#: a weak candidate of the averaged columns must be backed by a candidate of the
+#: column itself this close (px) and at least this significant
+SUPPORT_PX = 1.5
+SUPPORT_Z = 2.0
+#: half-window of the running median of the amplitude along a segment, columns
+AMP_HALF = 3
 
 
 @njit(cache=True, nogil=True)
-def sheet_sigma_m(width_px: float, slope: float, g_px_per_m: float) -> float:  # pragma: no cover
+def sheet_sigma_m(width_px: float, slope: float, hvar_px2: float,
+                  g_px_per_m: float) -> float:  # pragma: no cover
     """Laser-sheet thickness (Gaussian sigma, metres) implied by a fitted stripe width.
 
-    Across one column the stripe's profile is the sheet's thickness seen on an upright
-    surface, ``g_px_per_m`` pixels per metre of height there, widened by the pixel's
-    own extent (``PIXEL_VAR``, and along a stripe of slope ``dv/du`` also by
-    ``slope^2 PIXEL_VAR``).
+    Across one column the profile is the sheet's thickness seen on an upright surface,
+    ``g_px_per_m`` pixels per metre of height there, widened by the pixel's extent
+    (``PIXEL_VAR``) and, along a stripe of slope ``dv/du``, by ``slope^2`` times the
+    variance of the sampling across columns (``hvar_px2``).
     """
-    core = width_px * width_px - PIXEL_VAR * (1.0 + slope * slope)
+    core = width_px * width_px - PIXEL_VAR - slope * slope * hvar_px2
     return math.sqrt(max(core, 0.04)) / g_px_per_m
 
 
 @njit(cache=True, nogil=True)
+def merge_sources(cand: np.ndarray, cand_avg: np.ndarray, z_strong: float) -> np.ndarray:  # pragma: no cover
+    """Candidates of the columns and of the (1, 2, 1)-averaged columns, as one table.
+
+    An averaged candidate (more signal for a faint stripe, but it smears a stripe's
+    end into the next column and widens a steep one) is kept only where the column
+    itself has a candidate within ``SUPPORT_PX`` of at least ``SUPPORT_Z``
+    significance that is not already strong (``z_strong``). ``C_HVAR`` is set to
+    the sampling variance across columns of each source.
+    """
+    w, k = cand.shape[0], cand.shape[1]
+    out = np.full((w, 2 * k, cand.shape[2]), np.nan)
+    for u in range(w):
+        for q in range(k):
+            if np.isfinite(cand[u, q, C_POS]):
+                out[u, q] = cand[u, q]
+                out[u, q, C_HVAR] = PIXEL_VAR
+        for q in range(k):
+            v = cand_avg[u, q, C_POS]
+            if not np.isfinite(v):
+                continue
+            back = False
+            strong = False
+            for r in range(k):
+                vr = cand[u, r, C_POS]
+                if np.isfinite(vr) and abs(vr - v) <= SUPPORT_PX and \
+                        cand[u, r, C_Z] >= SUPPORT_Z:
+                    back = True
+                    strong = strong or cand[u, r, C_Z] >= z_strong
+            if back and not strong:
+                out[u, k + q] = cand_avg[u, q]
+                out[u, k + q, C_HVAR] = PIXEL_VAR + SMOOTH_VAR
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _valid(cand: np.ndarray, u: int, q: int, sigma: float, max_width_px: float,
-           z_weak: float, zc_min: float) -> bool:  # pragma: no cover
-    pos = cand[u, q, C_POS]
-    if not np.isfinite(pos):
+           z_weak: float) -> bool:  # pragma: no cover
+    """Shape and significance tests of one candidate (see :func:`choose`)."""
+    if not np.isfinite(cand[u, q, C_POS]):
         return False
     w = cand[u, q, C_WIDTH]
     if w < MIN_SIGMA_PX or w > max_width_px / EQ_WIDTH:
         return False
-    if cand[u, q, C_Z] < z_weak:
+    if cand[u, q, C_Z] < z_weak or cand[u, q, C_EDGE] > MAX_EDGE:
         return False
     if cand[u, q, C_SAT] > 0:
         return True
     if cand[u, q, C_CHI2] > MAX_CHI2:
         return False
-    clut = cand[u, q, C_CLUT]
-    if np.isfinite(clut):
-        if cand[u, q, C_AMP] < zc_min * math.sqrt(clut * clut + sigma * sigma):
-            return False
-    return True
+    return cand[u, q, C_CLUT] <= CLUTTER_SHARE
 
 
 @njit(cache=True, nogil=True)
@@ -71,48 +125,51 @@ def _closeness(v: float, ref: float, scale: float) -> float:  # pragma: no cover
 
 
 @njit(cache=True, nogil=True)
-def _links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pragma: no cover
-    """Rows of neighbouring columns that belong to one stripe: a step of at most
-    ``max_jump_px``, or on a steep stripe (the profile across a column widens to
-    ``slope / sqrt(12)``) of at most ``sqrt(3)`` times the sum of their widths."""
+def links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pragma: no cover
+    """Rows of neighbouring columns on one stripe: a step of at most ``max_jump_px``,
+    or on a steep stripe (whose profile across a column widens to ``slope / sqrt(12)``)
+    of at most ``sqrt(3)`` times the sum of the two widths."""
     dv = abs(dv)
     return dv <= max_jump_px or dv <= math.sqrt(3.0) * (w_a + w_b)
 
 
 @njit(cache=True, nogil=True)
-def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, expected_sheet_m: float,
+def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: float,
            sigma: float, max_width_px: float, beta: float, gamma: float,
            continuity_px: float, max_jump_px: float, z_strong: float, z_weak: float,
-           zc_min: float, chosen: np.ndarray) -> None:  # pragma: no cover
-    """Eq. 4: per column the candidate of best ``red_peak + beta f(y) + gamma g(I)``.
+           chosen: np.ndarray) -> None:  # pragma: no cover
+    """Eq. 4: per column the valid candidate of best ``red_peak + beta f(y) + gamma g(I)``.
 
-    ``red_peak``: amplitude over the column's largest valid amplitude (1 for the
-    strongest); ``g(I) = 1 - sigma_fit / (max_width_px / EQ_WIDTH)`` clipped to
-    [0, 1]; ``f(y)``: mean agreement ``exp(-dv^2 / (2 continuity_px^2))`` with the
-    rows chosen among the strong candidates (``z >= z_strong``) of columns u-2, u-1,
-    u+1, u+2 in a first pass, averaged with the agreement with ``prev_v`` (the
-    previous frame) where that is finite. A weak candidate (``z_weak <= z <
-    z_strong``) is eligible only when a neighbouring first-pass row agrees with it
-    within ``continuity_px``. In the second pass a candidate must also imply a sheet
-    thickness (:func:`sheet_sigma_m`, the slope taken from the first-pass rows it
-    links to) within ``SHEET_TOLERANCE`` of ``expected_sheet_m`` (0: no test).
-    ``chosen[u]`` gets the candidate index or -1.
+    Valid: fitted sigma in ``[MIN_SIGMA_PX, max_width_px / EQ_WIDTH]``, significance
+    at least ``z_weak``, not on an edge between surfaces (``MAX_EDGE``), unsaturated
+    ones a Gaussian (``MAX_CHI2``) standing above the clutter (``CLUTTER_SHARE``);
+    and, when ``sheet_m > 0``, an implied sheet thickness (:func:`sheet_sigma_m`,
+    slope from the first-pass rows it links to, ``g_map`` (H, W) px per metre) within
+    ``SHEET_TOLERANCE`` of ``sheet_m``.
+
+    ``red_peak``: amplitude over the column's largest valid amplitude; ``g(I) = 1 -
+    sigma_fit EQ_WIDTH / max_width_px`` (in [0, 1]); ``f(y)``: mean agreement
+    ``exp(-dv^2 / (2 continuity_px^2))`` with the rows chosen among the strong
+    candidates (``z >= z_strong``) of columns u-2, u-1, u+1, u+2 by a first pass
+    (which knows only the previous frame), averaged with the agreement with
+    ``prev_v`` (previous frame, (W,) or empty) where finite. A weak candidate is
+    eligible only next to an agreeing first-pass row. ``chosen[u]``: index or -1.
     """
     w_cols, k = cand.shape[0], cand.shape[1]
     h = g_map.shape[0]
     first = np.full(w_cols, np.nan)
     first_w = np.full(w_cols, np.nan)
     has_prev = prev_v.shape[0] == w_cols
+    ok = np.zeros(k, np.bool_)
     for u in range(w_cols):
         amax = 0.0
         for q in range(k):
-            if _valid(cand, u, q, sigma, max_width_px, z_weak, zc_min):
+            ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak)
+            if ok[q]:
                 amax = max(amax, cand[u, q, C_AMP])
         best = -1e300
         for q in range(k):
-            if not _valid(cand, u, q, sigma, max_width_px, z_weak, zc_min):
-                continue
-            if cand[u, q, C_Z] < z_strong:
+            if not ok[q] or cand[u, q, C_Z] < z_strong:
                 continue
             sc = cand[u, q, C_AMP] / amax + gamma * max(
                 0.0, 1.0 - cand[u, q, C_WIDTH] * EQ_WIDTH / max_width_px)
@@ -122,31 +179,29 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, expected_she
                 best = sc
                 first[u] = cand[u, q, C_POS]
                 first_w[u] = cand[u, q, C_WIDTH]
-    ok = np.zeros(k, np.bool_)
     for u in range(w_cols):
         chosen[u] = -1
         amax = 0.0
         for q in range(k):
-            ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak, zc_min)
-            if ok[q] and expected_sheet_m > 0.0:
+            ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak)
+            if ok[q] and sheet_m > 0.0:
                 v = cand[u, q, C_POS]
                 w = cand[u, q, C_WIDTH]
                 slope = 0.0
                 n_sl = 0
                 if u > 0 and np.isfinite(first[u - 1]) and \
-                        _links(v - first[u - 1], w, first_w[u - 1], max_jump_px):
+                        links(v - first[u - 1], w, first_w[u - 1], max_jump_px):
                     slope += v - first[u - 1]
                     n_sl += 1
                 if u + 1 < w_cols and np.isfinite(first[u + 1]) and \
-                        _links(first[u + 1] - v, w, first_w[u + 1], max_jump_px):
+                        links(first[u + 1] - v, w, first_w[u + 1], max_jump_px):
                     slope += first[u + 1] - v
                     n_sl += 1
                 if n_sl > 0:
                     slope /= n_sl
                 row = min(max(int(v + 0.5), 0), h - 1)
-                t = sheet_sigma_m(w, slope, g_map[row, u])
-                ok[q] = expected_sheet_m / SHEET_TOLERANCE <= t <= \
-                    expected_sheet_m * SHEET_TOLERANCE
+                t = sheet_sigma_m(w, slope, cand[u, q, C_HVAR], g_map[row, u])
+                ok[q] = sheet_m / SHEET_TOLERANCE <= t <= sheet_m * SHEET_TOLERANCE
             if ok[q]:
                 amax = max(amax, cand[u, q, C_AMP])
         best = -1e300
@@ -154,14 +209,13 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, expected_she
             if not ok[q]:
                 continue
             v = cand[u, q, C_POS]
-            f_nbr = 0.0
+            f = 0.0
             near = False
             for d in (-2, -1, 1, 2):
                 if 0 <= u + d < w_cols:
                     c = _closeness(v, first[u + d], continuity_px)
-                    f_nbr += c
-                    near = near or c > math.exp(-0.5)
-            f = f_nbr / 4.0
+                    f += 0.25 * c
+                    near = near or c > 0.6
             if has_prev and np.isfinite(prev_v[u]):
                 f = 0.5 * (f + _closeness(v, prev_v[u], continuity_px))
             if cand[u, q, C_Z] < z_strong and not near:
@@ -174,21 +228,47 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, expected_she
 
 
 @njit(cache=True, nogil=True)
-def segments(v: np.ndarray, width: np.ndarray, max_jump_px: float,
-             seg: np.ndarray) -> int:  # pragma: no cover
-    """Label runs of found columns (``seg``, -1 where none); returns their number.
+def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
+                  max_jump_px: float, min_segment_cols: int, min_peak_dn: float,
+                  z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
+    """Join found columns into segments (:func:`links`) and keep the stripe's.
 
-    Neighbouring columns join when their rows link (:func:`_links`).
+    A segment is kept when it has ``min_segment_cols`` columns, or when it is shorter
+    (a thin object, a steep face) but every column is strong (``z_strong``) and there
+    are at least two. Within a kept segment a column stays when the running median
+    of the amplitude (``AMP_HALF`` columns either side, within the segment) reaches
+    ``min_peak_dn``: the brightness of a stripe changes smoothly along a surface, so
+    the median judges a faint column (and the partly covered end column at an
+    object's edge) by its neighbours. ``keep`` (W,) bool is written.
     """
-    n = 0
-    for u in range(v.shape[0]):
+    n = v.shape[0]
+    u = 0
+    while u < n:
+        keep[u] = False
         if not np.isfinite(v[u]):
-            seg[u] = -1
+            u += 1
             continue
-        if u > 0 and seg[u - 1] >= 0:
-            if _links(v[u] - v[u - 1], width[u], width[u - 1], max_jump_px):
-                seg[u] = seg[u - 1]
+        a = u
+        b = u + 1
+        while b < n and np.isfinite(v[b]) and links(v[b] - v[b - 1], width[b], width[b - 1],
+                                                    max_jump_px):
+            b += 1
+        length = b - a
+        all_strong = True
+        for x in range(a, b):
+            all_strong = all_strong and z[x] >= z_strong
+        good = length >= min_segment_cols or (length >= 2 and all_strong)
+        for x in range(a, b):
+            keep[x] = False
+            if not good:
                 continue
-        seg[u] = n
-        n += 1
-    return n
+            # running median: the number of amplitudes in the window at or above the
+            # threshold is a majority
+            m = 0
+            hi = 0
+            for y in range(max(a, x - AMP_HALF), min(b, x + AMP_HALF + 1)):
+                m += 1
+                if amp[y] >= min_peak_dn:
+                    hi += 1
+            keep[x] = 2 * hi >= m + (1 - m % 2)
+        u = b
