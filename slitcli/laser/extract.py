@@ -158,25 +158,28 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # faint candidates are fitted again over three columns averaged (1, 2, 1) / 4:
     # noise 0.61 sigma
     sigma_avg = math.sqrt(0.375) * sigma
+    use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
+    sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
+    g_map = np.ascontiguousarray(np.asarray(px_per_m, dtype=np.float64)) if use_sheet else \
+        np.full((1, 1), np.nan)
     cand = np.empty((w, K_BEST, kernels.N_FIELDS))
     cand_avg = np.empty_like(cand)
     kernels.column_candidates(img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th,
                               params.min_delta_th, params.alpha, params.saturation_dn,
                               max_run, params.max_width_px / select.EQ_WIDTH,
-                              select.SUPPORT_Z, z_strong, cand, cand_avg)
+                              select.SUPPORT_Z, z_strong,
+                              np.ascontiguousarray(g_map.T) if use_sheet else g_map, sheet_m,
+                              cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
         np.ascontiguousarray(previous_v_px, dtype=np.float64)
     if prev.size not in (0, w):
         raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
-    use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
-    g_map = np.ascontiguousarray(px_per_m, dtype=np.float64) if use_sheet else \
-        np.ones((1, 1))
     chosen = np.empty(w, np.int64)
-    select.choose(merged, prev, g_map, params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0,
+    select.choose(merged, prev, g_map, sheet_m,
                   sigma, params.max_width_px, params.beta, params.gamma,
                   params.continuity_px, params.max_jump_px, z_strong,
-                  WEAK_SHARE * z_strong, chosen)
+                  WEAK_SHARE * z_strong, h, chosen)
     found = chosen >= 0
     pick = merged[np.arange(w), np.maximum(chosen, 0)]
     pick[~found] = np.nan

@@ -39,6 +39,10 @@ MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
 CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
 QUICK_Z = 2.0  # candidates less significant at their start are not fitted further
+S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
+#: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
+#: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
+PIXEL_VAR = 2.0 / 27.0
 CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
 #: a candidate whose evidence is below this share of a strong first candidate's is not
 #: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
@@ -183,7 +187,7 @@ def _gls(cov: np.ndarray, lr: float, lg: float, lb: float, w: np.ndarray) -> flo
 
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
-                sat_dn: int, s_max: float, averaged: bool, ws: np.ndarray,
+                sat_dn: int, s_max: float, s_prior: float, averaged: bool, ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -201,7 +205,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     over the surface's red level in units of noise and texture; ``edge`` is one minus
     the cosine between the surface colours just above and just below. Returns whether
     the fit converged to a peak inside the window; it stops early once the width
-    passes ``s_max`` (px, wider than any stripe). ``averaged``: fit column ``i``
+    passes ``s_max`` (px, wider than any stripe). ``s_prior > 0``: the width the
+    laser sheet has here (px); it enters as a prior of relative spread
+    ``S_PRIOR_SPREAD``, which keeps a faint stripe's fit from collapsing onto a
+    noise spike and leaves a bright one to its data. ``averaged``: fit column ``i``
     averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
     one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
     """
@@ -384,7 +391,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     if kpk < 0 or y[kpk] <= 0.0:
         return False
     v0 = float(j0 + kpk)
-    s = 1.2
+    s = s_prior if s_prior > 0.0 else 1.2
     amp = y[kpk]
     if 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 and y[kpk - 1] > 0 \
             and y[kpk + 1] > 0:
@@ -394,7 +401,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             off_pk = 0.5 * (lm_ - lp) / curv
             if abs(off_pk) <= 1.0:
                 v0 += off_pk
-                s = min(max(math.sqrt(-1.0 / curv), 0.5), 3.0)
+                if s_prior <= 0.0:
+                    s = min(max(math.sqrt(-1.0 / curv), 0.5), 3.0)
                 amp = y[kpk] * math.exp(0.5 * (off_pk / s) ** 2)
     # a quick look: offset and amplitude by linear least squares at the starting
     # centre and width; a candidate that is not even QUICK_Z significant there is
@@ -441,7 +449,11 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     gt = ws[3, 44:48]
     dx = ws[3, 48:52]
     scratch = ws[3, 52:72].reshape((4, 5))
+    w_prior = 1.0 / (S_PRIOR_SPREAD * s_prior) ** 2 if s_prior > 0.0 else 0.0
     chi = _normal_eq(y, wt, j0, m, off, amp, v0, s, h, g)
+    chi += w_prior * (s - s_prior) ** 2
+    h[3, 3] += w_prior
+    g[3] += w_prior * (s_prior - s)
     lam = 0.0
     for _ in range(MAX_ITER):
         for r in range(4):
@@ -454,6 +466,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         n_v0, n_s = v0 + dx[2], s + dx[3]
         if solved and 0.3 <= n_s <= 8.0 and abs(n_v0 - centre) <= half - 1:
             n_chi = _normal_eq(y, wt, j0, m, off + dx[0], amp + dx[1], n_v0, n_s, ht, gt)
+            n_chi += w_prior * (n_s - s_prior) ** 2
+            ht[3, 3] += w_prior
+            gt[3] += w_prior * (s_prior - n_s)
             if n_chi <= chi * (1.0 + 1e-9):
                 off += dx[0]
                 amp += dx[1]
@@ -625,8 +640,8 @@ def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centr
 def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
                       sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
                       alpha: float, sat_dn: int, max_run_px: int, s_max: float,
-                      support_z: float, z_strong: float, out: np.ndarray,
-                      out_avg: np.ndarray) -> None:  # pragma: no cover
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      out: np.ndarray, out_avg: np.ndarray) -> None:  # pragma: no cover
     """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
 
     Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
@@ -638,8 +653,10 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     are not refined), with ``C_CLUT`` from
     :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
     faint stripe, or noise) is fitted again on the column averaged with its
-    neighbours (noise ``sigma_avg``) into ``out_avg``. ``out`` and ``out_avg`` have
-    shape (W, K, N_FIELDS); NaN where none.
+    neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
+    width of the sheet there (``g_map`` (W, H), rows per metre, times ``sheet_m``)
+    is the fits' prior. ``out`` and ``out_avg`` have shape (W, K, N_FIELDS); NaN
+    where none.
     """
     n_lines = img.shape[0]
     out[:] = np.nan
@@ -647,15 +664,16 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     for blk in prange(N_BLOCKS):
         _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th,
                           alpha, sat_dn, max_run_px, s_max, support_z, z_strong,
-                          blk * n_lines // N_BLOCKS, (blk + 1) * n_lines // N_BLOCKS,
-                          out, out_avg)
+                          g_map, sheet_m, blk * n_lines // N_BLOCKS,
+                          (blk + 1) * n_lines // N_BLOCKS, out, out_avg)
 
 
 @njit(cache=True, nogil=True)
 def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
                       sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
                       alpha: float, sat_dn: int, max_run_px: int, s_max: float,
-                      support_z: float, z_strong: float, i0: int, i1: int, out: np.ndarray,
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      i0: int, i1: int, out: np.ndarray,
                       out_avg: np.ndarray) -> None:  # pragma: no cover
     """:func:`column_candidates` for columns ``i0 .. i1 - 1`` (own workspace)."""
     n = img.shape[1]
@@ -733,13 +751,20 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
         for q in range(nk):
             if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
                 break  # Eq. 4 cannot prefer it to a strong first candidate
-            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, False, ws, res):
+            s_prior = 0.0
+            if sheet_m > 0.0:
+                gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
+                if np.isfinite(gpx):
+                    s_prior = math.sqrt((gpx * sheet_m) ** 2 + PIXEL_VAR)
+            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_prior, False,
+                               ws, res):
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
             out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
             if support_z <= res[C_Z] < z_strong and \
-                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, True, ws, res):
+                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_prior, True, ws,
+                                res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],

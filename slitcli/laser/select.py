@@ -16,6 +16,7 @@ from slitcli.laser.kernels import (
     C_AMP,
     C_CHI2,
     CLUTTER_SHARE,
+    PIXEL_VAR,
     C_CLUT,
     C_EDGE,
     C_HVAR,
@@ -34,9 +35,6 @@ MAX_CHI2 = 8.0
 #: one minus the cosine between the surface colours above and below beyond which a
 #: candidate sits on an edge between two surfaces (a red band ending at the floor)
 MAX_EDGE = 0.02
-#: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
-#: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
-PIXEL_VAR = 2.0 / 27.0
 #: extra variance across columns of the (1, 2, 1) / 4 average, px^2
 SMOOTH_VAR = 0.5
 #: a stripe's implied sheet thickness may differ from the expected by this factor
@@ -47,6 +45,8 @@ SUPPORT_PX = 1.5
 SUPPORT_Z = 2.0
 #: half-window of the running median of the amplitude along a segment, columns
 AMP_HALF = 3
+#: a segment's end column must be at least this share as bright as the next three
+END_SHARE = 0.5
 
 
 @njit(cache=True, nogil=True)
@@ -137,7 +137,7 @@ def links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pra
 def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: float,
            sigma: float, max_width_px: float, beta: float, gamma: float,
            continuity_px: float, max_jump_px: float, z_strong: float, z_weak: float,
-           chosen: np.ndarray) -> None:  # pragma: no cover
+           h_img: int, chosen: np.ndarray) -> None:  # pragma: no cover
     """Eq. 4: per column the valid candidate of best ``red_peak + beta f(y) + gamma g(I)``.
 
     Valid: fitted sigma in ``[MIN_SIGMA_PX, max_width_px / EQ_WIDTH]``, significance
@@ -145,7 +145,7 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     ones a Gaussian (``MAX_CHI2``) standing above the clutter (``CLUTTER_SHARE``);
     and, when ``sheet_m > 0``, an implied sheet thickness (:func:`sheet_sigma_m`,
     slope from the first-pass rows it links to, ``g_map`` (H, W) px per metre) within
-    ``SHEET_TOLERANCE`` of ``sheet_m``.
+    ``SHEET_TOLERANCE`` of ``sheet_m`` (saturated: not thicker).
 
     ``red_peak``: amplitude over the column's largest valid amplitude; ``g(I) = 1 -
     sigma_fit EQ_WIDTH / max_width_px`` (in [0, 1]); ``f(y)``: mean agreement
@@ -153,7 +153,8 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     candidates (``z >= z_strong``) of columns u-2, u-1, u+1, u+2 by a first pass
     (which knows only the previous frame), averaged with the agreement with
     ``prev_v`` (previous frame, (W,) or empty) where finite. A weak candidate is
-    eligible only next to an agreeing first-pass row. ``chosen[u]``: index or -1.
+    eligible only next to an agreeing first-pass row; rows outside the image (``h_img``
+    rows) are not. ``chosen[u]``: index or -1.
     """
     w_cols, k = cand.shape[0], cand.shape[1]
     h = g_map.shape[0]
@@ -183,7 +184,8 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
         chosen[u] = -1
         amax = 0.0
         for q in range(k):
-            ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak)
+            ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak) and \
+                -0.5 <= cand[u, q, C_POS] <= h_img - 0.5
             if ok[q] and sheet_m > 0.0:
                 v = cand[u, q, C_POS]
                 w = cand[u, q, C_WIDTH]
@@ -201,7 +203,10 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
                     slope /= n_sl
                 row = min(max(int(v + 0.5), 0), h - 1)
                 t = sheet_sigma_m(w, slope, cand[u, q, C_HVAR], g_map[row, u])
-                ok[q] = sheet_m / SHEET_TOLERANCE <= t <= sheet_m * SHEET_TOLERANCE
+                # a clipped core leaves amplitude and width ill-determined (only the
+                # flanks, maybe one, constrain them): only too wide counts there
+                ok[q] = t <= sheet_m * SHEET_TOLERANCE and (
+                    cand[u, q, C_SAT] > 0 or t >= sheet_m / SHEET_TOLERANCE)
             if ok[q]:
                 amax = max(amax, cand[u, q, C_AMP])
         best = -1e300
@@ -228,6 +233,11 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
 
 
 @njit(cache=True, nogil=True)
+def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
+    return max(min(x, y), min(max(x, y), z))
+
+
+@njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
                   max_jump_px: float, min_segment_cols: int, min_peak_dn: float,
                   z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
@@ -239,7 +249,9 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
     of the amplitude (``AMP_HALF`` columns either side, within the segment) reaches
     ``min_peak_dn``: the brightness of a stripe changes smoothly along a surface, so
     the median judges a faint column (and the partly covered end column at an
-    object's edge) by its neighbours. ``keep`` (W,) bool is written.
+    object's edge) by its neighbours; an end column less than ``END_SHARE`` as bright
+    as the next three is dropped (less than half of it sees the surface, so its
+    centre does not). ``keep`` (W,) bool is written.
     """
     n = v.shape[0]
     u = 0
@@ -258,6 +270,18 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         for x in range(a, b):
             all_strong = all_strong and z[x] >= z_strong
         good = length >= min_segment_cols or (length >= 2 and all_strong)
+        if good and length >= 4:
+            # an end column at an object's edge is partly covered; the truth of a
+            # column is its centre: covered when at least half the column sees the
+            # surface, i.e. when its stripe is at least half as bright as inside
+            for end, step in ((a, 1), (b - 1, -1)):
+                inner = _median3(amp[end + step], amp[end + 2 * step], amp[end + 3 * step])
+                if amp[end] < END_SHARE * inner:
+                    keep[end] = False
+                    if end == a:
+                        a += 1
+                    else:
+                        b -= 1
         for x in range(a, b):
             keep[x] = False
             if not good:
