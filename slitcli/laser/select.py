@@ -47,6 +47,8 @@ SUPPORT_Z = 2.0
 AMP_HALF = 3
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.5
+#: found columns of one segment may be this many columns apart (faint stretches)
+MAX_GAP = 2
 
 
 @njit(cache=True, nogil=True)
@@ -241,12 +243,15 @@ def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
                   max_jump_px: float, min_segment_cols: int, min_peak_dn: float,
                   z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
-    """Join found columns into segments (:func:`links`) and keep the stripe's.
+    """Join found columns into segments and keep the stripe's.
 
-    A segment is kept when it has ``min_segment_cols`` columns, or when it is shorter
-    (a thin object, a steep face) but every column is strong (``z_strong``) and there
-    are at least two. Within a kept segment a column stays when the running median
-    of the amplitude (``AMP_HALF`` columns either side, within the segment) reaches
+    Neighbouring found columns join when their rows link (:func:`links`); across a
+    gap of up to ``MAX_GAP`` columns without a stripe (a faint stretch) when their
+    rows differ by at most ``max_jump_px``. A segment is kept when it has
+    ``min_segment_cols`` found columns, or when it is shorter (a thin object, a steep
+    face) but every column is strong (``z_strong``) and there are at least two.
+    Within a kept segment a column stays when the running median of the amplitude
+    (``AMP_HALF`` found columns either side, within the segment) reaches
     ``min_peak_dn``: the brightness of a stripe changes smoothly along a surface, so
     the median judges a faint column (and the partly covered end column at an
     object's edge) by its neighbours; an end column less than ``END_SHARE`` as bright
@@ -254,45 +259,54 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
     centre does not). ``keep`` (W,) bool is written.
     """
     n = v.shape[0]
+    idx = np.empty(n, np.int64)
+    for u in range(n):
+        keep[u] = False
     u = 0
     while u < n:
-        keep[u] = False
         if not np.isfinite(v[u]):
             u += 1
             continue
-        a = u
-        b = u + 1
-        while b < n and np.isfinite(v[b]) and links(v[b] - v[b - 1], width[b], width[b - 1],
-                                                    max_jump_px):
-            b += 1
-        length = b - a
+        cnt = 0
+        idx[cnt] = u
+        cnt += 1
+        last = u
+        x = u + 1
+        while x < n and x - last <= MAX_GAP + 1:
+            if np.isfinite(v[x]):
+                dv = v[x] - v[last]
+                if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
+                        abs(dv) <= max_jump_px:
+                    idx[cnt] = x
+                    cnt += 1
+                    last = x
+                else:
+                    break
+            x += 1
         all_strong = True
-        for x in range(a, b):
-            all_strong = all_strong and z[x] >= z_strong
-        good = length >= min_segment_cols or (length >= 2 and all_strong)
-        if good and length >= 4:
+        for k in range(cnt):
+            all_strong = all_strong and z[idx[k]] >= z_strong
+        good = cnt >= min_segment_cols or (cnt >= 2 and all_strong)
+        a = 0
+        b = cnt
+        if good and cnt >= 4:
             # an end column at an object's edge is partly covered; the truth of a
             # column is its centre: covered when at least half the column sees the
             # surface, i.e. when its stripe is at least half as bright as inside
-            for end, step in ((a, 1), (b - 1, -1)):
-                inner = _median3(amp[end + step], amp[end + 2 * step], amp[end + 3 * step])
-                if amp[end] < END_SHARE * inner:
-                    keep[end] = False
-                    if end == a:
-                        a += 1
-                    else:
-                        b -= 1
-        for x in range(a, b):
-            keep[x] = False
-            if not good:
-                continue
-            # running median: the number of amplitudes in the window at or above the
-            # threshold is a majority
-            m = 0
-            hi = 0
-            for y in range(max(a, x - AMP_HALF), min(b, x + AMP_HALF + 1)):
-                m += 1
-                if amp[y] >= min_peak_dn:
-                    hi += 1
-            keep[x] = 2 * hi >= m + (1 - m % 2)
-        u = b
+            if amp[idx[0]] < END_SHARE * _median3(amp[idx[1]], amp[idx[2]], amp[idx[3]]):
+                a = 1
+            if amp[idx[cnt - 1]] < END_SHARE * _median3(amp[idx[cnt - 2]], amp[idx[cnt - 3]],
+                                                        amp[idx[cnt - 4]]):
+                b = cnt - 1
+        if good:
+            for k in range(a, b):
+                # running median: the amplitudes in the window at or above the
+                # threshold are a majority
+                m = 0
+                hi = 0
+                for y in range(max(a, k - AMP_HALF), min(b, k + AMP_HALF + 1)):
+                    m += 1
+                    if amp[idx[y]] >= min_peak_dn:
+                        hi += 1
+                keep[idx[k]] = 2 * hi >= m + (1 - m % 2)
+        u = last + 1
