@@ -176,17 +176,19 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     if prev.size not in (0, w):
         raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
     chosen = np.empty(w, np.int64)
+    extended = np.empty(w, bool)
     select.choose(merged, prev, g_map, sheet_m,
                   sigma, params.max_width_px, params.beta, params.gamma,
                   params.continuity_px, params.max_jump_px, z_strong,
-                  WEAK_SHARE * z_strong, h, chosen)
+                  WEAK_SHARE * z_strong, h, chosen, extended)
     found = chosen >= 0
     pick = merged[np.arange(w), np.maximum(chosen, 0)]
     pick[~found] = np.nan
     v = pick[:, kernels.C_POS]
     keep = np.empty(w, bool)
     select.keep_segments(v, pick[:, kernels.C_WIDTH], pick[:, kernels.C_AMP],
-                         pick[:, kernels.C_Z], params.max_jump_px, params.min_segment_cols,
+                         pick[:, kernels.C_Z], extended, params.max_jump_px,
+                         params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
     v_px = np.where(keep, v, np.nan)
     strength = np.where(keep, pick[:, kernels.C_AMP], np.nan)

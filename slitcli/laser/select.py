@@ -43,6 +43,8 @@ SHEET_TOLERANCE = 1.6
 #: column itself this close (px) and at least this significant
 SUPPORT_PX = 1.5
 SUPPORT_Z = 2.0
+#: rows a mixed end column may differ from its strong neighbour's, px
+CONTINUE_PX = 1.5
 #: half-window of the running median of the amplitude along a segment, columns
 AMP_HALF = 3
 #: a segment's end column must be at least this share as bright as the next three
@@ -139,7 +141,7 @@ def links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pra
 def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: float,
            sigma: float, max_width_px: float, beta: float, gamma: float,
            continuity_px: float, max_jump_px: float, z_strong: float, z_weak: float,
-           h_img: int, chosen: np.ndarray) -> None:  # pragma: no cover
+           h_img: int, chosen: np.ndarray, extended: np.ndarray) -> None:  # pragma: no cover
     """Eq. 4: per column the valid candidate of best ``red_peak + beta f(y) + gamma g(I)``.
 
     Valid: fitted sigma in ``[MIN_SIGMA_PX, max_width_px / EQ_WIDTH]``, significance
@@ -156,7 +158,10 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     (which knows only the previous frame), averaged with the agreement with
     ``prev_v`` (previous frame, (W,) or empty) where finite. A weak candidate is
     eligible only next to an agreeing first-pass row; rows outside the image (``h_img``
-    rows) are not. ``chosen[u]``: index or -1.
+    rows) are not. Where a column has no valid candidate, a strong one within
+    ``CONTINUE_PX`` of a neighbouring chosen row is taken (the end column at an
+    object's edge, which mixes two surfaces; ``extended[u]`` True). ``chosen[u]``:
+    index or -1.
     """
     w_cols, k = cand.shape[0], cand.shape[1]
     h = g_map.shape[0]
@@ -232,6 +237,26 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
             if sc > best:
                 best = sc
                 chosen[u] = q
+    # an end column at an object's edge mixes two surfaces (the edge test, the profile
+    # shape and the width suffer): next to a chosen row, a strong candidate that
+    # carries that row on is taken all the same (one column, no chaining)
+    strict = chosen.copy()
+    for u in range(w_cols):
+        extended[u] = False
+        if strict[u] >= 0:
+            continue
+        for d in (-1, 1):
+            if not (0 <= u + d < w_cols) or strict[u + d] < 0 or chosen[u] >= 0:
+                continue
+            ref = cand[u + d, strict[u + d], C_POS]
+            for q in range(k):
+                v = cand[u, q, C_POS]
+                if np.isfinite(v) and cand[u, q, C_Z] >= z_strong and \
+                        cand[u, q, C_WIDTH] <= max_width_px / EQ_WIDTH and \
+                        abs(v - ref) <= CONTINUE_PX and -0.5 <= v <= h_img - 0.5:
+                    chosen[u] = q
+                    extended[u] = True
+                    break
 
 
 @njit(cache=True, nogil=True)
@@ -241,15 +266,16 @@ def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
 
 @njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
-                  max_jump_px: float, min_segment_cols: int, min_peak_dn: float,
-                  z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
+                  extended: np.ndarray, max_jump_px: float, min_segment_cols: int,
+                  min_peak_dn: float, z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
     """Join found columns into segments and keep the stripe's.
 
     Neighbouring found columns join when their rows link (:func:`links`); across a
     gap of up to ``MAX_GAP`` columns without a stripe (a faint stretch) when their
     rows differ by at most ``max_jump_px``. A segment is kept when it has
     ``min_segment_cols`` found columns, or when it is shorter (a thin object, a steep
-    face) but every column is strong (``z_strong``) and there are at least two.
+    face) but every column is strong (``z_strong``) and there are at least two;
+    ``extended`` columns (:func:`choose`) do not count.
     Within a kept segment a column stays when the running median of the amplitude
     (``AMP_HALF`` found columns either side, within the segment) reaches
     ``min_peak_dn``: the brightness of a stripe changes smoothly along a surface, so
@@ -284,9 +310,11 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
                     break
             x += 1
         all_strong = True
+        n_own = 0
         for k in range(cnt):
             all_strong = all_strong and z[idx[k]] >= z_strong
-        good = cnt >= min_segment_cols or (cnt >= 2 and all_strong)
+            n_own += 0 if extended[idx[k]] else 1
+        good = n_own >= min_segment_cols or (n_own >= 2 and all_strong)
         a = 0
         b = cnt
         if good and cnt >= 4:
