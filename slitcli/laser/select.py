@@ -49,6 +49,9 @@ CONTINUE_PX = 1.5
 AMP_HALF = 3
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.5
+#: a segment shorter than min_segment_cols needs this multiple of z_strong in every
+#: column
+SHORT_Z_SHARE = 1.6
 #: found columns of one segment may be this many columns apart (faint stretches)
 MAX_GAP = 2
 
@@ -274,7 +277,8 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
     gap of up to ``MAX_GAP`` columns without a stripe (a faint stretch) when their
     rows differ by at most ``max_jump_px``. A segment is kept when it has
     ``min_segment_cols`` found columns, or when it is shorter (a thin object, a steep
-    face) but every column is strong (``z_strong``) and there are at least two;
+    face) but every column is ``SHORT_Z_SHARE`` times strong (``z_strong``) and
+    there are at least two;
     ``extended`` columns (:func:`choose`) do not count.
     Within a kept segment a column stays when the running median of the amplitude
     (``AMP_HALF`` found columns either side, within the segment) reaches
@@ -312,7 +316,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         all_strong = True
         n_own = 0
         for k in range(cnt):
-            all_strong = all_strong and z[idx[k]] >= z_strong
+            all_strong = all_strong and z[idx[k]] >= SHORT_Z_SHARE * z_strong
             n_own += 0 if extended[idx[k]] else 1
         good = n_own >= min_segment_cols or (n_own >= 2 and all_strong)
         a = 0
