@@ -162,14 +162,14 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
     g_map = np.ascontiguousarray(np.asarray(px_per_m, dtype=np.float64)) if use_sheet else \
         np.full((1, 1), np.nan)
+    g_map_t = np.ascontiguousarray(g_map.T)
     cand = np.empty((w, K_BEST, kernels.N_FIELDS))
     cand_avg = np.empty_like(cand)
     kernels.column_candidates(img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th,
                               params.min_delta_th, params.alpha, params.saturation_dn,
                               max_run, params.max_width_px / select.EQ_WIDTH,
                               select.SUPPORT_Z, z_strong,
-                              np.ascontiguousarray(g_map.T) if use_sheet else g_map, sheet_m,
-                              cand, cand_avg)
+                              g_map_t, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
         np.ascontiguousarray(previous_v_px, dtype=np.float64)
@@ -190,6 +190,24 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          pick[:, kernels.C_Z], extended, params.max_jump_px,
                          params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
+    # a faint stripe on a textured surface loses single columns to noise (the stripe
+    # not among a column's strongest candidates): the segment around such a gap
+    # vouches for the stripe, a fit at the row interpolated across it must confirm it
+    gap_cols = np.empty(w, np.int64)
+    gap_rows = np.empty(w)
+    n_gap = select.gap_rows(v, keep, params.max_jump_px, gap_cols, gap_rows)
+    if n_gap:
+        fits = np.empty((n_gap, kernels.N_FIELDS))
+        kernels.fit_at(img_t, gap_cols[:n_gap], gap_rows[:n_gap], sigma, sigma_avg,
+                       params.saturation_dn, params.max_width_px / select.EQ_WIDTH,
+                       g_map_t, sheet_m, fits)
+        ok = (np.abs(fits[:, kernels.C_POS] - gap_rows[:n_gap]) <= select.GAP_PX) & \
+            (fits[:, kernels.C_Z] >= select.SUPPORT_Z) & \
+            (fits[:, kernels.C_WIDTH] <= params.max_width_px / select.EQ_WIDTH)
+        cols_ok = gap_cols[:n_gap][ok]
+        pick[cols_ok] = fits[ok]
+        keep[cols_ok] = True
+        v = pick[:, kernels.C_POS]
     v_px = np.where(keep, v, np.nan)
     strength = np.where(keep, pick[:, kernels.C_AMP], np.nan)
     saturated = keep & (pick[:, kernels.C_SAT] > 0)

@@ -769,3 +769,32 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
                                                  res[C_AMP], sigma)
+
+
+@njit(cache=True, nogil=True)
+def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, sigma: float,
+           sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray, sheet_m: float,
+           out: np.ndarray) -> None:  # pragma: no cover
+    """Fit the profile at given columns and starting rows (a segment's gaps), on each
+    column and on the three columns averaged; the more significant fit goes to
+    ``out[k]`` (N_FIELDS; NaN if neither converges; ``C_HVAR`` the sampling variance
+    across columns). Same conventions as :func:`column_candidates`."""
+    n = img.shape[1]
+    ws = np.empty((8, N_WORK))
+    res = np.empty(N_FIELDS)
+    for k in range(cols.shape[0]):
+        out[k] = np.nan
+        i = cols[k]
+        c = rows[k]
+        s_prior = 0.0
+        if sheet_m > 0.0:
+            gpx = g_map[i, min(max(int(c + 0.5), 0), n - 1)]
+            if np.isfinite(gpx):
+                s_prior = math.sqrt((gpx * sheet_m) ** 2 + PIXEL_VAR)
+        for averaged in (False, True):
+            if fit_profile(img, i, c, 3, sigma_avg if averaged else sigma, sat_dn, s_max,
+                           s_prior, averaged, ws, res):
+                if not np.isfinite(out[k, C_Z]) or res[C_Z] > out[k, C_Z]:
+                    for f in range(N_FIELDS):
+                        out[k, f] = res[f]
+                    out[k, C_HVAR] = PIXEL_VAR + (0.5 if averaged else 0.0)

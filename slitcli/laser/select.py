@@ -54,6 +54,8 @@ END_SHARE = 0.67
 SHORT_Z_SHARE = 1.6
 #: found columns of one segment may be this many columns apart (faint stretches)
 MAX_GAP = 2
+#: a gap column's candidate may lie this far from the row interpolated across it, px
+GAP_PX = 1.0
 
 
 @njit(cache=True, nogil=True)
@@ -342,3 +344,24 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
                         hi += 1
                 keep[idx[k]] = 2 * hi >= m + (1 - m % 2)
         u = last + 1
+
+
+@njit(cache=True, nogil=True)
+def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarray,
+             rows: np.ndarray) -> int:  # pragma: no cover
+    """Columns left empty inside a kept segment (up to ``MAX_GAP`` columns between
+    kept ones whose rows differ by at most ``max_jump_px``) and the rows interpolated
+    across them, written to ``cols`` and ``rows``; returns how many."""
+    n = v.shape[0]
+    m = 0
+    last = -1
+    for u in range(n):
+        if not keep[u]:
+            continue
+        if last >= 0 and 1 < u - last <= MAX_GAP + 1 and abs(v[u] - v[last]) <= max_jump_px:
+            for x in range(last + 1, u):
+                cols[m] = x
+                rows[m] = v[last] + (v[u] - v[last]) * (x - last) / (u - last)
+                m += 1
+        last = u
+    return m
