@@ -40,6 +40,8 @@ K_BEST = 2
 NOISE_STEP = 16
 #: weak candidates (continuing a neighbour's row) need this share of noise_k
 WEAK_SHARE = 0.6
+#: columns a fading segment may be carried on past its end
+EXTEND_COLS = 4
 #: candidates are seeded at least this many noise sigmas of the evidence (whose noise
 #: is EVIDENCE_GAIN times the per-channel noise on a grey surface) above zero
 SEED_SIGMAS = 3.0
@@ -207,7 +209,13 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         cols_ok = gap_cols[:n_gap][ok]
         pick[cols_ok] = fits[ok]
         keep[cols_ok] = True
-        v = pick[:, kernels.C_POS]
+    # where a stripe fades (far or grazing surfaces) the segment is carried on while
+    # fits at the extrapolated row still find it bright enough
+    kernels.extend_ends(img_t, pick, keep, sigma, sigma_avg, params.saturation_dn,
+                        params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
+                        params.max_jump_px, WEAK_SHARE * z_strong, params.min_peak_dn,
+                        select.END_SHARE, EXTEND_COLS, select.GAP_PX)
+    v = pick[:, kernels.C_POS]
     v_px = np.where(keep, v, np.nan)
     strength = np.where(keep, pick[:, kernels.C_AMP], np.nan)
     saturated = keep & (pick[:, kernels.C_SAT] > 0)

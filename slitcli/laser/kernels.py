@@ -798,3 +798,54 @@ def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, sigma: float,
                     for f in range(N_FIELDS):
                         out[k, f] = res[f]
                     out[k, C_HVAR] = PIXEL_VAR + (0.5 if averaged else 0.0)
+
+
+@njit(cache=True, nogil=True)
+def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: float,
+                sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+                sheet_m: float, max_jump_px: float, z_min: float, min_peak_dn: float,
+                share: float, n_max: int, row_px: float) -> None:  # pragma: no cover
+    """Carry kept segments on past their ends where the stripe fades (up to ``n_max``
+    columns each way): at the row extrapolated along the segment's last three
+    columns a fit (:func:`fit_at`) within ``row_px`` of it, of significance
+    ``z_min``, amplitude ``min_peak_dn`` and at least ``share`` of the previous
+    column's (a fade is gradual, an object's edge abrupt), extends the segment; the
+    first failure stops it. ``pick`` (W, N_FIELDS) and ``keep`` (W,) are updated."""
+    w = pick.shape[0]
+    cols = np.empty(1, np.int64)
+    rows = np.empty(1)
+    res = np.empty((1, N_FIELDS))
+    for u in range(w):
+        if not keep[u]:
+            continue
+        for d in (-1, 1):
+            if 0 <= u + d < w and keep[u + d]:
+                continue
+            # slope from up to three kept columns behind the end, on the same segment
+            slope = 0.0
+            nb = 0
+            for b in range(1, 4):
+                x = u - d * b
+                if not (0 <= x < w) or not keep[x] or \
+                        abs(pick[x, C_POS] - pick[x + d, C_POS]) > max_jump_px:
+                    break
+                nb = b
+            if nb > 0:
+                slope = (pick[u, C_POS] - pick[u - d * nb, C_POS]) / nb
+            for step in range(1, n_max + 1):
+                x = u + d * step
+                if not (0 <= x < w) or keep[x]:
+                    break
+                cols[0] = x
+                rows[0] = pick[u, C_POS] + slope * step
+                if not (0.0 <= rows[0] <= img.shape[1] - 1.0):
+                    break
+                fit_at(img, cols, rows, sigma, sigma_avg, sat_dn, s_max, g_map, sheet_m, res)
+                prev = pick[x - d, C_AMP]
+                if not (abs(res[0, C_POS] - rows[0]) <= row_px and res[0, C_Z] >= z_min
+                        and res[0, C_AMP] >= max(min_peak_dn, share * prev)
+                        and res[0, C_WIDTH] <= s_max):
+                    break
+                for f in range(N_FIELDS):
+                    pick[x, f] = res[0, f]
+                keep[x] = True

@@ -277,7 +277,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
 
     Neighbouring found columns join when their rows link (:func:`links`); across a
     gap of up to ``MAX_GAP`` columns without a stripe (a faint stretch) when their
-    rows differ by at most ``max_jump_px``. A segment is kept when it has
+    rows differ by at most ``max_jump_px`` per column. A segment is kept when it has
     ``min_segment_cols`` found columns, or when it is shorter (a thin object, a steep
     face) but every column is ``SHORT_Z_SHARE`` times strong (``z_strong``) and
     there are at least two;
@@ -308,7 +308,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
             if np.isfinite(v[x]):
                 dv = v[x] - v[last]
                 if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
-                        abs(dv) <= max_jump_px:
+                        abs(dv) <= max_jump_px * (x - last):
                     idx[cnt] = x
                     cnt += 1
                     last = x
@@ -350,7 +350,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
 def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarray,
              rows: np.ndarray) -> int:  # pragma: no cover
     """Columns left empty inside a kept segment (up to ``MAX_GAP`` columns between
-    kept ones whose rows differ by at most ``max_jump_px``) and the rows interpolated
+    kept ones whose rows differ by at most ``max_jump_px`` per column) and the rows interpolated
     across them, written to ``cols`` and ``rows``; returns how many."""
     n = v.shape[0]
     m = 0
@@ -358,7 +358,8 @@ def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarr
     for u in range(n):
         if not keep[u]:
             continue
-        if last >= 0 and 1 < u - last <= MAX_GAP + 1 and abs(v[u] - v[last]) <= max_jump_px:
+        if last >= 0 and 1 < u - last <= MAX_GAP + 1 and \
+                abs(v[u] - v[last]) <= max_jump_px * (u - last):
             for x in range(last + 1, u):
                 cols[m] = x
                 rows[m] = v[last] + (v[u] - v[last]) * (x - last) / (u - last)
