@@ -197,10 +197,12 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # vouches for the stripe, a fit at the row interpolated across it must confirm it
     gap_cols = np.empty(w, np.int64)
     gap_rows = np.empty(w)
-    n_gap = select.gap_rows(v, keep, params.max_jump_px, gap_cols, gap_rows)
+    gap_slopes = np.empty(w)
+    n_gap = select.gap_rows(v, keep, params.max_jump_px, gap_cols, gap_rows, gap_slopes)
     if n_gap:
         fits = np.empty((n_gap, kernels.N_FIELDS))
-        kernels.fit_at(img_t, gap_cols[:n_gap], gap_rows[:n_gap], sigma, sigma_avg,
+        kernels.fit_at(img_t, gap_cols[:n_gap], gap_rows[:n_gap], gap_slopes[:n_gap], sigma,
+                       sigma_avg,
                        params.saturation_dn, params.max_width_px / select.EQ_WIDTH,
                        g_map_t, sheet_m, fits)
         ok = (np.abs(fits[:, kernels.C_POS] - gap_rows[:n_gap]) <= select.GAP_PX) & \

@@ -56,6 +56,7 @@ CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
 MIN_CLUTTER_RATIO = 1.5
 CLUTTER_SHARE = 0.2
 N_BLOCKS = 8  # column blocks processed in parallel
+AVG_MAX_SLOPE = 0.5  # steeper stripes (rows per column) are not averaged across columns
 
 #: fields of a candidate row (last axis of the candidate table)
 (C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
@@ -772,13 +773,15 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
 
 
 @njit(cache=True, nogil=True)
-def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, sigma: float,
-           sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray, sheet_m: float,
-           out: np.ndarray) -> None:  # pragma: no cover
+def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndarray,
+           sigma: float, sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+           sheet_m: float, out: np.ndarray) -> None:  # pragma: no cover
     """Fit the profile at given columns and starting rows (a segment's gaps), on each
-    column and on the three columns averaged; the more significant fit goes to
-    ``out[k]`` (N_FIELDS; NaN if neither converges; ``C_HVAR`` the sampling variance
-    across columns). Same conventions as :func:`column_candidates`."""
+    column and, where the stripe's slope (``slopes``, rows per column) is at most
+    ``AVG_MAX_SLOPE`` (steeper, averaging smears it), on the three columns averaged;
+    the more significant fit goes to ``out[k]`` (N_FIELDS; NaN if neither converges;
+    ``C_HVAR`` the sampling variance across columns). Conventions as
+    :func:`column_candidates`."""
     n = img.shape[1]
     ws = np.empty((8, N_WORK))
     res = np.empty(N_FIELDS)
@@ -792,6 +795,8 @@ def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, sigma: float,
             if np.isfinite(gpx):
                 s_prior = math.sqrt((gpx * sheet_m) ** 2 + PIXEL_VAR)
         for averaged in (False, True):
+            if averaged and abs(slopes[k]) > AVG_MAX_SLOPE:
+                continue
             if fit_profile(img, i, c, 3, sigma_avg if averaged else sigma, sat_dn, s_max,
                            s_prior, averaged, ws, res):
                 if not np.isfinite(out[k, C_Z]) or res[C_Z] > out[k, C_Z]:
@@ -814,6 +819,7 @@ def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: floa
     w = pick.shape[0]
     cols = np.empty(1, np.int64)
     rows = np.empty(1)
+    slopes = np.empty(1)
     res = np.empty((1, N_FIELDS))
     for u in range(w):
         if not keep[u]:
@@ -840,7 +846,9 @@ def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: floa
                 rows[0] = pick[u, C_POS] + slope * step
                 if not (0.0 <= rows[0] <= img.shape[1] - 1.0):
                     break
-                fit_at(img, cols, rows, sigma, sigma_avg, sat_dn, s_max, g_map, sheet_m, res)
+                slopes[0] = slope
+                fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map,
+                       sheet_m, res)
                 prev = pick[x - d, C_AMP]
                 if not (abs(res[0, C_POS] - rows[0]) <= row_px and res[0, C_Z] >= z_min
                         and res[0, C_AMP] >= max(min_peak_dn, share * prev)

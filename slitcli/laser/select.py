@@ -348,10 +348,11 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
 
 @njit(cache=True, nogil=True)
 def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarray,
-             rows: np.ndarray) -> int:  # pragma: no cover
+             rows: np.ndarray, slopes: np.ndarray) -> int:  # pragma: no cover
     """Columns left empty inside a kept segment (up to ``MAX_GAP`` columns between
-    kept ones whose rows differ by at most ``max_jump_px`` per column) and the rows interpolated
-    across them, written to ``cols`` and ``rows``; returns how many."""
+    kept ones whose rows differ by at most ``max_jump_px`` per column), the rows
+    interpolated across them and the slope there, written to ``cols``, ``rows`` and
+    ``slopes``; returns how many."""
     n = v.shape[0]
     m = 0
     last = -1
@@ -363,6 +364,7 @@ def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarr
             for x in range(last + 1, u):
                 cols[m] = x
                 rows[m] = v[last] + (v[u] - v[last]) * (x - last) / (u - last)
+                slopes[m] = (v[u] - v[last]) / (u - last)
                 m += 1
         last = u
     return m
