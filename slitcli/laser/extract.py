@@ -20,7 +20,7 @@ columns is compiled (:mod:`slitcli.laser.kernels`, :mod:`slitcli.laser.select`):
    segments and columns whose running median brightness is below ``min_peak_dn``
    are dropped.
 
-Images are processed transposed (one image column per array row, contiguous).
+The kernels walk image columns (transposed views of the arrays).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from slitcli.laser.params import LaserParams
 #: candidates fitted per column and per source (the image, the averaged image)
 K_BEST = 2
 #: every NOISE_STEP-th column estimates the noise
-NOISE_STEP = 16
+NOISE_STEP = 32
 #: weak candidates (continuing a neighbour's row) need this share of noise_k
 WEAK_SHARE = 0.6
 #: columns a fading segment may be carried on past its end
@@ -147,11 +147,16 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
     h, w = img.shape[:2]
-    mask_t = np.ones((w, h), bool) if search_mask is None else \
-        np.ascontiguousarray(np.asarray(search_mask, dtype=bool).T)
-    se = np.ones((1, params.background_window_px), np.uint8)
-    img_t = cv2.transpose(img)
-    bg_t = cv2.morphologyEx(img_t, cv2.MORPH_OPEN, se)
+    mask = np.ones((h, w), bool) if search_mask is None else \
+        np.asarray(search_mask, dtype=bool)
+    if mask.shape != (h, w):
+        raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
+    bg = cv2.morphologyEx(img, cv2.MORPH_OPEN,
+                          np.ones((params.background_window_px, 1), np.uint8))
+    # the kernels walk columns: transposed views, (W, H, 3), no copies
+    img_t = img.transpose(1, 0, 2)
+    bg_t = bg.transpose(1, 0, 2)
+    mask_t = mask.T
     sigma = kernels.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
@@ -162,9 +167,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma_avg = math.sqrt(0.375) * sigma
     use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
-    g_map = np.ascontiguousarray(np.asarray(px_per_m, dtype=np.float64)) if use_sheet else \
-        np.full((1, 1), np.nan)
-    g_map_t = np.ascontiguousarray(g_map.T)
+    g_map = np.asarray(px_per_m, dtype=np.float64) if use_sheet else np.full((1, 1), np.nan)
+    g_map_t = g_map.T
     cand = np.empty((w, K_BEST, kernels.N_FIELDS))
     cand_avg = np.empty_like(cand)
     kernels.column_candidates(img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th,

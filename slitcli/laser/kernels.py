@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of the stripe extractor: candidate crossings per column.
 
-Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row,
-contiguous); all loops over pixels live here, compiled.
+Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row;
+views of the ``(H, W, 3)`` images); all loops over pixels live here, compiled.
 
 Signal model of one column, per channel c in (r, g, b) and row v::
 
@@ -434,6 +434,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     if z_quick < QUICK_Z and nsat == 0:
         if amp <= 0.0:
             return False
+        out[C_HVAR] = np.nan
+        out[C_CLUT] = np.nan
         out[C_POS] = v0
         out[C_AMP] = amp
         out[C_WIDTH] = s
@@ -510,6 +512,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
     dot = nur * nlr + nug * nlg + nub * nlb
+    out[C_HVAR] = np.nan
     out[C_POS] = v0
     out[C_AMP] = amp
     out[C_WIDTH] = s
@@ -782,9 +785,19 @@ def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndarr
     the more significant fit goes to ``out[k]`` (N_FIELDS; NaN if neither converges;
     ``C_HVAR`` the sampling variance across columns). Conventions as
     :func:`column_candidates`."""
-    n = img.shape[1]
     ws = np.empty((8, N_WORK))
     res = np.empty(N_FIELDS)
+    _fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map, sheet_m, ws,
+            res, out)
+
+
+@njit(cache=True, nogil=True)
+def _fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndarray,
+            sigma: float, sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+            sheet_m: float, ws: np.ndarray, res: np.ndarray,
+            out: np.ndarray) -> None:  # pragma: no cover
+    """:func:`fit_at` with workspaces ``ws`` (8, N_WORK) and ``res`` (N_FIELDS,)."""
+    n = img.shape[1]
     for k in range(cols.shape[0]):
         out[k] = np.nan
         i = cols[k]
@@ -821,6 +834,8 @@ def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: floa
     rows = np.empty(1)
     slopes = np.empty(1)
     res = np.empty((1, N_FIELDS))
+    ws = np.empty((8, N_WORK))
+    one = np.empty(N_FIELDS)
     for u in range(w):
         if not keep[u]:
             continue
@@ -847,8 +862,8 @@ def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: floa
                 if not (0.0 <= rows[0] <= img.shape[1] - 1.0):
                     break
                 slopes[0] = slope
-                fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map,
-                       sheet_m, res)
+                _fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map,
+                        sheet_m, ws, one, res)
                 prev = pick[x - d, C_AMP]
                 if not (abs(res[0, C_POS] - rows[0]) <= row_px and res[0, C_Z] >= z_min
                         and res[0, C_AMP] >= max(min_peak_dn, share * prev)
