@@ -18,7 +18,9 @@ columns is compiled (:mod:`slitcli.laser.kernels`, :mod:`slitcli.laser.select`):
    surroundings, not on an edge between two surfaces.
 5. Segments: columns joined by small row steps (or along a steep stripe); short
    segments and columns whose running median brightness is below ``min_peak_dn``
-   are dropped.
+   are dropped; gaps are filled and fading ends carried on by fits at the rows the
+   segment predicts; each row is finally smoothed along its segment (weighted
+   quadratic over nine columns).
 
 The kernels walk image columns (transposed views of the arrays).
 """
@@ -171,11 +173,18 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     g_map_t = g_map.T
     cand = np.empty((w, K_BEST, kernels.N_FIELDS))
     cand_avg = np.empty_like(cand)
-    kernels.column_candidates(img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th,
-                              params.min_delta_th, params.alpha, params.saturation_dn,
-                              max_run, params.max_width_px / select.EQ_WIDTH,
-                              select.SUPPORT_Z, z_strong,
-                              g_map_t, sheet_m, cand, cand_avg)
+    args = (img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th, params.min_delta_th,
+            params.alpha, params.saturation_dn, max_run, params.max_width_px / select.EQ_WIDTH,
+            select.SUPPORT_Z, z_strong, g_map_t)
+    kernels.column_candidates(*args, sheet_m, cand, cand_avg)
+    if use_sheet:
+        # the sheet's thickness is the rig's; where the frame shows it clearly (many
+        # clean, strong columns agreeing) that value replaces the parameter
+        mode_m, support, voters = select.sheet_mode(cand, g_map_t, params.max_width_px)
+        if support >= select.MODE_SUPPORT and 2 * support >= voters and \
+                abs(math.log(mode_m / sheet_m)) > math.log(1.0 + select.MODE_WINDOW):
+            sheet_m = mode_m
+            kernels.column_candidates(*args, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
         np.ascontiguousarray(previous_v_px, dtype=np.float64)
@@ -221,8 +230,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                         params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
                         params.max_jump_px, WEAK_SHARE * z_strong, params.min_peak_dn,
                         select.END_SHARE, EXTEND_COLS, select.GAP_PX)
-    v = pick[:, kernels.C_POS]
-    v_px = np.where(keep, v, np.nan)
+    v_px = np.empty(w)
+    select.smooth_rows(pick[:, kernels.C_POS], pick[:, kernels.C_SE_POS],
+                       pick[:, kernels.C_WIDTH], keep, params.max_jump_px, v_px)
     strength = np.where(keep, pick[:, kernels.C_AMP], np.nan)
     saturated = keep & (pick[:, kernels.C_SAT] > 0)
     return StripeColumns(v_px, strength, saturated, float(sigma), float(thr))

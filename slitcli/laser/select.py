@@ -39,6 +39,13 @@ MAX_EDGE = 0.02
 SMOOTH_VAR = 0.5
 #: a stripe's implied sheet thickness may differ from the expected by this factor
 SHEET_TOLERANCE = 1.6
+#: the frame's own sheet thickness: candidates at least MODE_Z significant with a
+#: reduced chi-square of at most MODE_CHI2 vote; the densest window of relative
+#: half-width MODE_WINDOW wins when it holds MODE_SUPPORT of them and half of all
+MODE_Z = 12.0
+MODE_CHI2 = 3.0
+MODE_WINDOW = 0.12
+MODE_SUPPORT = 16
 #: a weak candidate of the averaged columns must be backed by a candidate of the
 #: column itself this close (px) and at least this significant
 SUPPORT_PX = 1.5
@@ -56,6 +63,10 @@ SHORT_Z_SHARE = 1.6
 MAX_GAP = 2
 #: a gap column's candidate may lie this far from the row interpolated across it, px
 GAP_PX = 1.0
+#: rows are smoothed along a segment over this many columns either side
+SMOOTH_HALF = 4
+#: floor of a row's standard error in the smoothing weights, px
+SMOOTH_MIN_SE = 0.02
 
 
 @njit(cache=True, nogil=True)
@@ -368,3 +379,109 @@ def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarr
                 m += 1
         last = u
     return m
+
+
+@njit(cache=True, nogil=True)
+def sheet_mode(cand: np.ndarray, g_map: np.ndarray,
+               max_width_px: float) -> tuple[float, int, int]:  # pragma: no cover
+    """The laser sheet's thickness as the frame shows it (metres), and its support.
+
+    Clean, strong candidates (significance ``MODE_Z``, reduced chi-square at most
+    ``MODE_CHI2``, no clutter or edge, unsaturated, with a neighbouring column's
+    candidate within a row) imply a thickness each
+    (:func:`sheet_sigma_m`, slope 0); all the stripe's columns share one, texture
+    spreads. Returns the centre of the densest window of relative half-width
+    ``MODE_WINDOW``, how many fall in it and how many voted. ``g_map`` is (W, H),
+    rows per metre."""
+    w_cols, k = cand.shape[0], cand.shape[1]
+    h = g_map.shape[1]
+    vals = np.empty(w_cols * k)
+    n = 0
+    for u in range(w_cols):
+        for q in range(k):
+            if not np.isfinite(cand[u, q, C_POS]) or cand[u, q, C_SAT] > 0:
+                continue
+            if cand[u, q, C_Z] < MODE_Z or cand[u, q, C_CHI2] > MODE_CHI2 or \
+                    cand[u, q, C_CLUT] > 0.0 or cand[u, q, C_EDGE] > 0.5 * MAX_EDGE:
+                continue
+            w = cand[u, q, C_WIDTH]
+            if w < MIN_SIGMA_PX or w > max_width_px / EQ_WIDTH:
+                continue
+            # a flat stretch (a neighbour within a row): on a steep one the pixel's
+            # width adds slope-dependent spread
+            flat = False
+            for d in (-1, 1):
+                if 0 <= u + d < w_cols:
+                    for r in range(k):
+                        if abs(cand[u + d, r, C_POS] - cand[u, q, C_POS]) <= 1.0:
+                            flat = True
+            if not flat:
+                continue
+            row = min(max(int(cand[u, q, C_POS] + 0.5), 0), h - 1)
+            g = g_map[u, row]
+            if np.isfinite(g) and g > 0.0:
+                vals[n] = math.log(sheet_sigma_m(w, 0.0, PIXEL_VAR, g))
+                n += 1
+    if n == 0:
+        return 0.0, 0, 0
+    x = np.sort(vals[:n])
+    half = math.log(1.0 + MODE_WINDOW)
+    best = 0
+    best_c = x[0]
+    b = 0
+    for a in range(n):
+        while b < n and x[b] - x[a] <= 2.0 * half:
+            b += 1
+        if b - a > best:
+            best = b - a
+            best_c = x[(a + b - 1) // 2]
+    return math.exp(best_c), best, n
+
+
+@njit(cache=True, nogil=True)
+def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarray,
+                max_jump_px: float, out: np.ndarray) -> None:  # pragma: no cover
+    """Each kept column's row from a weighted quadratic through its segment's rows.
+
+    A stripe on a surface is a smooth image curve (a straight line on a plane), and
+    the per-column fits carry independent noise: a least-squares quadratic through
+    the rows of up to ``SMOOTH_HALF`` linked kept columns either side (weights
+    ``1 / se^2``, ``se`` the fit's standard error of the row) estimates the row with
+    about half the noise. Columns with fewer than two linked neighbours on either
+    side keep their own row. ``out`` (W,) gets the rows (NaN where not kept)."""
+    n = v.shape[0]
+    for u in range(n):
+        out[u] = v[u] if keep[u] else np.nan
+        if not keep[u]:
+            continue
+        lo = u
+        while lo > 0 and u - lo < SMOOTH_HALF and keep[lo - 1] and \
+                links(v[lo] - v[lo - 1], width[lo], width[lo - 1], max_jump_px):
+            lo -= 1
+        hi = u
+        while hi < n - 1 and hi - u < SMOOTH_HALF and keep[hi + 1] and \
+                links(v[hi + 1] - v[hi], width[hi + 1], width[hi], max_jump_px):
+            hi += 1
+        if u - lo < 2 or hi - u < 2:
+            continue
+        s0 = s1 = s2 = s3 = s4 = t0 = t1 = t2 = 0.0
+        for x in range(lo, hi + 1):
+            e = max(se[x], SMOOTH_MIN_SE)
+            wt = 1.0 / (e * e)
+            d = float(x - u)
+            y = v[x] - v[u]
+            s0 += wt
+            s1 += wt * d
+            s2 += wt * d * d
+            s3 += wt * d * d * d
+            s4 += wt * d * d * d * d
+            t0 += wt * y
+            t1 += wt * d * y
+            t2 += wt * d * d * y
+        # value at d = 0 of the weighted quadratic (Cramer's rule on the 3x3 normal
+        # equations)
+        det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s2 * s3) + s2 * (s1 * s3 - s2 * s2)
+        if abs(det) < 1e-12 * s0 * s2 * s4:
+            continue
+        num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
+        out[u] = v[u] + num / det
