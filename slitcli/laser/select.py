@@ -67,6 +67,8 @@ GAP_PX = 1.0
 SMOOTH_HALF = 4
 #: floor of a row's standard error in the smoothing weights, px
 SMOOTH_MIN_SE = 0.02
+#: a second difference of the rows beyond this (and four times its noise) is a corner
+SMOOTH_CORNER_PX = 0.5
 
 
 @njit(cache=True, nogil=True)
@@ -447,20 +449,30 @@ def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarr
     the per-column fits carry independent noise: a least-squares quadratic through
     the rows of up to ``SMOOTH_HALF`` linked kept columns either side (weights
     ``1 / se^2``, ``se`` the fit's standard error of the row) estimates the row with
-    about half the noise. Columns with fewer than two linked neighbours on either
-    side keep their own row. ``out`` (W,) gets the rows (NaN where not kept)."""
+    about half the noise. Windows stop short of corners (second difference of the
+    rows beyond ``SMOOTH_CORNER_PX`` and four times its noise: two faces meeting);
+    columns with fewer than two linked neighbours on either side, and corners, keep
+    their own row. ``out`` (W,) gets the rows (NaN where not kept)."""
     n = v.shape[0]
+    # corners: where the slope changes by more than noise allows (the second
+    # difference), a quadratic would round the corner; windows stop there
+    corner = np.zeros(n, np.bool_)
+    for x in range(1, n - 1):
+        if keep[x - 1] and keep[x] and keep[x + 1]:
+            d2 = v[x + 1] - 2.0 * v[x] + v[x - 1]
+            noise = math.sqrt(se[x - 1] ** 2 + 4.0 * se[x] ** 2 + se[x + 1] ** 2)
+            corner[x] = abs(d2) > max(SMOOTH_CORNER_PX, 4.0 * noise)
     for u in range(n):
         out[u] = v[u] if keep[u] else np.nan
-        if not keep[u]:
+        if not keep[u] or corner[u]:
             continue
         lo = u
-        while lo > 0 and u - lo < SMOOTH_HALF and keep[lo - 1] and \
+        while lo > 0 and u - lo < SMOOTH_HALF and keep[lo - 1] and not corner[lo - 1] and \
                 links(v[lo] - v[lo - 1], width[lo], width[lo - 1], max_jump_px):
             lo -= 1
         hi = u
-        while hi < n - 1 and hi - u < SMOOTH_HALF and keep[hi + 1] and \
-                links(v[hi + 1] - v[hi], width[hi + 1], width[hi], max_jump_px):
+        while hi < n - 1 and hi - u < SMOOTH_HALF and keep[hi + 1] and not corner[hi + 1] \
+                and links(v[hi + 1] - v[hi], width[hi + 1], width[hi], max_jump_px):
             hi += 1
         if u - lo < 2 or hi - u < 2:
             continue
