@@ -95,29 +95,52 @@ def chromaticity(bgr: np.ndarray) -> np.ndarray:
     return np.divide(x, s, out=np.zeros_like(x), where=s > 0)
 
 
-def candidate_mask(contrast_bgr: np.ndarray, params: LaserParams) -> np.ndarray:
-    """Paper Eqs. 2-3 on a pixel's contrast (light above its background), numpy form.
+def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
+                   params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
+    """Paper Eqs. 1-3 per pixel, on the light it adds above its background (numpy form).
 
-    The compiled extractor applies the same tests (:func:`slitcli.laser.kernels.
-    evidence`); this form documents them and serves tests.
+    The compiled extractor applies exactly these tests
+    (:func:`slitcli.laser.kernels.evidence`); this form documents them and serves
+    tests and users who want the mask.
 
     Parameters
     ----------
-    contrast_bgr : ndarray, shape (..., 3), BGR order
-        Contrasts ``t = x - background`` per channel, DN.
+    bgr : ndarray, shape (..., 3), uint8, BGR
+        The image.
+    background_bgr : ndarray, shape (..., 3), uint8, BGR
+        Its local background (the extractor uses a vertical morphological opening of
+        ``background_window_px`` rows); at most ``bgr``.
     params : LaserParams
 
     Returns
     -------
-    ndarray of bool, shape (...)
-        Eq. 2: ``R > min_th`` and ``R - max(G, B) > min_delta_th`` on the chromaticity
-        (Eq. 1) of ``t``; Eq. 3 (white rejection): ``t_r - max(t_g, t_b) > alpha t_r``
-        is implied for ``min_delta_th >= alpha min_th``, and tested on the red
-        estimate in the compiled form. False where ``sum(t) <= 0``.
+    red : ndarray of bool, shape (...)
+        On the contrast ``t = bgr - background``: Eq. 2 on its chromaticity (Eq. 1),
+        ``R > min_th`` and ``R - max(G, B) > min_delta_th`` (false where ``sum(t) <=
+        0``), and Eq. 3, white rejection, ``y > alpha max(t_g, t_b)`` with ``y`` the
+        laser estimate: the contrast's red less the part its green and blue explain
+        along the background's colour (:data:`slitcli.laser.kernels.LAM_DETECT` of it),
+        scaled so that laser light ``(1, XT, XT)`` gives its red.
+    saturated : ndarray of bool, shape (...)
+        Red at or above ``saturation_dn``: exempt from Eqs. 2-3 (a clipped core turns
+        white); the extractor needs a red neighbour to take such a pixel.
     """
-    c = chromaticity(contrast_bgr)
-    r, g, b = c[..., 0], c[..., 1], c[..., 2]
-    return (r > params.min_th) & (r - np.maximum(g, b) > params.min_delta_th)
+    x = np.asarray(bgr, dtype=np.float64)
+    b = np.asarray(background_bgr, dtype=np.float64)
+    t = x - b
+    c = chromaticity(t)
+    red_c, wht_c = c[..., 0], np.maximum(c[..., 1], c[..., 2])
+    eq2 = (red_c > params.min_th) & (red_c - wht_c > params.min_delta_th)
+    k = b[..., ::-1] + 0.5  # background colour, RGB
+    nk = np.linalg.norm(k, axis=-1)
+    proj = (k[..., 0] + kernels.XT * (k[..., 1] + k[..., 2])) / nk
+    den = kernels.A_LASER - kernels.LAM_DETECT * proj * proj
+    f = kernels.LAM_DETECT * proj / nk
+    y = ((1.0 - f * k[..., 0]) * t[..., 2] + (kernels.XT - f * k[..., 1]) * t[..., 1]
+         + (kernels.XT - f * k[..., 2]) * t[..., 0]) / den
+    eq3 = y > params.alpha * np.maximum(t[..., 1], t[..., 0])
+    saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
+    return eq2 & eq3 & ~saturated, saturated
 
 
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,

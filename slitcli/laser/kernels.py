@@ -200,7 +200,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     saturated channels left out) with its information as weight; then a weighted
     Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
 
-    Writes ``out[:10] = (v0, A (red DN), s (px), significance, standard error of v0,
+    Writes ``out[:10] = (v0, A (red DN; with ``s_prior`` the peak before the pixels'
+    blur), s (px), significance, standard error of v0,
     reduced chi-square, saturated 0/1, texture sigma (DN), -, edge)``; significance
     is ``A`` over its standard error or, for a clipped core, the margin of saturation
     over the surface's red level in units of noise and texture; ``edge`` is one minus
@@ -514,7 +515,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     dot = nur * nlr + nug * nlg + nub * nlb
     out[C_HVAR] = np.nan
     out[C_POS] = v0
-    out[C_AMP] = amp
+    # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
+    # is known, report the peak before it (the stripe's own brightness)
+    out[C_AMP] = amp * s_prior / math.sqrt(s_prior * s_prior - PIXEL_VAR) \
+        if s_prior * s_prior > 2.0 * PIXEL_VAR else amp
     out[C_WIDTH] = s
     out[C_Z] = z
     out[C_SE_POS] = math.sqrt(var_v)

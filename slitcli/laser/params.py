@@ -65,7 +65,7 @@ class LaserParams:
     gamma: float = 0.25
     max_width_px: float = 8.0
     background_window_px: int = 21
-    min_peak_dn: float = 18.0
+    min_peak_dn: float = 19.0
     noise_k: float = 5.0
     seed_fraction: float = 0.35
     saturation_dn: int = 250

@@ -53,7 +53,7 @@ SUPPORT_Z = 2.0
 #: rows a mixed end column may differ from its strong neighbour's, px
 CONTINUE_PX = 1.5
 #: half-window of the running median of the amplitude along a segment, columns
-AMP_HALF = 3
+AMP_HALF = 6
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.67
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
