@@ -56,6 +56,7 @@ CONTINUE_PX = 1.5
 AMP_HALF = 6
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.67
+END_DROP = 2
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
 SHORT_Z_SHARE = 1.6
@@ -210,7 +211,7 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
         amax = 0.0
         for q in range(k):
             ok[q] = _valid(cand, u, q, sigma, max_width_px, z_weak) and \
-                -0.5 <= cand[u, q, C_POS] <= h_img - 0.5
+                -0.5 <= cand[u, q, C_POS] <= h_img - 1.0
             if ok[q] and sheet_m > 0.0:
                 v = cand[u, q, C_POS]
                 w = cand[u, q, C_WIDTH]
@@ -336,15 +337,17 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         good = n_own >= min_segment_cols or (n_own >= 2 and all_strong)
         a = 0
         b = cnt
-        if good and cnt >= 4:
-            # an end column at an object's edge is partly covered; the truth of a
-            # column is its centre: covered when at least half the column sees the
-            # surface, i.e. when its stripe is at least half as bright as inside
-            if amp[idx[0]] < END_SHARE * _median3(amp[idx[1]], amp[idx[2]], amp[idx[3]]):
-                a = 1
-            if amp[idx[cnt - 1]] < END_SHARE * _median3(amp[idx[cnt - 2]], amp[idx[cnt - 3]],
-                                                        amp[idx[cnt - 4]]):
-                b = cnt - 1
+        # an end column at an object's edge is partly covered; the truth of a column is
+        # its centre ray, which meets the surface when enough of the column sees it:
+        # dim end columns go (up to END_DROP of them: a mixed column and the one the
+        # averaging or an extension smeared into)
+        for _ in range(END_DROP):
+            if good and b - a >= 4 and amp[idx[a]] < END_SHARE * _median3(
+                    amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]]):
+                a += 1
+            if good and b - a >= 4 and amp[idx[b - 1]] < END_SHARE * _median3(
+                    amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]]):
+                b -= 1
         if good:
             for k in range(a, b):
                 # running median: the amplitudes in the window at or above the
