@@ -272,7 +272,7 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
                 v = cand[u, q, C_POS]
                 if np.isfinite(v) and cand[u, q, C_Z] >= z_strong and \
                         cand[u, q, C_WIDTH] <= max_width_px / EQ_WIDTH and \
-                        abs(v - ref) <= CONTINUE_PX and -0.5 <= v <= h_img - 0.5:
+                        abs(v - ref) <= CONTINUE_PX and -0.5 <= v <= h_img - 1.0:
                     chosen[u] = q
                     extended[u] = True
                     break
