@@ -593,33 +593,45 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
     red contrast and ``sat`` True.
     """
     n = img.shape[1]
+    # the weights depend on the background colour alone, and an opening is flat over
+    # long stretches: they are recomputed only where it changes
+    pr = pg = pb = -1
+    wr = wg = wb = 0.0
     for j in range(n):
         score[j] = -1.0
         sat[j] = False
-    for j in range(n):
         if not mask[i, j]:
             continue
-        tr = float(img[i, j, 2]) - bg[i, j, 2]
-        tg = float(img[i, j, 1]) - bg[i, j, 1]
-        tb = float(img[i, j, 0]) - bg[i, j, 0]
-        if img[i, j, 2] >= sat_dn:
+        xr = img[i, j, 2]
+        br = bg[i, j, 2]
+        tr = float(xr) - br
+        if xr >= sat_dn:
             sat[j] = True
             score[j] = tr
             continue
+        bgg = bg[i, j, 1]
+        bb = bg[i, j, 0]
+        tg = float(img[i, j, 1]) - bgg
+        tb = float(img[i, j, 0]) - bb
+        if br != pr or bgg != pg or bb != pb:
+            pr, pg, pb = br, bgg, bb
+            kr = br + 0.5
+            kg = bgg + 0.5
+            kb = bb + 0.5
+            nk = math.sqrt(kr * kr + kg * kg + kb * kb)
+            proj = (kr + XT * (kg + kb)) / nk
+            den = A_LASER - LAM_DETECT * proj * proj
+            f = LAM_DETECT * proj / nk
+            wr = (1.0 - f * kr) / den
+            wg = (XT - f * kg) / den
+            wb = (XT - f * kb) / den
+        # the tests combined without branches (their outcome is noise on most pixels)
         ssum = tr + tg + tb
         wht = max(tg, tb)
-        if ssum <= 0.0 or tr <= min_th * ssum or tr - wht <= min_delta_th * ssum:
-            continue
-        kr = bg[i, j, 2] + 0.5
-        kg = bg[i, j, 1] + 0.5
-        kb = bg[i, j, 0] + 0.5
-        nk = math.sqrt(kr * kr + kg * kg + kb * kb)
-        b = (kr + XT * (kg + kb)) / nk
-        den = A_LASER - LAM_DETECT * b * b
-        f = LAM_DETECT * b / nk
-        y = ((1.0 - f * kr) * tr + (XT - f * kg) * tg + (XT - f * kb) * tb) / den
-        if y > alpha * wht:
-            score[j] = y
+        y = wr * tr + wg * tg + wb * tb
+        ok = (tr > 0.0) & (tr > min_th * ssum) & (tr - wht > min_delta_th * ssum) & \
+            (y > alpha * wht)
+        score[j] = y if ok else -1.0
 
 
 @njit(cache=True, nogil=True)
