@@ -38,7 +38,7 @@ NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two s
 MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
 CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
-QUICK_Z = 2.0  # candidates less significant at their start are not fitted further
+QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
 #: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
 #: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
