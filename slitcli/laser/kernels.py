@@ -40,6 +40,8 @@ MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
 CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
+#: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
+AVG_VAR = 0.5
 #: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
 #: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
 PIXEL_VAR = 2.0 / 27.0
@@ -188,7 +190,8 @@ def _gls(cov: np.ndarray, lr: float, lg: float, lb: float, w: np.ndarray) -> flo
 
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
-                sat_dn: int, s_max: float, s_prior: float, averaged: bool, ws: np.ndarray,
+                sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
+                ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -207,8 +210,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     over the surface's red level in units of noise and texture; ``edge`` is one minus
     the cosine between the surface colours just above and just below. Returns whether
     the fit converged to a peak inside the window; it stops early once the width
-    passes ``s_max`` (px, wider than any stripe). ``s_prior > 0``: the width the
-    laser sheet has here (px); it enters as a prior of relative spread
+    passes ``s_max`` (px, wider than any stripe). ``s_core > 0``: the width the
+    laser sheet has here (px; with the pixels' extent, ``PIXEL_VAR``, and along a
+    stripe of ``slope`` rows per column the spread of the column's samples across it,
+    the width expected); it enters as a prior of relative spread
     ``S_PRIOR_SPREAD``, which keeps a faint stripe's fit from collapsing onto a
     noise spike and leaves a bright one to its data. ``averaged``: fit column ``i``
     averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
@@ -216,6 +221,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     """
     n = img.shape[1]
     c = int(math.floor(centre + 0.5))
+    s_prior = 0.0
+    if s_core > 0.0:
+        hvar = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
+        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR + slope * slope * hvar)
     flank = max(4, run_n // 2 + 2)
     half = min(max(FIT_HALF, flank + 3), (N_WORK - 1) // 2)
     j0 = max(c - half, 0)
@@ -517,8 +526,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     out[C_POS] = v0
     # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
     # is known, report the peak before it (the stripe's own brightness)
-    out[C_AMP] = amp * s_prior / math.sqrt(s_prior * s_prior - PIXEL_VAR) \
-        if s_prior * s_prior > 2.0 * PIXEL_VAR else amp
+    out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
     out[C_WIDTH] = s
     out[C_Z] = z
     out[C_SE_POS] = math.sqrt(var_v)
@@ -771,19 +779,20 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
         for q in range(nk):
             if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
                 break  # Eq. 4 cannot prefer it to a strong first candidate
-            s_prior = 0.0
+            s_core = 0.0
             if sheet_m > 0.0:
                 gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
                 if np.isfinite(gpx):
-                    s_prior = math.sqrt((gpx * sheet_m) ** 2 + PIXEL_VAR)
-            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_prior, False,
+                    s_core = gpx * sheet_m
+            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
                                ws, res):
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
             out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
             if support_z <= res[C_Z] < z_strong and \
-                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_prior, True, ws,
+                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
+                                ws,
                                 res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
@@ -818,20 +827,20 @@ def _fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndar
         out[k] = np.nan
         i = cols[k]
         c = rows[k]
-        s_prior = 0.0
+        s_core = 0.0
         if sheet_m > 0.0:
             gpx = g_map[i, min(max(int(c + 0.5), 0), n - 1)]
             if np.isfinite(gpx):
-                s_prior = math.sqrt((gpx * sheet_m) ** 2 + PIXEL_VAR)
+                s_core = gpx * sheet_m
         for averaged in (False, True):
             if averaged and abs(slopes[k]) > AVG_MAX_SLOPE:
                 continue
             if fit_profile(img, i, c, 3, sigma_avg if averaged else sigma, sat_dn, s_max,
-                           s_prior, averaged, ws, res):
+                           s_core, slopes[k], averaged, ws, res):
                 if not np.isfinite(out[k, C_Z]) or res[C_Z] > out[k, C_Z]:
                     for f in range(N_FIELDS):
                         out[k, f] = res[f]
-                    out[k, C_HVAR] = PIXEL_VAR + (0.5 if averaged else 0.0)
+                    out[k, C_HVAR] = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
 
 
 @njit(cache=True, nogil=True)

@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from slitcli.laser.kernels import (
+    AVG_VAR,
     C_AMP,
     C_CHI2,
     CLUTTER_SHARE,
@@ -35,8 +36,6 @@ MAX_CHI2 = 8.0
 #: one minus the cosine between the surface colours above and below beyond which a
 #: candidate sits on an edge between two surfaces (a red band ending at the floor)
 MAX_EDGE = 0.02
-#: extra variance across columns of the (1, 2, 1) / 4 average, px^2
-SMOOTH_VAR = 0.5
 #: a stripe's implied sheet thickness may differ from the expected by this factor
 SHEET_TOLERANCE = 1.6
 #: the frame's own sheet thickness: candidates at least MODE_Z significant with a
@@ -117,7 +116,7 @@ def merge_sources(cand: np.ndarray, cand_avg: np.ndarray, z_strong: float) -> np
                     strong = strong or cand[u, r, C_Z] >= z_strong
             if back and not strong:
                 out[u, k + q] = cand_avg[u, q]
-                out[u, k + q, C_HVAR] = PIXEL_VAR + SMOOTH_VAR
+                out[u, k + q, C_HVAR] = PIXEL_VAR + AVG_VAR
     return out
 
 
