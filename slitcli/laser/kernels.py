@@ -39,6 +39,7 @@ MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
 CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
+MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
@@ -186,6 +187,29 @@ def _gls(cov: np.ndarray, lr: float, lg: float, lb: float, w: np.ndarray) -> flo
     w[1] = v1 / info
     w[2] = v2 / info
     return info
+
+
+@njit(cache=True, nogil=True)
+def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
+                    level: float) -> float:  # pragma: no cover
+    """Midpoint of where the red profile (``win[0]``, window rows) crosses ``level`` on
+    either side of the clipped plateau ``ja .. jb`` (linear interpolation; a side cut
+    off by the window takes the plateau's own end)."""
+    j = ja
+    while j > 0 and win[0, j - 1] >= level:
+        j -= 1
+    up = j - 0.5
+    if j > 0:
+        a, b = win[0, j - 1], win[0, j]
+        up = j - 1 + (level - a) / max(b - a, 1e-9)
+    j = jb
+    while j < m - 1 and win[0, j + 1] >= level:
+        j += 1
+    lo = j + 0.5
+    if j < m - 1:
+        a, b = win[0, j], win[0, j + 1]
+        lo = j + (a - level) / max(a - b, 1e-9)
+    return 0.5 * (up + lo)
 
 
 @njit(cache=True, nogil=True)
@@ -521,6 +545,20 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     if nsat > 0:
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
+        # its flanks alone leave amplitude and width ill-determined: a fit whose
+        # centre left the clipped plateau (or that collapsed) gives way to the
+        # midpoint of the plateau's two edges
+        cc = min(max(c - j0, 0), m - 1)
+        if win[0, cc] >= sat_dn:
+            ja = cc
+            while ja > 0 and win[0, ja - 1] >= sat_dn:
+                ja -= 1
+            jb = cc
+            while jb < m - 1 and win[0, jb + 1] >= sat_dn:
+                jb += 1
+            if s < MIN_SAT_SIGMA or not (j0 + ja - 0.5 <= v0 <= j0 + jb + 0.5):
+                v0 = j0 + _plateau_centre(win, ja, jb, m, 0.5 * (ar + sat_dn))
+                var_v = 0.25
     dot = nur * nlr + nug * nlg + nub * nlb
     out[C_HVAR] = np.nan
     out[C_POS] = v0
