@@ -34,6 +34,7 @@ A_LASER = 1.0 + 2.0 * XT * XT
 #: remove all texture but amplify noise without bound on surfaces of the laser's colour
 LAM_DETECT = 0.99
 FIT_HALF = 8  # half-length of the fit window, px
+NOISE_BLOCK = 16  # rows sharing one surface colour in the noise estimate
 NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
 MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
@@ -73,35 +74,43 @@ def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma:
     """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
 
     Texture and shading scale all channels of a surface alike, so the part of a pixel
-    orthogonal to its background colour (the opening ``bg``) is noise (two dimensions)
-    plus rare edges, highlights and the laser. Its second difference along the column
-    has ``E|d2|^2 = 12 sigma^2``, a scaled chi-square with 2 degrees of freedom whose
-    median is ``2 ln 2`` times its mean over 2. Every ``step``-th column is used.
+    orthogonal to its surface's colour (the mean colour of its block of
+    ``NOISE_BLOCK`` rows) is noise (two dimensions) plus rare edges, highlights and
+    the laser. Its second difference along the column has ``E|d2|^2 = 12 sigma^2``, a
+    scaled chi-square with 2 degrees of freedom whose median is ``2 ln 2`` times its
+    mean over 2. Every ``step``-th column is used; ``bg`` is not needed (kept for the
+    callers' symmetry).
     """
     n_lines, n = img.shape[0], img.shape[1]
-    vals = np.empty(((n_lines + step - 1) // step) * max(n - 2, 0))
+    vals = np.empty(((n_lines + step - 1) // step) * n)
     m = 0
-    p = np.empty((n, 3))
+    p = np.empty((NOISE_BLOCK, 3))
     for i in range(0, n_lines, step):
-        for j in range(n):
-            cb = bg[i, j, 0] + 0.5
-            cg = bg[i, j, 1] + 0.5
-            cr = bg[i, j, 2] + 0.5
-            nn = math.sqrt(cb * cb + cg * cg + cr * cr)
-            xb = float(img[i, j, 0])
-            xg = float(img[i, j, 1])
-            xr = float(img[i, j, 2])
-            q = (xb * cb + xg * cg + xr * cr) / (nn * nn)
-            p[j, 0] = xb - q * cb
-            p[j, 1] = xg - q * cg
-            p[j, 2] = xr - q * cr
-        for j in range(1, n - 1):
-            s = 0.0
-            for c in range(3):
-                d = 2.0 * p[j, c] - p[j - 1, c] - p[j + 1, c]
-                s += d * d
-            vals[m] = s
-            m += 1
+        for j0 in range(0, n - NOISE_BLOCK + 1, NOISE_BLOCK):
+            cr = cg = cb = 0.5
+            for j in range(j0, j0 + NOISE_BLOCK):
+                cr += img[i, j, 2]
+                cg += img[i, j, 1]
+                cb += img[i, j, 0]
+            nn = math.sqrt(cr * cr + cg * cg + cb * cb)
+            cr /= nn
+            cg /= nn
+            cb /= nn
+            for jj in range(NOISE_BLOCK):
+                xr = float(img[i, j0 + jj, 2])
+                xg = float(img[i, j0 + jj, 1])
+                xb = float(img[i, j0 + jj, 0])
+                q = xr * cr + xg * cg + xb * cb
+                p[jj, 0] = xr - q * cr
+                p[jj, 1] = xg - q * cg
+                p[jj, 2] = xb - q * cb
+            for jj in range(1, NOISE_BLOCK - 1):
+                acc = 0.0
+                for c in range(3):
+                    d = 2.0 * p[jj, c] - p[jj - 1, c] - p[jj + 1, c]
+                    acc += d * d
+                vals[m] = acc
+                m += 1
     if m == 0:
         return 0.0
     med = np.median(vals[:m])
