@@ -54,7 +54,7 @@ CONTINUE_PX = 1.5
 #: half-window of the running median of the amplitude along a segment, columns
 AMP_HALF = 6
 #: a segment's end column must be at least this share as bright as the next three
-END_SHARE = 0.67
+END_SHARE = 0.6
 END_DROP = 2
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
