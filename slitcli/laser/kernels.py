@@ -919,8 +919,12 @@ def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: floa
             nb = 0
             for b in range(1, 4):
                 x = u - d * b
-                if not (0 <= x < w) or not keep[x] or \
-                        abs(pick[x, C_POS] - pick[x + d, C_POS]) > max_jump_px:
+                if not (0 <= x < w) or not keep[x]:
+                    break
+                # one stripe: a small step, or along a steep one (see select.links)
+                dv = abs(pick[x, C_POS] - pick[x + d, C_POS])
+                if dv > max_jump_px and \
+                        dv > math.sqrt(3.0) * (pick[x, C_WIDTH] + pick[x + d, C_WIDTH]):
                     break
                 nb = b
             if nb > 0:
