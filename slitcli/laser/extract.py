@@ -225,7 +225,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     v = pick[:, kernels.C_POS]
     keep = np.empty(w, bool)
     select.keep_segments(v, pick[:, kernels.C_WIDTH], pick[:, kernels.C_AMP],
-                         pick[:, kernels.C_Z], extended, params.max_jump_px,
+                         pick[:, kernels.C_Z], pick[:, kernels.C_SAT] > 0, extended,
+                         params.max_jump_px,
                          params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
     # a faint stripe on a textured surface loses single columns to noise (the stripe

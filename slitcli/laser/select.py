@@ -36,8 +36,11 @@ MAX_CHI2 = 8.0
 #: one minus the cosine between the surface colours above and below beyond which a
 #: candidate sits on an edge between two surfaces (a red band ending at the floor)
 MAX_EDGE = 0.02
-#: a stripe's implied sheet thickness may differ from the expected by this factor
+#: a stripe's implied sheet thickness may differ from the expected by this factor;
+#: amid clutter (a share of the evidence around above CLUTTER_SHEET_SHARE) by less
 SHEET_TOLERANCE = 1.6
+CLUTTER_SHEET_SHARE = 0.04
+CLUTTER_SHEET_TOLERANCE = 1.3
 #: the frame's own sheet thickness: candidates at least MODE_Z significant with a
 #: reduced chi-square of at most MODE_CHI2 vote; the densest window of relative
 #: half-width MODE_WINDOW wins when it holds MODE_SUPPORT of them and half of all
@@ -167,7 +170,8 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     ones a Gaussian (``MAX_CHI2``) standing above the clutter (``CLUTTER_SHARE``);
     and, when ``sheet_m > 0``, an implied sheet thickness (:func:`sheet_sigma_m`,
     slope from the first-pass rows it links to, ``g_map`` (H, W) px per metre) within
-    ``SHEET_TOLERANCE`` of ``sheet_m`` (saturated: not thicker).
+    ``SHEET_TOLERANCE`` of ``sheet_m`` (amid clutter ``CLUTTER_SHEET_TOLERANCE``;
+    saturated: not thicker).
 
     ``red_peak``: amplitude over the column's largest valid amplitude; ``g(I) = 1 -
     sigma_fit EQ_WIDTH / max_width_px`` (in [0, 1]); ``f(y)``: mean agreement
@@ -229,9 +233,12 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
                 row = min(max(int(v + 0.5), 0), h - 1)
                 t = sheet_sigma_m(w, slope, cand[u, q, C_HVAR], g_map[row, u])
                 # a clipped core leaves amplitude and width ill-determined (only the
-                # flanks, maybe one, constrain them): only too wide counts there
-                ok[q] = t <= sheet_m * SHEET_TOLERANCE and (
-                    cand[u, q, C_SAT] > 0 or t >= sheet_m / SHEET_TOLERANCE)
+                # flanks, maybe one, constrain them): only too wide counts there; amid
+                # clutter (a red surface's texture, which colour cannot tell from the
+                # laser) the width must match more closely
+                tol = SHEET_TOLERANCE if cand[u, q, C_CLUT] <= CLUTTER_SHEET_SHARE else \
+                    CLUTTER_SHEET_TOLERANCE
+                ok[q] = t <= sheet_m * tol and (cand[u, q, C_SAT] > 0 or t >= sheet_m / tol)
             if ok[q]:
                 amax = max(amax, cand[u, q, C_AMP])
         best = -1e300
@@ -284,7 +291,8 @@ def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
 
 @njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
-                  extended: np.ndarray, max_jump_px: float, min_segment_cols: int,
+                  sat: np.ndarray, extended: np.ndarray, max_jump_px: float,
+                  min_segment_cols: int,
                   min_peak_dn: float, z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
     """Join found columns into segments and keep the stripe's.
 
@@ -299,9 +307,10 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
     (``AMP_HALF`` found columns either side, within the segment) reaches
     ``min_peak_dn``: the brightness of a stripe changes smoothly along a surface, so
     the median judges a faint column (and the partly covered end column at an
-    object's edge) by its neighbours; an end column less than ``END_SHARE`` as bright
-    as the next three is dropped (less than half of it sees the surface, so its
-    centre does not). ``keep`` (W,) bool is written.
+    object's edge) by its neighbours; an unsaturated end column less than
+    ``END_SHARE`` as bright as the next three is dropped (less than half of it sees
+    the surface, so its centre does not; a clipped core's amplitude is too loosely
+    determined to judge). ``keep`` (W,) bool is written.
     """
     n = v.shape[0]
     idx = np.empty(n, np.int64)
@@ -341,11 +350,12 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         # dim end columns go (up to END_DROP of them: a mixed column and the one the
         # averaging or an extension smeared into)
         for _ in range(END_DROP):
-            if good and b - a >= 4 and amp[idx[a]] < END_SHARE * _median3(
+            if good and b - a >= 4 and not sat[idx[a]] and amp[idx[a]] < END_SHARE * _median3(
                     amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]]):
                 a += 1
-            if good and b - a >= 4 and amp[idx[b - 1]] < END_SHARE * _median3(
-                    amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]]):
+            if good and b - a >= 4 and not sat[idx[b - 1]] and \
+                    amp[idx[b - 1]] < END_SHARE * _median3(amp[idx[b - 2]], amp[idx[b - 3]],
+                                                           amp[idx[b - 4]]):
                 b -= 1
         if good:
             for k in range(a, b):
