@@ -185,7 +185,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma = kernels.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
-    max_run = int(math.ceil(3.0 * params.max_width_px))
+    max_run = math.ceil(3.0 * params.max_width_px)
     z_strong = params.noise_k
     # faint candidates are fitted again over three columns averaged (1, 2, 1) / 4:
     # noise 0.61 sigma

@@ -138,7 +138,8 @@ def smooth_across(img: np.ndarray, sat_dn: int) -> np.ndarray:  # pragma: no cov
 
 
 @njit(cache=True, nogil=True)
-def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray, m: np.ndarray) -> bool:  # pragma: no cover
+def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray,
+            m: np.ndarray) -> bool:  # pragma: no cover
     """Solve the 4x4 system ``a x = b`` (Gaussian elimination, partial pivoting) using
     the (4, 5) scratch ``m``; False if singular."""
     for r in range(4):
@@ -170,7 +171,8 @@ def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray, m: np.ndarray) -> bool:
 
 
 @njit(cache=True, nogil=True)
-def _gls(cov: np.ndarray, lr: float, lg: float, lb: float, w: np.ndarray) -> float:  # pragma: no cover
+def _gls(cov: np.ndarray, lr: float, lg: float, lb: float,
+         w: np.ndarray) -> float:  # pragma: no cover
     """Best linear unbiased weights for a signal of colour ``l = (lr, lg, lb)`` in noise
     of covariance ``cov`` (3x3, RGB): ``w = cov^-1 l / (l' cov^-1 l)`` written to ``w``;
     returns the information ``l' cov^-1 l`` (inverse variance of ``w . x``), 0 if
@@ -253,7 +255,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
     """
     n = img.shape[1]
-    c = int(math.floor(centre + 0.5))
+    c = math.floor(centre + 0.5)
     s_prior = 0.0
     if s_core > 0.0:
         hvar = PIXEL_VAR + (AVG_VAR if averaged else 0.0)

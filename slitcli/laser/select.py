@@ -16,8 +16,6 @@ from slitcli.laser.kernels import (
     AVG_VAR,
     C_AMP,
     C_CHI2,
-    CLUTTER_SHARE,
-    PIXEL_VAR,
     C_CLUT,
     C_EDGE,
     C_HVAR,
@@ -25,6 +23,8 @@ from slitcli.laser.kernels import (
     C_SAT,
     C_WIDTH,
     C_Z,
+    CLUTTER_SHARE,
+    PIXEL_VAR,
 )
 
 #: narrowest plausible Gaussian sigma of a stripe across a column, px
@@ -89,7 +89,8 @@ def sheet_sigma_m(width_px: float, slope: float, hvar_px2: float,
 
 
 @njit(cache=True, nogil=True)
-def merge_sources(cand: np.ndarray, cand_avg: np.ndarray, z_strong: float) -> np.ndarray:  # pragma: no cover
+def merge_sources(cand: np.ndarray, cand_avg: np.ndarray,
+                  z_strong: float) -> np.ndarray:  # pragma: no cover
     """Candidates of the columns and of the (1, 2, 1)-averaged columns, as one table.
 
     An averaged candidate (more signal for a faint stripe, but it smears a stripe's
@@ -292,8 +293,8 @@ def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
 @njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
                   sat: np.ndarray, extended: np.ndarray, max_jump_px: float,
-                  min_segment_cols: int,
-                  min_peak_dn: float, z_strong: float, keep: np.ndarray) -> None:  # pragma: no cover
+                  min_segment_cols: int, min_peak_dn: float, z_strong: float,
+                  keep: np.ndarray) -> None:  # pragma: no cover
     """Join found columns into segments and keep the stripe's.
 
     Neighbouring found columns join when their rows link (:func:`links`); across a
