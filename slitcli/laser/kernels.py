@@ -51,7 +51,7 @@ CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
 #: a candidate whose evidence is below this share of a strong first candidate's is not
 #: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
 #: paper weights 0.25) cannot beat the first's
-SECONDARY_SHARE = 0.3
+SECONDARY_SHARE = 0.5
 NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
 CLUTTER_HALF = 24  # half-window of the clutter level, px
 CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
