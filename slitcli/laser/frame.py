@@ -150,7 +150,10 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     stripe = extract_stripe(img, params, search_mask=geometry.search_mask, previous_v_px=prev,
                             px_per_m=geometry.px_per_m)
     u = np.arange(rig.width_px, dtype=np.float64)
-    x, y, rng, bearing = triangulate_stripe(rig, u, stripe.v_px)
+    found = np.isfinite(stripe.v_px)
+    x, y, rng, bearing = (np.full(rig.width_px, np.nan) for _ in range(4))
+    x[found], y[found], rng[found], bearing[found] = triangulate_stripe(
+        rig, u[found], stripe.v_px[found])
     with np.errstate(invalid="ignore"):
         in_band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
     return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,

@@ -294,6 +294,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     lr_ = lg_ = lb_ = 0.0
     nur = nug = nub = 0.5
     nlr = nlg = nlb = 0.5
+    # per side: n, sum d, sum d^2, sum x (3), sum x d (3), sum x x' (rr rg rb gg gb bb)
+    side_s = ws[4, 24:56].reshape((2, 16))
+    for r in range(32):
+        ws[4, 24 + r] = 0.0
     for j in range(j0, j1):
         d = j - c
         if abs(d) < flank:
@@ -311,6 +315,22 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         sjr += xr * fd
         sjg += xg * fd
         sjb += xb * fd
+        sd = side_s[0] if d < 0 else side_s[1]
+        sd[0] += 1.0
+        sd[1] += fd
+        sd[2] += fd * fd
+        sd[3] += xr
+        sd[4] += xg
+        sd[5] += xb
+        sd[6] += xr * fd
+        sd[7] += xg * fd
+        sd[8] += xb * fd
+        sd[9] += xr * xr
+        sd[10] += xr * xg
+        sd[11] += xr * xb
+        sd[12] += xg * xg
+        sd[13] += xg * xb
+        sd[14] += xb * xb
         if d < 0:
             n_up += 1
             ur_ += xr
@@ -341,7 +361,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ar = (sxr - br * sj) / sw
     ag = (sxg - bg_ * sj) / sw
     ab = (sxb - bb * sj) / sw
-    # pass 2: texture variance of each side along its own colour
+    # texture variance of each side along its own colour
     cov = ws[4, :9].reshape((3, 3))
     for r in range(9):
         ws[4, r] = 0.0
@@ -357,17 +377,16 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         cr /= nk
         cg /= nk
         cb /= nk
-        s2 = 0.0
-        for j in range(j0, j1):
-            d = j - c
-            if d * side < flank:
-                continue
-            xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
-            if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
-                continue
-            q = ((xr - ar - br * d) * cr + (xg - ag - bg_ * d) * cg
-                 + (xb - ab - bb * d) * cb)
-            s2 += q * q
+        # sum over the side's rows of q^2, q = c . (x - a - b d), from its sums
+        sd = side_s[0] if side < 0 else side_s[1]
+        big_a = cr * ar + cg * ag + cb * ab
+        big_b = cr * br + cg * bg_ + cb * bb
+        sx = cr * sd[3] + cg * sd[4] + cb * sd[5]
+        sxd = cr * sd[6] + cg * sd[7] + cb * sd[8]
+        sxx = (cr * cr * sd[9] + 2.0 * cr * cg * sd[10] + 2.0 * cr * cb * sd[11]
+               + cg * cg * sd[12] + 2.0 * cg * cb * sd[13] + cb * cb * sd[14])
+        s2 = (sxx - 2.0 * big_a * sx - 2.0 * big_b * sxd + sd[0] * big_a * big_a
+              + 2.0 * big_a * big_b * sd[1] + big_b * big_b * sd[2])
         t2 = max(s2 / max(cnt - 1.0, 1.0) - s2n, 0.0)
         t2_max = max(t2_max, t2)
         cov[0, 0] += t2 * cr * cr
