@@ -17,7 +17,7 @@ from slitcli.stereo.matcher import (
 )
 
 PLAIN = dict(prefilter="none", texture_min_dn=0.0, uniqueness_ratio=0.0, lr_max_diff_px=-1,
-             support_min_zncc=0.0, speckle_window_px=0, subpixel="none")
+             support_min_zncc=0.0, boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
 
 
 def brute_force_eq10(pl: np.ndarray, pr: np.ndarray, dmin: int, num: int, m: int, n: int
