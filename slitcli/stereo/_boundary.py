@@ -6,12 +6,13 @@ carried up to half a window past its silhouette ("foreground fattening"): the
 pixels just beside an object get the object's range. These kernels re-examine the
 matches with evidence that does not straddle the edge:
 
-- :func:`one_sided_rows`: a pixel next to a weakly supported pixel (a textureless or
+:func:`support_rows` applies the local-support threshold and then
+
+- one-sided support: a pixel next to a weakly supported pixel (a textureless or
   wrongly matched neighbour) must also be supported by the (2r+1)-wide, window-tall
-  block centred one column towards that neighbour. A
-  textureless pixel that borrowed its disparity from texture on its other side has
-  nothing there to correlate.
-- :func:`boundary_rows`: a two-hypothesis test on the pixel's own column. Where a
+  block centred one column towards that neighbour. A textureless pixel that borrowed
+  its disparity from texture on its other side has nothing there to correlate.
+- :func:`depth_edge_rows`, a two-hypothesis test on the pixel's own column. Where a
   valid neighbour within ``radius`` columns lies at a smaller disparity (a depth
   step), the grey-level column of the pixel (window-tall, one pixel wide, so it
   cannot straddle a vertical edge) is compared with the right image at the pixel's
@@ -23,7 +24,7 @@ matches with evidence that does not straddle the edge:
   takes the object's disparity when its window reaches the object, and its partner
   in the right image is then better explained by the farther surface.
 
-All kernels release the GIL and work on a band of rows (``y0 .. y1 - 1``) so they can
+Both kernels release the GIL and work on a band of rows (``y0 .. y1 - 1``) so bands can
 run on plain threads; each row's result depends only on read-only inputs.
 """
 
@@ -81,29 +82,32 @@ def _zncc_block(gl, gr, y, xc, d, rx, ry):
     x (2ry+1) clipped to the image, with the right image at xc - d (linear in x);
     0 where a block is flat or too small."""
     height, width = gl.shape
+    # every sample of the block shares the fractional shift: right column xx + off
+    # and xx + off + 1 with weights 1 - t, t; the columns are clipped once
+    off = int(np.floor(-d))
+    t = -d - np.float32(off)
+    c0 = max(xc - rx, 0, -off)
+    c1 = min(xc + rx, width - 1, width - 2 - off)
+    r0 = max(0, y - ry)
+    r1 = min(height, y + ry + 1)
+    cnt = (c1 - c0 + 1) * (r1 - r0)
+    if c1 < c0 or cnt < 2:
+        return np.float32(0.0)
+    u = np.float32(1.0) - t
     sa = np.float32(0.0)
     sb = np.float32(0.0)
     saa = np.float32(0.0)
     sbb = np.float32(0.0)
     sab = np.float32(0.0)
-    cnt = 0
-    for yy in range(max(0, y - ry), min(height, y + ry + 1)):
-        for xx in range(max(0, xc - rx), min(width, xc + rx + 1)):
-            xr = np.float32(xx) - d
-            if not (xr >= 0.0 and xr <= width - 1):
-                continue
-            x0 = min(int(xr), width - 2)
-            t = xr - np.float32(x0)
+    for yy in range(r0, r1):
+        for xx in range(c0, c1 + 1):
             a = gl[yy, xx]
-            b = (np.float32(1.0) - t) * gr[yy, x0] + t * gr[yy, x0 + 1]
+            b = u * gr[yy, xx + off] + t * gr[yy, xx + off + 1]
             sa += a
             sb += b
             saa += a * a
             sbb += b * b
             sab += a * b
-            cnt += 1
-    if cnt < 2:
-        return np.float32(0.0)
     n = np.float32(cnt)
     va = saa - sa * sa / n
     vb = sbb - sb * sb / n
@@ -112,126 +116,179 @@ def _zncc_block(gl, gr, y, xc, d, rx, ry):
     return cov / den if den > 1e-3 else np.float32(0.0)
 
 
+# Neighbours on one surface have nearly the same disparity: a candidate within this of
+# one already tried on the same side would give nearly the same residual.
+_SAME_PX = np.float32(0.25)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _left_candidates(gl, gr, cand, y, x, lim, radius, hh, bound):
+    """True if a candidate disparity (``cand``, one row; below ``lim``) within
+    +-radius columns of x explains left column x with a residual below ``bound``."""
+    width = gl.shape[1]
+    for side in (-1, 1):
+        last = np.float32(-1e30)
+        for j in range(1, radius + 1):
+            xx = x + side * j
+            if xx < 0 or xx >= width:
+                break
+            v = cand[xx]
+            if v < lim and abs(v - last) > _SAME_PX:
+                last = v
+                if _column_residual_left(gl, gr, y, x, v, hh) < bound:
+                    return True
+    return False
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _right_candidates(gl, gr, cand, y, xr, lim, radius, hh, bound):
+    """As :func:`_left_candidates` for right column xr and the right view's
+    candidates."""
+    width = gl.shape[1]
+    for side in (-1, 1):
+        last = np.float32(-1e30)
+        for j in range(1, radius + 1):
+            xx = xr + side * j
+            if xx < 0 or xx >= width:
+                break
+            v = cand[xx]
+            if v < lim and abs(v - last) > _SAME_PX:
+                last = v
+                if _column_residual_right(gl, gr, y, xr, v, hh) < bound:
+                    return True
+    return False
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes):
+    """One-sided support of row y (module notes): failing valid pixels of ``codes``
+    get REASON_SUPPORT. A pixel's test reads its own code only."""
+    width = gl.shape[1]
+    for x in range(width):
+        if codes[x] != 0:
+            continue
+        d = disp[y, x]
+        for side in (-1, 1):
+            xx = x + side
+            if xx < 0 or xx >= width or zncc[y, xx] >= side_min:
+                continue
+            if _zncc_block(gl, gr, y, xx, d, rx, ry) < side_min:
+                codes[x] = REASON_SUPPORT
+                break
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand, right_cand,
+                    left_min, right_min, codes, out):
+    """Depth-edge test of row y (the row arrays are one row each): valid pixels of
+    ``codes`` that fail get REASON_BOUNDARY in ``out``; ``codes`` may be ``out[y]``,
+    since a pixel's test reads the candidates, not the codes, of its neighbours."""
+    width = gl.shape[1]
+    for x in range(width):
+        if codes[x] != 0:
+            continue
+        d = disp[y, x]
+        lim = d - step
+        xr = int(np.rint(np.float32(x) - d))
+        left_step = left_min[x] < lim
+        right_step = 0 <= xr < width and right_min[xr] < lim
+        if not (left_step or right_step):
+            continue
+        kill = False
+        if left_step:
+            own = _column_residual_left(gl, gr, y, x, d, hh)
+            if own > floor2:
+                kill = _left_candidates(gl, gr, left_cand, y, x, lim, radius, hh, ratio * own)
+        if not kill and right_step:
+            own = _column_residual_right(gl, gr, y, xr, d, hh)
+            if own > floor2:
+                kill = _right_candidates(gl, gr, right_cand, y, xr, lim, radius, hh,
+                                         ratio * own)
+        if kill:
+            out[y, x] = REASON_BOUNDARY
+
+
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def one_sided_rows(gl, gr, disp, zncc, side_min, rx, ry, y0, y1, reason):
-    """One-sided local support for rows y0..y1-1 (in place on ``reason``).
+def support_rows(gl, gr, disp, rdisp, zncc, smin, side_min, rx, ry, tol, y0, y1, reason,
+                 left_cand, right_cand):
+    """Local support (centred and one-sided) and the depth-edge candidates, rows y0..y1-1.
+
+    Valid pixels (``reason`` 0) whose centred support ``zncc`` is below ``smin`` get
+    REASON_SUPPORT, and so do those failing the one-sided support (``side_min`` > 0;
+    module notes); ``reason`` is updated in place (each test of a row reads that row).
+    Then the disparities the depth-edge test may offer as the farther surface:
+    ``left_cand`` holds those of the valid left pixels, ``right_cand`` at right column
+    xx the disparity of the left pixel xq = xx + v that the right view's winner v
+    points to, where that pixel agrees with v within ``tol`` (a left-right consistent
+    pair; subpixel, from the left image); 3e38 elsewhere.
 
     Parameters
     ----------
     gl, gr : (H, W) float32
         Grey left and right images.
     disp : (H, W) float32
-        Winner-take-all disparities (px).
+        Left winner-take-all disparities (px; kept for invalid pixels too).
+    rdisp : (H, W) float32
+        The right view's winner-take-all disparities (whole px, NaN where none).
     zncc : (H, W) float32
-        The centred local-support correlation of every pixel.
-    side_min : float
-        ``support_side_min_zncc``: a neighbour whose centred correlation is below it
-        calls for the one-sided block, which must reach it too.
+        Centred local-support correlation (ignored when ``smin`` is 0).
+    smin, side_min : float
+        ``support_min_zncc`` and ``support_side_min_zncc`` (0 = off).
     rx, ry : int
         Half width and half height of the one-sided block.
-    reason : (H, W) uint8
-        Valid pixels (0) that fail get REASON_SUPPORT; the test of a pixel reads only
-        its own code, so updating in place is order-independent.
     """
     width = gl.shape[1]
+    big = np.float32(3e38)
+    codes = np.empty(width, np.uint8)
     for y in range(y0, y1):
         for x in range(width):
-            if reason[y, x] != 0:
-                continue
-            d = disp[y, x]
-            for side in (-1, 1):
-                xx = x + side
-                if xx < 0 or xx >= width or zncc[y, xx] >= side_min:
-                    continue
-                if _zncc_block(gl, gr, y, xx, d, rx, ry) < side_min:
-                    reason[y, x] = REASON_SUPPORT
-                    break
+            c = reason[y, x]
+            if c == 0 and smin != 0 and not zncc[y, x] >= smin:
+                c = REASON_SUPPORT
+            codes[x] = c
+        if smin != 0 and side_min != 0:
+            _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes)
+        for x in range(width):
+            reason[y, x] = codes[x]
+            left_cand[y, x] = disp[y, x] if codes[x] == 0 else big
+            right_cand[y, x] = big
+            v = rdisp[y, x]
+            if v == v:
+                xq = int(np.rint(np.float32(x) + v))
+                if 0 <= xq < width and abs(disp[y, xq] - v) <= tol:
+                    right_cand[y, x] = disp[y, xq]
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def boundary_rows(gl, gr, disp, rdisp, reason, left_min, right_min, step, radius, hh,
-                  ratio, floor2, tol, y0, y1, out):
-    """Depth-edge hypothesis test for rows y0..y1-1 (see the module notes).
+def depth_edge_rows(gl, gr, disp, left_cand, right_cand, left_min, right_min, step, radius,
+                    hh, ratio, floor2, y0, y1, reason):
+    """The depth-edge test (module notes), rows y0..y1-1, in place on ``reason``.
 
     Parameters
     ----------
     gl, gr : (H, W) float32
         Grey left and right images.
     disp : (H, W) float32
-        Left winner-take-all disparities (subpixel; kept for invalid pixels too).
-    rdisp : (H, W) float32
-        Right view's winner-take-all disparities (whole pixels, NaN where none).
-    reason : (H, W) uint8
-        Codes before this test (read only): the left candidates are valid pixels.
-    left_min, right_min : (H, W) float32
-        Smallest valid left disparity, and smallest right-view disparity, within
-        +-``radius`` columns (+inf where none): pixels with no neighbour below
-        ``d - step`` on either side skip the test at once.
+        Left winner-take-all disparities (px).
+    left_cand, right_cand : (H, W) float32
+        From :func:`support_rows`; ``left_min``, ``right_min``: their minima over
+        +-``radius`` columns, so a pixel (or its right partner) without a candidate
+        below ``d - step`` skips the test at once.
     step : float
-        A neighbour counts as another surface when its disparity is below d - step.
+        A neighbour is another surface when its disparity is below d - step.
     radius : int
-        Columns searched on each side.
+        Columns searched on each side for such neighbours.
     hh : int
         The column residuals run over rows y-hh..y+hh.
     ratio : float
-        The neighbour's hypothesis wins when its residual is below ratio x the
-        pixel's own.
+        The farther surface wins when its residual is below ratio x the pixel's own.
     floor2 : float
         Own residuals at or below this (DN^2, the noise of a correct match) carry no
         evidence: the pixel is kept.
-    tol : float
-        A right-view candidate v (at right column xx) is used only if the left pixel
-        it points to, xx + v, has a disparity within tol of v.
-    out : (H, W) uint8
-        ``reason`` with REASON_BOUNDARY for the pixels that fail.
+    reason : (H, W) uint8
+        Valid pixels (0) that fail get REASON_BOUNDARY. The candidates were taken
+        before this test, so the result does not depend on the order of the pixels.
     """
-    width = gl.shape[1]
     for y in range(y0, y1):
-        for x in range(width):
-            out[y, x] = reason[y, x]
-            if reason[y, x] != 0:
-                continue
-            d = disp[y, x]
-            lim = d - step
-            xr = int(np.rint(np.float32(x) - d))
-            left_step = left_min[y, x] < lim
-            right_step = 0 <= xr < width and right_min[y, xr] < lim
-            if not (left_step or right_step):
-                continue
-            kill = False
-            if left_step:
-                own = _column_residual_left(gl, gr, y, x, d, hh)
-                if own > floor2:
-                    for j in range(1, radius + 1):
-                        for xx in (x - j, x + j):
-                            if xx < 0 or xx >= width or reason[y, xx] != 0:
-                                continue
-                            v = disp[y, xx]
-                            if v < lim and \
-                                    _column_residual_left(gl, gr, y, x, v, hh) < ratio * own:
-                                kill = True
-                                break
-                        if kill:
-                            break
-            if not kill and right_step:
-                own = _column_residual_right(gl, gr, y, xr, d, hh)
-                if own > floor2:
-                    for j in range(1, radius + 1):
-                        for xx in (xr - j, xr + j):
-                            if xx < 0 or xx >= width:
-                                continue
-                            v = rdisp[y, xx]
-                            if not v < lim:
-                                continue
-                            xq = int(np.rint(np.float32(xx) + v))
-                            if xq < 0 or xq >= width:
-                                continue
-                            vq = disp[y, xq]
-                            if abs(vq - v) <= tol and vq < lim and \
-                                    _column_residual_right(gl, gr, y, xr, vq, hh) < ratio * own:
-                                kill = True
-                                break
-                        if kill:
-                            break
-            if kill:
-                out[y, x] = REASON_BOUNDARY
+        _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand[y],
+                        right_cand[y], left_min[y], right_min[y], reason[y], reason)

@@ -136,7 +136,7 @@ class MatcherParams:
     support_side_min_zncc: float = 0.45
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
-    boundary_radius_px: int = 6
+    boundary_radius_px: int = 5
     boundary_noise_dn: float = 2.8
     subpixel: str = "parabola"
     speckle_window_px: int = 100
@@ -363,7 +363,9 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
         reason[weak] = REASON_TEXTURE
     gl = np.asarray(left_grey, np.float32)
     gr = np.asarray(right_grey, np.float32)
-    if params.support_min_zncc != 0:
+    smin = float(params.support_min_zncc)
+    zncc = disp  # not read when the support test is off
+    if smin != 0:
         warped = np.empty((h, w), np.float32)
         run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
                       threads)
@@ -371,38 +373,27 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
         r = int(params.support_radius_px)
         run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
                       pool, threads)
-        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
-        if params.support_side_min_zncc != 0:
-            args = (float(params.support_side_min_zncc), r, int(n))
-            run_row_bands(lambda y0, y1: _boundary.one_sided_rows(
-                gl, gr, disp, zncc, *args, y0, y1, reason), h, pool, threads)
-    if params.boundary_ratio > 0:
-        _depth_edge_test(gl, gr, disp, rdisp, reason, params, pool, threads)
-
-
-def _depth_edge_test(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, rdisp: np.ndarray,
-                     reason: np.ndarray, params: MatcherParams,
-                     pool: ThreadPoolExecutor | None, threads: int) -> None:
-    """Mark valid pixels that the farther side of a depth edge explains better
-    (slitcli.stereo._boundary.boundary_rows), in place on ``reason``."""
-    from slitcli.stereo import _boundary
-
-    h = disp.shape[0]
-    big = np.float32(3e38)
-    k = np.ones((1, 2 * int(params.boundary_radius_px) + 1), np.uint8)
-    # smallest disparity within +-radius columns: most pixels have no step and skip
-    left_min = cv2.erode(np.where(reason == REASON_VALID, disp, big).astype(np.float32), k,
-                         borderType=cv2.BORDER_CONSTANT, borderValue=float(big))
-    right_min = cv2.erode(np.where(np.isfinite(rdisp), rdisp, big).astype(np.float32), k,
-                          borderType=cv2.BORDER_CONSTANT, borderValue=float(big))
-    before = reason.copy()
+    if smin == 0 and params.boundary_ratio <= 0:
+        return
     tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
-    args = (float(params.boundary_step_px), int(params.boundary_radius_px),
-            int(params.window_h_px // 2), float(params.boundary_ratio),
-            float(params.boundary_noise_dn) ** 2, tol)
-    run_row_bands(lambda y0, y1: _boundary.boundary_rows(
-        gl, gr, disp, rdisp, before, left_min, right_min, *args, y0, y1, reason), h, pool,
+    left_cand = np.empty((h, w), np.float32)
+    right_cand = np.empty((h, w), np.float32)
+    args = (smin, float(params.support_side_min_zncc), int(params.support_radius_px), int(n),
+            tol)
+    run_row_bands(lambda y0, y1: _boundary.support_rows(
+        gl, gr, disp, rdisp, zncc, *args, y0, y1, reason, left_cand, right_cand), h, pool,
         threads)
+    if params.boundary_ratio <= 0:
+        return
+    # smallest candidate within +-radius columns: most pixels have no step and skip
+    k = np.ones((1, 2 * int(params.boundary_radius_px) + 1), np.uint8)
+    left_min = cv2.erode(left_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
+    right_min = cv2.erode(right_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
+    args = (float(params.boundary_step_px), int(params.boundary_radius_px), int(n),
+            float(params.boundary_ratio), float(params.boundary_noise_dn) ** 2)
+    run_row_bands(lambda y0, y1: _boundary.depth_edge_rows(
+        gl, gr, disp, left_cand, right_cand, left_min, right_min, *args, y0, y1, reason), h,
+        pool, threads)
 
 
 def _kernel_threads() -> int:
