@@ -81,7 +81,7 @@ def _speed_rows(timer, size, num) -> list[dict]:
     nssd = MatcherParams(num_disparities=num)
     plain = MatcherParams(num_disparities=num, prefilter="none", texture_min_dn=0.0,
                           uniqueness_ratio=0.0, lr_max_diff_px=-1, support_min_zncc=0.0,
-                          speckle_window_px=0, subpixel="none")
+                          boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
     t = interleaved({
         "bm": lambda: bm.compute(lg, rg),
         "nssd default filters": lambda: compute_disparity(lg, rg, nssd),
@@ -90,7 +90,8 @@ def _speed_rows(timer, size, num) -> list[dict]:
     })
     notes = {
         "nssd default filters": "Eq. 10 + prefilter, texture, uniqueness, left-right, "
-                                "support, speckle; limit 3x at 320x240",
+                                "support (centred and one-sided), depth edges, speckle; "
+                                "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
@@ -183,14 +184,16 @@ def _accuracy_rows() -> list[dict]:
     settings = {
         "plain WTA (filters off)": replace(base, prefilter="none", texture_min_dn=0.0,
                                            uniqueness_ratio=0.0, lr_max_diff_px=-1,
-                                           support_min_zncc=0.0, speckle_window_px=0,
-                                           subpixel="none"),
+                                           support_min_zncc=0.0, boundary_ratio=0.0,
+                                           speckle_window_px=0, subpixel="none"),
         "default filters": base,
         "default, prefilter none": replace(base, prefilter="none"),
         "default, prefilter xsobel": replace(base, prefilter="xsobel"),
         "default, prefilter log": replace(base, prefilter="log"),
         "default, speckle off": replace(base, speckle_window_px=0),
         "default, support off": replace(base, support_min_zncc=0.0),
+        "default, one-sided support off": replace(base, support_side_min_zncc=0.0),
+        "default, depth-edge test off": replace(base, boundary_ratio=0.0),
         "default, left-right off": replace(base, lr_max_diff_px=-1),
         "default, uniqueness off": replace(base, uniqueness_ratio=0.0),
     }

@@ -1,6 +1,7 @@
 """Synthetic left images with an exactly known laser stripe, for the laser tests and bench.
 
-The image is ``albedo * (ambient + laser)`` per channel, plus seeded Gaussian noise,
+The image is ``albedo * ambient + colour * laser`` per channel (``colour`` the surface's
+albedo colour without its texture, as in the renderer), plus seeded Gaussian noise,
 rounded and clipped to 0..255 (clipping is the saturation model). The laser profile
 across the stripe is a Gaussian of standard deviation ``sigma_px`` integrated over
 each pixel's extent [v - 0.5, v + 0.5] with erf, so the true centre row is exact.
@@ -46,11 +47,14 @@ def textured_albedo(shape: tuple[int, int], rng: np.random.Generator, *, scale_p
     return np.clip(1.0 + contrast * n, 0.2, 1.8)
 
 
-def stripe_profile(stripe_v_px: np.ndarray, height: int, sigma_px: float) -> np.ndarray:
-    """Pixel-integrated unit-peak Gaussian stripe, shape (H, W); zero where the row is NaN."""
+def stripe_profile(stripe_v_px: np.ndarray, height: int, sigma_px) -> np.ndarray:
+    """Pixel-integrated unit-peak Gaussian stripe, shape (H, W); zero where the row is NaN.
+
+    ``sigma_px`` is a number or one value per column (shape (W,)).
+    """
     v = np.arange(height, dtype=float)[:, None]
     c = np.asarray(stripe_v_px, dtype=float)[None, :]
-    s = np.sqrt(2.0) * sigma_px
+    s = np.sqrt(2.0) * np.asarray(sigma_px, dtype=float)
     with np.errstate(invalid="ignore"):
         mass = 0.5 * (erf((v + 0.5 - c) / s) - erf((v - 0.5 - c) / s))
     # scale so that a stripe centred on a pixel has that pixel at 1 (peak of the area)
@@ -58,7 +62,7 @@ def stripe_profile(stripe_v_px: np.ndarray, height: int, sigma_px: float) -> np.
     return np.nan_to_num(mass / peak)
 
 
-def make_frame(rig: Rig, *, forward_m: float = 0.8, sigma_px: float = 1.2,
+def make_frame(rig: Rig, *, forward_m: float = 0.8, sigma_px=1.2,
                laser_dn: float = 110.0, ambient_dn: float = 70.0, noise_dn: float = 2.5,
                crosstalk: tuple[float, float] = (0.12, 0.08), seed: int = 0,
                red_rect: tuple[int, int, int, int] | None = None,
@@ -71,13 +75,16 @@ def make_frame(rig: Rig, *, forward_m: float = 0.8, sigma_px: float = 1.2,
     Parameters
     ----------
     forward_m : wall distance ahead (sensor x), metres; sets the true stripe rows.
-    sigma_px : stripe Gaussian standard deviation across the stripe, pixels.
+    sigma_px : stripe Gaussian standard deviation across the stripe, pixels (a number
+        or one per column).
     laser_dn : laser peak added to the red channel on unit albedo, DN (before clipping).
     ambient_dn : ambient light on unit albedo, DN.
     noise_dn : additive Gaussian noise standard deviation, DN.
     crosstalk : laser light seen by the green and blue channels, fraction of red.
     red_rect : (u0, v0, u1, v1) a wide red object (albedo red 1.6, green/blue 0.25)
-        that the stripe crosses (it must contain the stripe rows).
+        that the stripe crosses (it must contain the stripe rows); the laser light on
+        it is scaled by the object's red albedo but, as in the project's renderer, not
+        by its texture.
     red_rect_off_laser : (u0, v0, u1, v1) a red object away from the stripe.
     white_blob : (u, v, radius_px) a saturated white highlight.
     stripe_cols : (u0, u1) columns where the stripe is drawn (default: all).
@@ -107,7 +114,14 @@ def make_frame(rig: Rig, *, forward_m: float = 0.8, sigma_px: float = 1.2,
     light[:, :, 0] = ambient_dn + laser_dn * prof
     light[:, :, 1] = ambient_dn + laser_dn * crosstalk[0] * prof
     light[:, :, 2] = ambient_dn + laser_dn * crosstalk[1] * prof
-    img = albedo * light + rng.normal(scale=noise_dn, size=(h, w, 3))
+    img = albedo * ambient_dn + rng.normal(scale=noise_dn, size=(h, w, 3))
+    # the laser adds light scaled by the surface's albedo colour, not its texture
+    colour = np.ones((h, w, 3))
+    for rect, _ in ((red_rect, True), (red_rect_off_laser, False)):
+        if rect is not None:
+            u0, v0, u1, v1 = rect
+            colour[v0:v1, u0:u1] = (1.6, 0.25, 0.25)
+    img += colour * (light - ambient_dn)
     if white_blob is not None:
         bu, bv, br = white_blob
         yy, xx = np.mgrid[0:h, 0:w]

@@ -52,18 +52,29 @@ def plane_pair(disparity_px: float, *, width: int = 320, height: int = 240,
 
 def occlusion_pair(background_px: float, foreground_px: float, box: tuple[int, int, int, int],
                    *, noise_dn: float = 1.0, seed: int = 0, width: int = 320,
-                   height: int = 240) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   height: int = 240, foreground_contrast_dn: float = 40.0,
+                   background_contrast_dn: float = 40.0,
+                   background_dn: float = 128.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A textured square (left-image columns x0..x1-1, rows y0..y1-1) in front of a
     textured background plane. Returns left, right (uint8) and the true left disparity.
+
+    The textures' contrasts (``texture``'s ``contrast_dn``) are set apart; a background
+    contrast of 0 gives a plain background of ``background_dn``.
     """
     x0, x1, y0, y1 = box
     u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
     in_rows = (v >= y0) & (v < y1)
     fg_left = in_rows & (u >= x0) & (u < x1)
     fg_right = in_rows & (u + foreground_px >= x0) & (u + foreground_px < x1)
-    left = np.where(fg_left, texture(u, v, seed=7), texture(u, v))
-    right = np.where(fg_right, texture(u + foreground_px, v, seed=7),
-                     texture(u + background_px, v))
+
+    def fg(uu: np.ndarray) -> np.ndarray:
+        return texture(uu, v, seed=7, contrast_dn=foreground_contrast_dn)
+
+    def bg(uu: np.ndarray) -> np.ndarray:
+        return texture(uu, v, contrast_dn=background_contrast_dn, mean_dn=background_dn)
+
+    left = np.where(fg_left, fg(u), bg(u))
+    right = np.where(fg_right, fg(u + foreground_px), bg(u + background_px))
     truth = np.where(fg_left, foreground_px, background_px)
     rng = np.random.default_rng(seed)
     return quantise(left, noise_dn, rng), quantise(right, noise_dn, rng), truth

@@ -1,92 +1,162 @@
-"""Laser extraction against the project's renderer (slitcli.sim), exact stripe truth."""
+"""Issue 4's must-shows, on frames of the project's renderer (slitcli.sim) with exact truth.
 
+The truth calls a column's stripe visible when its expected peak is at least the
+scene's ``laser.visible_min_dn`` (20 DN, ten noise sigmas by default). Each case
+measures, against it: the share of visible columns found; the columns reported where
+no laser light falls at all (false returns: highlights, red objects, texture, edges)
+and, apart, those where it falls below the visibility level (a real, faint stripe:
+the truth computed again with ``visible_min_dn`` 1 DN); the row error of the found
+columns (px) and the forward distance error (share of the range).
+"""
+
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from slitcli.laser import LaserGeometry, LaserParams, detect_laser
 from slitcli.rig import paper_rig
-from slitcli.sim.render import render_frame
-from slitcli.sim.scene import load_scene, scene_from_dict
+from slitcli.sim.render import frame_truth, render_frame
+from slitcli.sim.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
 RIG = paper_rig()
 PARAMS = LaserParams()
 GEOM = LaserGeometry.from_rig(RIG, PARAMS)
+GREY = (0.7, 0.68, 0.62)
+RED = (0.85, 0.12, 0.1)
 
 
-def _wall(forward_m, *, texture="noise", noise_dn=2.0, seed=1):
-    return scene_from_dict({
-        "slitcli_scene": 1, "name": "wall", "seed": seed,
-        "objects": [{"type": "wall", "from_xy_m": [forward_m, -3.0], "to_xy_m": [forward_m, 3.0],
-                     "height_m": 2.0,
-                     "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": texture,
-                                 "scale_m": 0.02, "contrast": 0.6}}],
-        "image": {"noise_sigma_dn": noise_dn}, "robot": {"frames": 1}})
+def _wall(forward_m, *, noise_dn=2.0, power_dn=900.0, width_m=0.004, colour=GREY,
+          contrast=0.6, laser=True):
+    return {"slitcli_scene": 1, "name": "wall", "seed": 5,
+            "objects": [{"type": "wall", "from_xy_m": [forward_m, -3.0],
+                         "to_xy_m": [forward_m, 3.0], "height_m": 2.0,
+                         "surface": {"colour_rgb": list(colour), "texture": "noise",
+                                     "scale_m": 0.02, "contrast": contrast}}],
+            "laser": {"power_dn": power_dn, "width_m": width_m, "enabled": laser},
+            "image": {"noise_sigma_dn": noise_dn}, "robot": {"frames": 1}}
 
 
-def _detect(scene, frame_index=0):
-    pose = scene.poses(frame_index + 1)[frame_index]
-    r = render_frame(scene, RIG, pose, frame_index=frame_index)
-    return r, detect_laser(r.left_bgr, RIG, PARAMS, geometry=GEOM)
+def _sample(name, power_dn=900.0):
+    d = yaml.safe_load((ROOT / "sample_data" / f"{name}.yaml").read_text())
+    d.setdefault("laser", {})["power_dn"] = power_dn
+    return d
 
 
-def _stats(r, f):
+@cache
+def _frame(key):
+    """Render (once per test session) and detect one frame; key = (scene yaml, frame).
+    Returns the frame, the detection and the rows of any laser light (>= 1 DN)."""
+    text, frame = key
+    d = yaml.safe_load(text)
+    scene = scene_from_dict(d)
+    pose = scene.poses(frame + 1)[frame]
+    r = render_frame(scene, RIG, pose, frame_index=frame)
+    d["laser"] = {**d.get("laser", {}), "visible_min_dn": 1.0}
+    lit_v = frame_truth(scene_from_dict(d), RIG, pose).stripe_v_px
+    return r, detect_laser(r.left_bgr, RIG, PARAMS, geometry=GEOM), lit_v
+
+
+def _run(scene_dict, frame=0):
+    return _frame((yaml.safe_dump(scene_dict), frame))
+
+
+def _stats(r, f, lit_v):
     t = r.truth.stripe_v_px
     vis = np.isfinite(t)
     both = vis & f.found
     err = f.v_px[both] - t[both]
-    return vis, both, err
-
-
-@pytest.mark.parametrize(("forward_m", "texture"), [(0.6, "plain"), (0.8, "plain"),
-                                                    (0.8, "noise")])
-def test_rendered_wall_row_rms_and_forward_distance(forward_m, texture):
-    r, f = _detect(_wall(forward_m, texture=texture))
-    vis, both, err = _stats(r, f)
-    assert vis.sum() == 320
-    assert both.sum() / vis.sum() >= 0.99
-    assert not (f.found & ~vis).any()
-    assert np.sqrt(np.mean(err**2)) <= 0.10
     x_true = r.truth.stripe_sensor_xyz[both, 0]
-    assert np.median(np.abs(f.x_m[both] - x_true) / x_true) <= 0.005
-    assert np.median(np.abs(f.x_m[both] - forward_m) / forward_m) <= 0.005
+    fwd = np.abs(f.x_m[both] - x_true) / x_true
+    faint = f.found & ~vis & (np.abs(np.nan_to_num(f.v_px - lit_v, nan=99.0)) < 1.5)
+    return dict(vis=int(vis.sum()), found=both.sum() / max(vis.sum(), 1),
+                false=int((f.found & ~vis & ~faint).sum()), faint=int(faint.sum()),
+                wrong=int((np.abs(err) >= 1.5).sum()),
+                rms=float(np.sqrt(np.mean(err[np.abs(err) < 1.5] ** 2))),
+                fwd_median=float(np.median(fwd)))
 
 
-def test_rendered_wall_at_1m_faint_edges():
-    # the stripe fades with range: at 1 m the image corners hold peaks near 16 DN
-    r, f = _detect(_wall(1.0))
-    vis, both, err = _stats(r, f)
-    assert both.sum() / vis.sum() >= 0.97
-    assert not (f.found & ~vis).any()
-    assert np.sqrt(np.mean(err**2)) <= 0.15
-    x_true = r.truth.stripe_sensor_xyz[both, 0]
-    assert np.median(np.abs(f.x_m[both] - x_true) / x_true) <= 0.005
+@pytest.mark.parametrize(("case", "wall", "rms_max"), [
+    # clean stripes, noise 2-3 DN: at 0.8 and 1.0 m the default 4 mm sheet gives
+    # sigma 0.8-0.9 px; a 6 mm sheet at 0.9 m gives 1.2-1.3 px (the issue's 1-1.5)
+    ("0.8 m", dict(forward_m=0.8), 0.10),
+    ("1.0 m", dict(forward_m=1.0), 0.10),
+    ("0.9 m, 6 mm sheet, noise 3", dict(forward_m=0.9, width_m=0.006, power_dn=500.0,
+                                        noise_dn=3.0), 0.10),
+    # saturated (the red core clipped across the image) and noisy stripes
+    ("0.6 m saturated", dict(forward_m=0.6), 0.20),
+    ("0.8 m noise 8", dict(forward_m=0.8, noise_dn=8.0), 0.20),
+])
+def test_rendered_walls_rows_and_forward_distance(case, wall, rms_max):
+    r, f, lit = _run(_wall(**wall))
+    s = _stats(r, f, lit)
+    assert s["vis"] >= 300, case
+    assert s["found"] >= 0.99, case
+    assert s["false"] == 0 and s["faint"] == 0 and s["wrong"] == 0, case
+    assert s["rms"] <= rms_max, case
+    assert s["fwd_median"] <= 0.005, case
+    if case.endswith("saturated"):
+        assert f.saturated[f.found].mean() >= 0.9
 
 
-def test_rendered_fig4_scene():
-    r, f = _detect(load_scene(ROOT / "sample_data" / "fig4.yaml"))
-    vis, both, err = _stats(r, f)
-    assert both.sum() / vis.sum() >= 0.99
-    assert np.sqrt(np.mean(err[np.abs(err) < 1.5] ** 2)) <= 0.10
-    assert np.sum(np.abs(err) >= 1.5) == 0
-    # the two box fronts (0.6 m and 0.8 m ahead) come out at their distances
-    x = f.x_m[both]
-    assert np.any(np.abs(x - 0.6) < 0.005) and np.any(np.abs(x - 0.8) < 0.005)
+SAMPLE_FRAMES = [("fig4", 900.0, 0), ("fig4", 500.0, 0), ("distractors", 900.0, 0),
+                 ("distractors", 500.0, 0), ("corridor", 900.0, 0), ("corridor", 500.0, 20)]
 
 
-def test_rendered_distractors_red_box_highlights():
-    scene = load_scene(ROOT / "sample_data" / "distractors.yaml")
-    r, f = _detect(scene)
-    vis, both, err = _stats(r, f)
+def test_rendered_sample_scenes_found_and_no_false_columns():
+    # the sample scenes at the default laser power (900 DN at 0.6 m) and at 500 DN
+    stats = [_stats(*_run(_sample(name, power_dn), frame))
+             for name, power_dn, frame in SAMPLE_FRAMES]
+    vis = sum(s["vis"] for s in stats)
+    found = sum(s["found"] * s["vis"] for s in stats) / vis
+    assert found >= 0.99
+    for s, case in zip(stats, SAMPLE_FRAMES, strict=True):
+        assert s["found"] >= 0.98, case  # one or two end columns of an object at most
+        # no column without laser light: highlights, the far red box, the floor's
+        # texture, wall/floor edges
+        assert s["false"] == 0, case
+        assert s["wrong"] == 0, case
+        assert s["rms"] <= 0.20, case
+        assert s["fwd_median"] <= 0.005, case
+    # where a surface's stripe fades through the visibility level (20 DN) a few
+    # columns just below it may be reported (real, at their range)
+    assert sum(s["faint"] for s in stats) <= 0.01 * vis
+
+
+def test_rendered_fig4_box_fronts():
+    _, f, _ = _run(_sample("fig4"))
+    x = f.x_m[f.found]
+    # the two box fronts, 0.6 m and 0.8 m ahead
+    assert np.sum(np.abs(x - 0.6) < 0.003) >= 40 and np.sum(np.abs(x - 0.8) < 0.004) >= 40
+
+
+@pytest.mark.parametrize("power_dn", [900.0, 500.0])
+def test_rendered_red_box_laser_not_the_box(power_dn):
+    # distractors: the laser crosses a wide red box (its red channel saturates at 900 DN
+    # power, the stripe shows in the green/blue crosstalk); a second red box and two
+    # lamp highlights are out of the laser's reach
+    r, f, _ = _run(_sample("distractors", power_dn))
     t = r.truth.stripe_v_px
-    cols = np.flatnonzero(vis)
+    cols = np.flatnonzero(np.isfinite(t))
     rows = np.clip(np.rint(t[cols]).astype(int), 0, RIG.height_px - 1)
     on_red = cols[r.truth.object_id[rows, cols] == 1]  # object 0 is the red box (id k + 1)
-    assert on_red.size >= 40
-    hit = np.abs(f.v_px[on_red] - t[on_red]) < 1.0
+    assert on_red.size >= 150
+    hit = np.abs(np.nan_to_num(f.v_px[on_red] - t[on_red], nan=9.0)) < 1.0
     assert hit.mean() >= 0.95
-    assert both.sum() / vis.sum() >= 0.99
-    assert not (f.found & ~vis).any()  # no column from the highlights or the far red box
-    assert np.sum(np.abs(err) >= 1.5) == 0
+
+
+def test_rendered_wide_red_wall_with_and_without_the_laser():
+    # a red wall filling the view (texture contrast 0.6) 0.8 m ahead: its texture is
+    # red like the laser (colour cannot cancel it), the stripe saturates on it
+    r, f, lit = _run(_wall(0.8, colour=RED))
+    s = _stats(r, f, lit)
+    assert s["found"] >= 0.95 and s["false"] == 0 and s["wrong"] == 0
+    assert s["rms"] <= 0.30
+    # the same wall without the laser, and a more strongly textured one: no column
+    for wall in (dict(forward_m=0.8, colour=RED, laser=False),
+                 dict(forward_m=0.7, colour=RED, contrast=0.9, laser=False)):
+        _, f, _ = _run(_wall(**wall))
+        assert not f.found.any()

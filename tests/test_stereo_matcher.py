@@ -9,6 +9,7 @@ from stereo_synth import occlusion_pair, plane_pair
 
 from slitcli.errors import SlitcliError
 from slitcli.stereo.matcher import (
+    REASON_BOUNDARY,
     REASON_LEFT_RIGHT,
     REASON_VALID,
     MatcherParams,
@@ -17,7 +18,7 @@ from slitcli.stereo.matcher import (
 )
 
 PLAIN = dict(prefilter="none", texture_min_dn=0.0, uniqueness_ratio=0.0, lr_max_diff_px=-1,
-             support_min_zncc=0.0, speckle_window_px=0, subpixel="none")
+             support_min_zncc=0.0, boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
 
 
 def brute_force_eq10(pl: np.ndarray, pr: np.ndarray, dmin: int, num: int, m: int, n: int
@@ -169,6 +170,67 @@ def test_left_right_check_marks_the_occluded_band():
     assert (res.invalid_reason[~occluded] == REASON_VALID).mean() >= 0.85
 
 
+def _fattening(res, fg_px: float, bg_px: float, box: tuple[int, int, int, int]):
+    """Per row of the square (away from its top and bottom): valid pixels outside the
+    square that carry the square's disparity, left and right of it (px), and the share
+    of rows whose first and last square columns are valid at the square's disparity."""
+    x0, x1, y0, y1 = box
+    d = res.disparity_px[y0 + 10:y1 - 10]
+    fg = np.isfinite(d) & (np.abs(d - fg_px) < np.abs(d - bg_px))
+    return (fg[:, :x0].sum(axis=1), fg[:, x1:].sum(axis=1),
+            fg[:, x0].mean(), fg[:, x1 - 1].mean())
+
+
+EDGES_OFF = dict(boundary_ratio=0.0, support_side_min_zncc=0.0)
+
+
+def test_depth_edges_keep_the_foreground_inside_its_silhouette():
+    # a strongly textured square at 20 px in front of a weakly textured plane at 8 px:
+    # the 9 x 9 window matches the square's texture up to half a window past its edges
+    box = (140, 220, 60, 180)
+    left, right, _ = occlusion_pair(8.0, 20.0, box, noise_dn=2.0,
+                                    foreground_contrast_dn=60.0, background_contrast_dn=10.0)
+    fat_l, fat_r, first, last = _fattening(
+        compute_disparity(left, right, MatcherParams(num_disparities=32)), 20.0, 8.0, box)
+    assert fat_l.mean() <= 0.05 and fat_r.mean() <= 0.05   # px per row, each side
+    assert first >= 0.9 and last >= 0.9                    # the square keeps its edges
+    # the same matcher without the depth-edge and one-sided support tests fattens
+    off_l, off_r, _, _ = _fattening(compute_disparity(
+        left, right, MatcherParams(num_disparities=32, **EDGES_OFF)), 20.0, 8.0, box)
+    assert off_l.mean() >= 0.5 and off_r.mean() >= 0.5
+
+
+def test_textured_square_on_a_plain_background_does_not_spill():
+    box = (140, 220, 60, 180)
+    left, right, _ = occlusion_pair(8.0, 20.0, box, noise_dn=2.0, background_contrast_dn=0.0)
+    res = compute_disparity(left, right, MatcherParams(num_disparities=32))
+    fat_l, fat_r, first, last = _fattening(res, 20.0, 8.0, box)
+    assert fat_l.mean() <= 0.3 and fat_r.mean() <= 0.3
+    assert first >= 0.9 and last >= 0.9
+    off_l, off_r, _, _ = _fattening(compute_disparity(
+        left, right, MatcherParams(num_disparities=32, **EDGES_OFF)), 20.0, 8.0, box)
+    assert off_l.mean() >= 1.0 and off_r.mean() >= 1.0
+    # the plain background is not matched at all, a few pixels from the square on
+    assert not res.valid[70:170, :130].any() and not res.valid[70:170, 230:].any()
+
+
+def test_depth_edge_test_marks_its_pixels():
+    box = (140, 220, 60, 180)
+    left, right, truth = occlusion_pair(8.0, 20.0, box, noise_dn=2.0,
+                                        foreground_contrast_dn=60.0,
+                                        background_contrast_dn=10.0)
+    res = compute_disparity(left, right, MatcherParams(num_disparities=32))
+    marked = res.invalid_reason == REASON_BOUNDARY
+    assert marked.sum() >= 50
+    # it never removes a pixel of the square: every marked pixel sees the background,
+    # next to the square (within the 12 px band hidden from the right camera plus half
+    # a window), where the window straddles a depth edge
+    assert (truth[marked] == 8.0).all()
+    ys, xs = np.nonzero(marked)
+    assert ((ys >= box[2] - 5) & (ys < box[3] + 5)).all()
+    assert ((xs >= box[0] - 17) & (xs < box[1] + 5)).all()
+
+
 @pytest.mark.parametrize("matcher", ["bm", "sgbm"])
 def test_opencv_matchers_behind_the_same_interface(matcher):
     d = 12.3
@@ -190,6 +252,9 @@ def test_opencv_matchers_behind_the_same_interface(matcher):
     (dict(window_h_px=4), "--window height 4"),
     (dict(matcher="bm", num_disparities=40), "multiple of 16"),
     (dict(prefilter="median"), "--prefilter"),
+    (dict(boundary_ratio=1.5), "--boundary-ratio"),
+    (dict(support_side_min_zncc=2.0), "--support-side-min"),
+    (dict(boundary_radius_px=0), "boundary_radius_px"),
 ])
 def test_impossible_parameters_are_one_line_errors(kwargs, fragment):
     with pytest.raises(SlitcliError, match=fragment) as e:

@@ -68,18 +68,37 @@ def test_textured_surfaces_within_3m(corridor):
 def test_textureless_surfaces_are_invalid_not_guessed(corridor):
     _, frame, res = corridor
     t = frame.truth
+    # every pixel whose truth sees a plain surface (the two plain boxes: silhouettes and
+    # the crease between two differently shaded faces included, no erosion)
     plain = ~t.textured & np.isfinite(t.disparity_px)
     valid = np.isfinite(res.disparity_px)
     assert plain.sum() > 10000
-    # every pixel of the plain boxes, silhouettes and the crease between two shaded
-    # faces included (those carry real edges that match correctly)
-    assert (~valid[plain]).mean() >= 0.90
+    assert (~valid[plain]).mean() >= 0.95                  # issue 5
     # pixels at least 1 px inside a plain surface
     inner = cv2.erode(plain.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    assert (~valid[inner]).mean() >= 0.93
+    assert (~valid[inner]).mean() >= 0.97
     err = np.abs(res.disparity_px - t.disparity_px)
     guessed = plain & valid & (err > 1.0)
-    assert guessed.sum() / plain.sum() <= 0.04
+    assert guessed.sum() / plain.sum() <= 0.025
+
+
+def test_nearer_surfaces_do_not_spill_past_their_silhouettes(corridor):
+    # a valid pixel whose disparity is more than 1 px above the truth and within 1 px of
+    # a surface that the truth shows within 5 columns carries that nearer surface past
+    # its silhouette (the correlation window straddles the depth edge)
+    _, frame, res = corridor
+    g = frame.truth.disparity_px
+    d = res.disparity_px
+    valid = np.isfinite(d) & np.isfinite(g)
+    g_near = np.where(np.isfinite(g), g, -100.0)
+    d_any = np.where(np.isfinite(d), d, -200.0)
+    nearby = np.zeros_like(valid)
+    for shift in range(-5, 6):
+        nearby |= np.abs(np.roll(g_near, shift, axis=1) - d_any) < 1.0
+    spilled = valid & (d - g > 1.0) & nearby
+    # 0.18 % measured (0.67 % without the depth-edge and one-sided support tests); the
+    # rest are pixels whose footprint straddles the silhouette
+    assert spilled.sum() / valid.sum() <= 0.0025
 
 
 def test_ranges_per_bearing_against_the_truth(corridor):

@@ -5,6 +5,7 @@ stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points -
 nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
 """
 
+from slitcli.laser import kernels, select
 from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
 from slitcli.laser.extract import StripeColumns, candidate_mask, chromaticity, extract_stripe
 from slitcli.laser.frame import (
@@ -32,8 +33,10 @@ __all__ = [
     "detect_laser",
     "draw_overlay",
     "extract_stripe",
+    "kernels",
     "laser_table",
     "nearest_range_per_bin",
     "run_laser",
+    "select",
     "triangulate_stripe",
 ]

@@ -26,9 +26,14 @@ class LaserGeometry:
     search_mask : ndarray, shape (H, W) bool
         Pixels whose ray meets the laser plane in front of the camera at a
         horizontal range (sensor frame) of at most ``max_search_range_m``.
+    px_per_m : ndarray, shape (H, W) float
+        Image rows per metre of height on an upright surface at the point where each
+        pixel's ray meets the laser plane (the scale of the sheet's thickness in the
+        image); NaN where the ray misses the plane.
     """
 
     search_mask: np.ndarray
+    px_per_m: np.ndarray
 
     @classmethod
     def from_rig(cls, rig: Rig, params: LaserParams) -> LaserGeometry:
@@ -39,7 +44,13 @@ class LaserGeometry:
         rng = np.hypot(pts[..., 0], pts[..., 1])
         with np.errstate(invalid="ignore"):
             mask = np.isfinite(rng) & (rng <= params.max_search_range_m)
-        return cls(search_mask=mask)
+        # rows of the points 1 mm above and below on the vertical through each point
+        step = np.array([0.0, 0.0, 1e-3])
+        _, v_up = rig.project_cam(rig.sensor_to_cam(pts + step))
+        _, v_dn = rig.project_cam(rig.sensor_to_cam(pts - step))
+        with np.errstate(invalid="ignore"):
+            px_per_m = np.abs(v_dn - v_up) / 2e-3
+        return cls(search_mask=mask, px_per_m=np.where(mask, px_per_m, np.nan))
 
 
 @dataclass(frozen=True)
@@ -136,9 +147,13 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
                          f"{rig.width_px}x{rig.height_px}")
     geometry = LaserGeometry.from_rig(rig, params) if geometry is None else geometry
     prev = previous.v_px if isinstance(previous, LaserFrame) else previous
-    stripe = extract_stripe(img, params, search_mask=geometry.search_mask, previous_v_px=prev)
+    stripe = extract_stripe(img, params, search_mask=geometry.search_mask, previous_v_px=prev,
+                            px_per_m=geometry.px_per_m)
     u = np.arange(rig.width_px, dtype=np.float64)
-    x, y, rng, bearing = triangulate_stripe(rig, u, stripe.v_px)
+    found = np.isfinite(stripe.v_px)
+    x, y, rng, bearing = (np.full(rig.width_px, np.nan) for _ in range(4))
+    x[found], y[found], rng[found], bearing[found] = triangulate_stripe(
+        rig, u[found], stripe.v_px[found])
     with np.errstate(invalid="ignore"):
         in_band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
     return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,

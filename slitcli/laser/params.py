@@ -52,6 +52,10 @@ class LaserParams:
     max_search_range_m : float
         Only rows whose laser-plane intersection lies within this horizontal range
         are searched, metres.
+    sheet_sigma_mm : float
+        Thickness of the laser sheet (Gaussian sigma across the plane), millimetres.
+        With the rig geometry, a candidate whose fitted width implies a sheet more
+        than 1.6 times thicker or thinner is not the laser; 0 turns the test off.
     """
 
     min_th: float = 0.35
@@ -61,7 +65,7 @@ class LaserParams:
     gamma: float = 0.25
     max_width_px: float = 8.0
     background_window_px: int = 21
-    min_peak_dn: float = 10.0
+    min_peak_dn: float = 19.0
     noise_k: float = 5.0
     seed_fraction: float = 0.35
     saturation_dn: int = 250
@@ -69,6 +73,7 @@ class LaserParams:
     max_jump_px: float = 3.0
     min_segment_cols: int = 8
     max_search_range_m: float = 3.0
+    sheet_sigma_mm: float = 4.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -89,6 +94,7 @@ class LaserParams:
             "max_jump_px": self.max_jump_px > 0.0,
             "min_segment_cols": self.min_segment_cols >= 1,
             "max_search_range_m": self.max_search_range_m > 0.0,
+            "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -116,4 +122,5 @@ _RANGES = {
     "max_jump_px": "give a row step > 0 px",
     "min_segment_cols": "give a whole number of columns >= 1",
     "max_search_range_m": "give a range > 0 m",
+    "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
 }

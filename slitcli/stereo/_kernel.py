@@ -144,7 +144,7 @@ def _colsum_rows(colsum, pl, prr, ra, rs, do_add, do_sub, dmin, num, m):
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-              disp_out, cost_out, energy_out, reason_out):
+              disp_out, cost_out, energy_out, reason_out, rdisp_out):
     """Eq. 10 winner-take-all with subpixel, uniqueness and left-right check.
 
     Parameters
@@ -173,6 +173,10 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
         none) and left window energy ``sum P_l^2`` over the window clipped to the image.
     reason_out : (H, W) uint8
         REASON_* code per pixel.
+    rdisp_out : (H, W) float32
+        The right image's own winner-take-all disparity per right pixel (whole pixels,
+        read from the same costs as the left-right check; NaN where none): the right
+        view's disparity image, for the depth-edge test of slitcli.stereo._boundary.
     """
     height, width = pl.shape
     uw = _U(width)
@@ -295,6 +299,7 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
         for x in range(width):
             rk = rkey[width - 1 - x]
             rbest_i[x] = np.int32(rk & index_mask) if rk < inf_key else -1
+            rdisp_out[y, x] = np.float32(dmin + rbest_i[x]) if rbest_i[x] >= 0 else np.nan
         for x in range(width):
             energy_out[y, x] = cly[min(x + m, width - 1) + 1] - cly[max(x - m, 0)]
             i = best_i[x]

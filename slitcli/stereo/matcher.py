@@ -37,7 +37,20 @@ all optional and each measured in docs/stereo.md:
   by the winning disparities (bilinear) must reach ``support_min_zncc``. A 9 x 9 window still
   matches a textureless pixel next to an edge or a textured neighbour (and often
   gives it the neighbour's disparity); this check keeps only pixels whose own
-  surroundings carry the match;
+  surroundings carry the match. Next to a pixel whose correlation is below
+  ``support_side_min_zncc``, the block of ``2 r + 1`` columns by the window's height
+  centred one column towards that pixel must reach it too, at the pixel's own
+  disparity: a
+  textureless pixel beside a textured surface passes the centred block on the
+  strength of that texture alone;
+- depth edges (``boundary_ratio``): the window carries the disparity of the more
+  textured side of a depth edge up to half a window past it. Where a valid neighbour
+  within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
+  the pixel's own one-pixel-wide, window-tall grey column is compared with the right
+  image at its own disparity and at the neighbour's; so is the right-image column
+  its match lands on, with the disparities of the right view's neighbours. If the
+  farther surface explains either column with less than ``boundary_ratio`` of the
+  residual, the pixel is invalid (slitcli.stereo._boundary);
 - speckle removal: connected regions of at most ``speckle_window_px`` pixels
   whose disparities differ by at most ``speckle_range_px`` are removed.
 
@@ -74,6 +87,7 @@ REASON_LEFT_RIGHT = 4
 REASON_SPECKLE = 5
 REASON_OPENCV = 6
 REASON_SUPPORT = 7
+REASON_BOUNDARY = 8
 REASON_NAMES = {
     REASON_VALID: "valid",
     REASON_NO_CANDIDATE: "no candidate (disparity range or empty window)",
@@ -83,6 +97,7 @@ REASON_NAMES = {
     REASON_SPECKLE: "speckle",
     REASON_OPENCV: "rejected by the OpenCV matcher",
     REASON_SUPPORT: "local support",
+    REASON_BOUNDARY: "depth edge (the farther surface explains the pixel better)",
 }
 
 # Prefiltered images are stored as integers in units of 1/_QUANT DN: every window
@@ -97,7 +112,10 @@ class MatcherParams:
     ``window_w_px`` x ``window_h_px`` is the correlation window (2m+1) x (2n+1) of
     Eq. 10; disparities searched are ``min_disparity_px .. min_disparity_px +
     num_disparities - 1``. A filter is off when its parameter is 0 (``texture_min_dn``,
-    ``uniqueness_ratio``, ``speckle_window_px``) or negative (``lr_max_diff_px``).
+    ``uniqueness_ratio``, ``support_min_zncc``, ``boundary_ratio``,
+    ``speckle_window_px``) or negative (``lr_max_diff_px``). The depth-edge test
+    compares grey-level columns ``window_h_px`` tall; residuals at or below
+    ``boundary_noise_dn`` (RMS, DN) are taken as sensor noise and carry no evidence.
     """
 
     matcher: str = "nssd"
@@ -114,7 +132,12 @@ class MatcherParams:
     uniqueness_ratio: float = 0.15
     lr_max_diff_px: int = 1
     support_radius_px: int = 1
-    support_min_zncc: float = 0.45
+    support_min_zncc: float = 0.4
+    support_side_min_zncc: float = 0.45
+    boundary_ratio: float = 0.5
+    boundary_step_px: float = 1.0
+    boundary_radius_px: int = 5
+    boundary_noise_dn: float = 2.8
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
@@ -150,9 +173,15 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         raise SlitcliError(f"--texture-min {p.texture_min_dn} must be >= 0 DN (0 = off)")
     if not p.uniqueness_ratio >= 0:
         raise SlitcliError(f"--uniqueness {p.uniqueness_ratio} must be >= 0 (0 = off)")
-    if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0:
-        raise SlitcliError("--support-radius must be >= 1 px and --support-min in [-1, 1] "
-                           "(0 = off)")
+    if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0 or \
+            not -1.0 <= p.support_side_min_zncc <= 1.0:
+        raise SlitcliError("--support-radius must be >= 1 px and --support-min, "
+                           "--support-side-min in [-1, 1] (0 = off)")
+    if not 0 <= p.boundary_ratio < 1:
+        raise SlitcliError(f"--boundary-ratio {p.boundary_ratio} must be in [0, 1) (0 = off)")
+    if not p.boundary_step_px > 0 or not p.boundary_noise_dn >= 0 or p.boundary_radius_px < 1:
+        raise SlitcliError("boundary_step_px must be > 0 px, boundary_noise_dn >= 0 DN and "
+                           "boundary_radius_px >= 1 px")
     if p.speckle_window_px < 0 or not p.speckle_range_px >= 0:
         raise SlitcliError("--speckle-window and --speckle-range must be >= 0 (0 = off)")
     if p.matcher in ("bm", "sgbm"):
@@ -275,6 +304,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     cost = np.empty((h, w), np.float32)
     energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
+    rdisp = np.empty((h, w), np.float32)
     threads = _kernel_threads()
     with ThreadPoolExecutor(max_workers=threads) if threads > 1 else nullcontext() as pool:
         if pool is not None:
@@ -285,7 +315,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
             pl = prefilter_image(left_grey, params)
             pr = prefilter_image(right_grey, params)
         _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
-                     energy, reason)
+                     energy, reason, rdisp)
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
@@ -305,9 +335,11 @@ def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
 def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
                  right_grey: np.ndarray, params: MatcherParams,
                  pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
-                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray) -> None:
-    """Kernel, texture and support tests of :func:`match_nssd`, filling the outputs."""
-    from slitcli.stereo import _kernel
+                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray,
+                 rdisp: np.ndarray) -> None:
+    """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
+    the outputs (``rdisp``: the right view's disparities, a scratch output)."""
+    from slitcli.stereo import _boundary, _kernel
 
     h, w = pl.shape
     m = params.window_w_px // 2
@@ -315,7 +347,7 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
     prr = np.ascontiguousarray(pr[:, ::-1])
     args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
             float(params.uniqueness_ratio), float(params.lr_max_diff_px),
-            params.subpixel == "parabola", disp, cost, energy, reason)
+            params.subpixel == "parabola", disp, cost, energy, reason, rdisp)
     run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
                   pool, threads, min_rows=2 * n + 1)
     if params.texture_min_dn > 0:
@@ -329,9 +361,11 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
             texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
         weak = (reason == REASON_VALID) & ~texture_ok
         reason[weak] = REASON_TEXTURE
-    if params.support_min_zncc != 0:
-        gl = np.asarray(left_grey, np.float32)
-        gr = np.asarray(right_grey, np.float32)
+    gl = np.asarray(left_grey, np.float32)
+    gr = np.asarray(right_grey, np.float32)
+    smin = float(params.support_min_zncc)
+    zncc = disp  # not read when the support test is off
+    if smin != 0:
         warped = np.empty((h, w), np.float32)
         run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
                       threads)
@@ -339,7 +373,27 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
         r = int(params.support_radius_px)
         run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
                       pool, threads)
-        reason[(reason == REASON_VALID) & ~(zncc >= params.support_min_zncc)] = REASON_SUPPORT
+    if smin == 0 and params.boundary_ratio <= 0:
+        return
+    tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
+    left_cand = np.empty((h, w), np.float32)
+    right_cand = np.empty((h, w), np.float32)
+    args = (smin, float(params.support_side_min_zncc), int(params.support_radius_px), int(n),
+            tol)
+    run_row_bands(lambda y0, y1: _boundary.support_rows(
+        gl, gr, disp, rdisp, zncc, *args, y0, y1, reason, left_cand, right_cand), h, pool,
+        threads)
+    if params.boundary_ratio <= 0:
+        return
+    # smallest candidate within +-radius columns: most pixels have no step and skip
+    k = np.ones((1, 2 * int(params.boundary_radius_px) + 1), np.uint8)
+    left_min = cv2.erode(left_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
+    right_min = cv2.erode(right_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
+    args = (float(params.boundary_step_px), int(params.boundary_radius_px), int(n),
+            float(params.boundary_ratio), float(params.boundary_noise_dn) ** 2)
+    run_row_bands(lambda y0, y1: _boundary.depth_edge_rows(
+        gl, gr, disp, left_cand, right_cand, left_min, right_min, *args, y0, y1, reason), h,
+        pool, threads)
 
 
 def _kernel_threads() -> int:

@@ -1,0 +1,971 @@
+"""Compiled (numba) kernels of the stripe extractor: candidate crossings per column.
+
+Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row;
+views of the ``(H, W, 3)`` images); all loops over pixels live here, compiled.
+
+Signal model of one column, per channel c in (r, g, b) and row v::
+
+    x_c(v) = s(v) k_c + A p(v) l_c + n_c(v)
+
+``s(v) k_c``: the surface (colour ``k``; texture and shading ``s`` scale all channels
+alike); ``A p(v) l_c``: the laser, a Gaussian profile ``p`` of peak ``A`` (red DN) and
+colour ``l = (1, XT, XT)`` (a red diode leaks ``XT`` of itself into green and blue);
+``n``: sensor noise, standard deviation ``sigma`` per channel. White light (lamp
+highlights) adds ``(1, 1, 1)``. The best linear estimate of ``A p(v)`` per row is the
+channel sum ``w . (x - background)`` with ``w . l = 1`` that minimises noise plus
+texture variance (generalised least squares, :func:`_gls`): on a grey or coloured
+surface the texture cancels; on a red surface (colour parallel to the laser) it
+cannot, and counts as noise. Saturated channels are left out of their row's sum.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+#: green and blue response to the red laser, fraction of the red response (a red
+#: diode seen through a Bayer colour filter; the renderer's default crosstalk)
+XT = 0.12
+#: |l|^2 of the laser colour l = (1, XT, XT)
+A_LASER = 1.0 + 2.0 * XT * XT
+#: share of the surface-colour direction the per-pixel evidence removes: 1 would
+#: remove all texture but amplify noise without bound on surfaces of the laser's colour
+LAM_DETECT = 0.99
+FIT_HALF = 8  # half-length of the fit window, px
+NOISE_BLOCK = 16  # rows sharing one surface colour in the noise estimate
+NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
+MIN_ROWS = 5  # fewest usable rows for a fit
+MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
+CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
+QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
+MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
+S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
+#: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
+AVG_VAR = 0.5
+#: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
+#: point samples (offsets -1/3, 0, 1/3: variance 2/27); exact integration gives 1/12
+PIXEL_VAR = 2.0 / 27.0
+CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
+#: a candidate whose evidence is below this share of a strong first candidate's is not
+#: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
+#: paper weights 0.25) cannot beat the first's
+SECONDARY_SHARE = 0.5
+NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
+CLUTTER_HALF = 24  # half-window of the clutter level, px
+CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
+#: a candidate must stand MIN_CLUTTER_RATIO times (in quadrature with the noise)
+#: above all but CLUTTER_SHARE of the evidence around it
+MIN_CLUTTER_RATIO = 1.5
+CLUTTER_SHARE = 0.2
+N_BLOCKS = 8  # column blocks processed in parallel
+AVG_MAX_SLOPE = 0.5  # steeper stripes (rows per column) are not averaged across columns
+
+#: fields of a candidate row (last axis of the candidate table)
+(C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
+ C_HVAR) = range(11)
+N_FIELDS = 11
+N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
+
+
+@njit(cache=True, nogil=True)
+def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma: no cover
+    """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
+
+    Texture and shading scale all channels of a surface alike, so the part of a pixel
+    orthogonal to its surface's colour (the mean colour of its block of
+    ``NOISE_BLOCK`` rows) is noise (two dimensions) plus rare edges, highlights and
+    the laser. Its second difference along the column has ``E|d2|^2 = 12 sigma^2``, a
+    scaled chi-square with 2 degrees of freedom whose median is ``2 ln 2`` times its
+    mean over 2. Every ``step``-th column is used; ``bg`` is not needed (kept for the
+    callers' symmetry).
+    """
+    n_lines, n = img.shape[0], img.shape[1]
+    vals = np.empty(((n_lines + step - 1) // step) * n)
+    m = 0
+    p = np.empty((NOISE_BLOCK, 3))
+    for i in range(0, n_lines, step):
+        for j0 in range(0, n - NOISE_BLOCK + 1, NOISE_BLOCK):
+            cr = cg = cb = 0.5
+            for j in range(j0, j0 + NOISE_BLOCK):
+                cr += img[i, j, 2]
+                cg += img[i, j, 1]
+                cb += img[i, j, 0]
+            nn = math.sqrt(cr * cr + cg * cg + cb * cb)
+            cr /= nn
+            cg /= nn
+            cb /= nn
+            for jj in range(NOISE_BLOCK):
+                xr = float(img[i, j0 + jj, 2])
+                xg = float(img[i, j0 + jj, 1])
+                xb = float(img[i, j0 + jj, 0])
+                q = xr * cr + xg * cg + xb * cb
+                p[jj, 0] = xr - q * cr
+                p[jj, 1] = xg - q * cg
+                p[jj, 2] = xb - q * cb
+            for jj in range(1, NOISE_BLOCK - 1):
+                acc = 0.0
+                for c in range(3):
+                    d = 2.0 * p[jj, c] - p[jj - 1, c] - p[jj + 1, c]
+                    acc += d * d
+                vals[m] = acc
+                m += 1
+    if m == 0:
+        return 0.0
+    med = np.median(vals[:m])
+    return math.sqrt(med / (6.0 * 2.0 * math.log(2.0)))
+
+
+@njit(cache=True, nogil=True)
+def smooth_across(img: np.ndarray, sat_dn: int) -> np.ndarray:  # pragma: no cover
+    """Average each column with its neighbours, weights (1, 2, 1) / 4 (transposed
+    layout: along axis 0), rounded to uint8. A pixel next to a saturated one is set
+    to saturation, so the average never hides a clipped value."""
+    w, h = img.shape[0], img.shape[1]
+    out = np.empty_like(img)
+    for i in range(w):
+        a = max(i - 1, 0)
+        b = min(i + 1, w - 1)
+        for j in range(h):
+            for c in range(3):
+                x0, x1, x2 = img[a, j, c], img[i, j, c], img[b, j, c]
+                if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
+                    out[i, j, c] = 255
+                else:
+                    out[i, j, c] = (int(x0) + 2 * int(x1) + int(x2) + 2) // 4
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray,
+            m: np.ndarray) -> bool:  # pragma: no cover
+    """Solve the 4x4 system ``a x = b`` (Gaussian elimination, partial pivoting) using
+    the (4, 5) scratch ``m``; False if singular."""
+    for r in range(4):
+        for c in range(4):
+            m[r, c] = a[r, c]
+        m[r, 4] = b[r]
+    for col in range(4):
+        piv = col
+        for r in range(col + 1, 4):
+            if abs(m[r, col]) > abs(m[piv, col]):
+                piv = r
+        if abs(m[piv, col]) < 1e-300:
+            return False
+        if piv != col:
+            for c in range(5):
+                t = m[col, c]
+                m[col, c] = m[piv, c]
+                m[piv, c] = t
+        for r in range(col + 1, 4):
+            f = m[r, col] / m[col, col]
+            for c in range(col, 5):
+                m[r, c] -= f * m[col, c]
+    for r in range(3, -1, -1):
+        s = m[r, 4]
+        for c in range(r + 1, 4):
+            s -= m[r, c] * x[c]
+        x[r] = s / m[r, r]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _gls(cov: np.ndarray, lr: float, lg: float, lb: float,
+         w: np.ndarray) -> float:  # pragma: no cover
+    """Best linear unbiased weights for a signal of colour ``l = (lr, lg, lb)`` in noise
+    of covariance ``cov`` (3x3, RGB): ``w = cov^-1 l / (l' cov^-1 l)`` written to ``w``;
+    returns the information ``l' cov^-1 l`` (inverse variance of ``w . x``), 0 if
+    ``cov`` is singular."""
+    a, b, c = cov[0, 0], cov[0, 1], cov[0, 2]
+    d, e, f = cov[1, 1], cov[1, 2], cov[2, 2]
+    i00 = d * f - e * e
+    i01 = c * e - b * f
+    i02 = b * e - c * d
+    i11 = a * f - c * c
+    i12 = b * c - a * e
+    i22 = a * d - b * b
+    det = a * i00 + b * i01 + c * i02
+    if abs(det) < 1e-300:
+        return 0.0
+    v0 = (i00 * lr + i01 * lg + i02 * lb) / det
+    v1 = (i01 * lr + i11 * lg + i12 * lb) / det
+    v2 = (i02 * lr + i12 * lg + i22 * lb) / det
+    info = lr * v0 + lg * v1 + lb * v2
+    if info <= 0.0:
+        return 0.0
+    w[0] = v0 / info
+    w[1] = v1 / info
+    w[2] = v2 / info
+    return info
+
+
+@njit(cache=True, nogil=True)
+def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
+                    level: float) -> float:  # pragma: no cover
+    """Midpoint of where the red profile (``win[0]``, window rows) crosses ``level`` on
+    either side of the clipped plateau ``ja .. jb`` (linear interpolation; a side cut
+    off by the window takes the plateau's own end)."""
+    j = ja
+    while j > 0 and win[0, j - 1] >= level:
+        j -= 1
+    up = j - 0.5
+    if j > 0:
+        a, b = win[0, j - 1], win[0, j]
+        up = j - 1 + (level - a) / max(b - a, 1e-9)
+    j = jb
+    while j < m - 1 and win[0, j + 1] >= level:
+        j += 1
+    lo = j + 0.5
+    if j < m - 1:
+        a, b = win[0, j], win[0, j + 1]
+        lo = j + (a - level) / max(a - b, 1e-9)
+    return 0.5 * (up + lo)
+
+
+@njit(cache=True, nogil=True)
+def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
+                sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
+                ws: np.ndarray,
+                out: np.ndarray) -> bool:  # pragma: no cover
+    """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
+
+    Background: per channel a straight line through the flank rows (at least
+    ``max(4, run_n / 2 + 2)`` rows from the centre; a constant where one side is cut
+    off by the image border). Texture: the surface colour above and below (two
+    colours where the window straddles an edge between surfaces), with the variance
+    of each flank about its line along its colour. Per row ``y = w . d`` (:func:`_gls`,
+    saturated channels left out) with its information as weight; then a weighted
+    Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
+
+    Writes ``out[:10] = (v0, A (red DN; with ``s_prior`` the peak before the pixels'
+    blur), s (px), significance, standard error of v0,
+    reduced chi-square, saturated 0/1, texture sigma (DN), -, edge)``; significance
+    is ``A`` over its standard error or, for a clipped core, the margin of saturation
+    over the surface's red level in units of noise and texture; ``edge`` is one minus
+    the cosine between the surface colours just above and just below. Returns whether
+    the fit converged to a peak inside the window; it stops early once the width
+    passes ``s_max`` (px, wider than any stripe). ``s_core > 0``: the width the
+    laser sheet has here (px; with the pixels' extent, ``PIXEL_VAR``, and along a
+    stripe of ``slope`` rows per column the spread of the column's samples across it,
+    the width expected); it enters as a prior of relative spread
+    ``S_PRIOR_SPREAD``, which keeps a faint stripe's fit from collapsing onto a
+    noise spike and leaves a bright one to its data. ``averaged``: fit column ``i``
+    averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
+    one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
+    """
+    n = img.shape[1]
+    c = math.floor(centre + 0.5)
+    s_prior = 0.0
+    if s_core > 0.0:
+        hvar = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
+        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR + slope * slope * hvar)
+    flank = max(4, run_n // 2 + 2)
+    half = min(max(FIT_HALF, flank + 3), (N_WORK - 1) // 2)
+    j0 = max(c - half, 0)
+    j1 = min(c + half + 1, n)
+    m = j1 - j0
+    s2n = sigma * sigma
+    win = ws[5:8]  # the window's red, green, blue
+    ia = max(i - 1, 0)
+    ib = min(i + 1, img.shape[0] - 1)
+    for jj in range(m):
+        j = j0 + jj
+        for ch in range(3):
+            x1 = img[i, j, 2 - ch]
+            if averaged:
+                x0 = img[ia, j, 2 - ch]
+                x2 = img[ib, j, 2 - ch]
+                if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
+                    win[ch, jj] = 255.0
+                else:
+                    win[ch, jj] = 0.25 * (float(x0) + 2.0 * x1 + x2)
+            else:
+                win[ch, jj] = x1
+    # pass 1: flank sums for the per-channel lines, side colours and near colours
+    sw = 0.0
+    sj = 0.0
+    sjj = 0.0
+    sxr = sxg = sxb = 0.0
+    sjr = sjg = sjb = 0.0
+    n_up = 0
+    n_lo = 0
+    ur_ = ug_ = ub_ = 0.0
+    lr_ = lg_ = lb_ = 0.0
+    nur = nug = nub = 0.5
+    nlr = nlg = nlb = 0.5
+    # per side: n, sum d, sum d^2, sum x (3), sum x d (3), sum x x' (rr rg rb gg gb bb)
+    side_s = ws[4, 24:56].reshape((2, 16))
+    for r in range(32):
+        ws[4, 24 + r] = 0.0
+    for j in range(j0, j1):
+        d = j - c
+        if abs(d) < flank:
+            continue
+        xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
+        if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
+            continue
+        fd = float(d)
+        sw += 1.0
+        sj += fd
+        sjj += fd * fd
+        sxr += xr
+        sxg += xg
+        sxb += xb
+        sjr += xr * fd
+        sjg += xg * fd
+        sjb += xb * fd
+        sd = side_s[0] if d < 0 else side_s[1]
+        sd[0] += 1.0
+        sd[1] += fd
+        sd[2] += fd * fd
+        sd[3] += xr
+        sd[4] += xg
+        sd[5] += xb
+        sd[6] += xr * fd
+        sd[7] += xg * fd
+        sd[8] += xb * fd
+        sd[9] += xr * xr
+        sd[10] += xr * xg
+        sd[11] += xr * xb
+        sd[12] += xg * xg
+        sd[13] += xg * xb
+        sd[14] += xb * xb
+        if d < 0:
+            n_up += 1
+            ur_ += xr
+            ug_ += xg
+            ub_ += xb
+            if -d < flank + NEAR_ROWS:
+                nur += xr
+                nug += xg
+                nub += xb
+        else:
+            n_lo += 1
+            lr_ += xr
+            lg_ += xg
+            lb_ += xb
+            if d < flank + NEAR_ROWS:
+                nlr += xr
+                nlg += xg
+                nlb += xb
+    if sw < 3.0:
+        return False
+    det = sw * sjj - sj * sj
+    if det > 1e-9 and n_up >= 2 and n_lo >= 2:
+        br = (sw * sjr - sj * sxr) / det
+        bg_ = (sw * sjg - sj * sxg) / det
+        bb = (sw * sjb - sj * sxb) / det
+    else:  # a straight line needs flanks on both sides (not so at the image border)
+        br = bg_ = bb = 0.0
+    ar = (sxr - br * sj) / sw
+    ag = (sxg - bg_ * sj) / sw
+    ab = (sxb - bb * sj) / sw
+    # texture variance of each side along its own colour
+    cov = ws[4, :9].reshape((3, 3))
+    for r in range(9):
+        ws[4, r] = 0.0
+    t2_max = 0.0
+    for side in (-1, 1):
+        if side < 0:
+            cr, cg, cb, cnt = ur_, ug_, ub_, n_up
+        else:
+            cr, cg, cb, cnt = lr_, lg_, lb_, n_lo
+        if cnt < 2:
+            continue
+        nk = math.sqrt(cr * cr + cg * cg + cb * cb) + 1e-9
+        cr /= nk
+        cg /= nk
+        cb /= nk
+        # sum over the side's rows of q^2, q = c . (x - a - b d), from its sums
+        sd = side_s[0] if side < 0 else side_s[1]
+        big_a = cr * ar + cg * ag + cb * ab
+        big_b = cr * br + cg * bg_ + cb * bb
+        sx = cr * sd[3] + cg * sd[4] + cb * sd[5]
+        sxd = cr * sd[6] + cg * sd[7] + cb * sd[8]
+        sxx = (cr * cr * sd[9] + 2.0 * cr * cg * sd[10] + 2.0 * cr * cb * sd[11]
+               + cg * cg * sd[12] + 2.0 * cg * cb * sd[13] + cb * cb * sd[14])
+        s2 = (sxx - 2.0 * big_a * sx - 2.0 * big_b * sxd + sd[0] * big_a * big_a
+              + 2.0 * big_a * big_b * sd[1] + big_b * big_b * sd[2])
+        t2 = max(s2 / max(cnt - 1.0, 1.0) - s2n, 0.0)
+        t2_max = max(t2_max, t2)
+        cov[0, 0] += t2 * cr * cr
+        cov[0, 1] += t2 * cr * cg
+        cov[0, 2] += t2 * cr * cb
+        cov[1, 1] += t2 * cg * cg
+        cov[1, 2] += t2 * cg * cb
+        cov[2, 2] += t2 * cb * cb
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]
+    # pass 3: per-row laser estimate y and its information (weights cached per
+    # saturation pattern: bit 0 red, 1 green, 2 blue)
+    y = ws[0]
+    wt = ws[1]
+    wc = ws[2, :24].reshape((8, 3))
+    info_c = ws[3, :8]
+    for p in range(8):
+        info_c[p] = -1.0
+    sub = ws[4, 9:18].reshape((3, 3))
+    wv = ws[4, 18:21]
+    nsat = 0
+    nuse = 0
+    for jj in range(m):
+        j = j0 + jj
+        d = j - c
+        xr, xg, xb = win[0, j - j0], win[1, j - j0], win[2, j - j0]
+        pat = (1 if xr >= sat_dn else 0) | (2 if xg >= sat_dn else 0) | \
+            (4 if xb >= sat_dn else 0)
+        if pat & 1:
+            nsat += 1
+        if info_c[pat] < 0.0:
+            for r in range(3):
+                for q in range(3):
+                    if (pat >> r) & 1 or (pat >> q) & 1:
+                        sub[r, q] = 1.0 if r == q else 0.0
+                    else:
+                        sub[r, q] = cov[r, q] + (s2n if r == q else 0.0)
+            lr = 0.0 if pat & 1 else 1.0
+            lg = 0.0 if pat & 2 else XT
+            lb = 0.0 if pat & 4 else XT
+            a = lr * lr + lg * lg + lb * lb
+            info = _gls(sub, lr, lg, lb, wv) if a > 0.0 else 0.0
+            if info * max(s2n, 1e-6) <= 1e-4 * a:
+                info = 0.0
+            info_c[pat] = info
+            wc[pat, 0] = wv[0]
+            wc[pat, 1] = wv[1]
+            wc[pat, 2] = wv[2]
+        info = info_c[pat]
+        if info <= 0.0:
+            wt[jj] = 0.0
+            y[jj] = 0.0
+            continue
+        y[jj] = (wc[pat, 0] * (xr - ar - br * d) + wc[pat, 1] * (xg - ag - bg_ * d)
+                 + wc[pat, 2] * (xb - ab - bb * d))
+        wt[jj] = info
+        nuse += 1
+    if nuse < MIN_ROWS:
+        return False
+    # start: the largest y within 1.5 rows of the centre, a log-parabola through it
+    kpk = -1
+    for jj in range(m):
+        if wt[jj] > 0.0 and abs(j0 + jj - centre) <= 1.5:
+            if kpk < 0 or y[jj] > y[kpk]:
+                kpk = jj
+    if kpk < 0 or y[kpk] <= 0.0:
+        return False
+    v0 = float(j0 + kpk)
+    s = s_prior if s_prior > 0.0 else 1.2
+    amp = y[kpk]
+    if 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 and y[kpk - 1] > 0 \
+            and y[kpk + 1] > 0:
+        l0, lm_, lp = math.log(y[kpk]), math.log(y[kpk - 1]), math.log(y[kpk + 1])
+        curv = lm_ - 2.0 * l0 + lp
+        if curv < -1e-6:
+            off_pk = 0.5 * (lm_ - lp) / curv
+            if abs(off_pk) <= 1.0:
+                v0 += off_pk
+                if s_prior <= 0.0:
+                    s = min(max(math.sqrt(-1.0 / curv), 0.5), 3.0)
+                amp = y[kpk] * math.exp(0.5 * (off_pk / s) ** 2)
+    # a quick look: offset and amplitude by linear least squares at the starting
+    # centre and width; a candidate that is not even QUICK_Z significant there is
+    # reported as such without the (costlier) full fit
+    s00 = s01 = s11 = b0 = b1 = 0.0
+    t = (j0 - v0) / s
+    e_next = math.exp(-0.5 * t * t)
+    ratio = math.exp(-t / s - 0.5 / (s * s))
+    step = math.exp(-1.0 / (s * s))
+    for jj in range(m):
+        e = e_next
+        e_next = e * ratio
+        ratio *= step
+        wj = wt[jj]
+        if wj == 0.0:
+            continue
+        s00 += wj
+        s01 += wj * e
+        s11 += wj * e * e
+        b0 += wj * y[jj]
+        b1 += wj * e * y[jj]
+    det2 = s00 * s11 - s01 * s01
+    if det2 <= 0.0:
+        return False
+    off = (s11 * b0 - s01 * b1) / det2
+    amp = (s00 * b1 - s01 * b0) / det2
+    z_quick = amp / math.sqrt(s00 / det2)
+    if z_quick < QUICK_Z and nsat == 0:
+        if amp <= 0.0:
+            return False
+        out[C_HVAR] = np.nan
+        out[C_CLUT] = np.nan
+        out[C_POS] = v0
+        out[C_AMP] = amp
+        out[C_WIDTH] = s
+        out[C_Z] = z_quick
+        out[C_SE_POS] = np.inf
+        out[C_CHI2] = np.inf
+        out[C_SAT] = 0.0
+        out[C_TEX] = math.sqrt(t2_max)
+        out[C_EDGE] = 0.0
+        return True
+    h = ws[3, 8:24].reshape((4, 4))
+    g = ws[3, 24:28]
+    ht = ws[3, 28:44].reshape((4, 4))
+    gt = ws[3, 44:48]
+    dx = ws[3, 48:52]
+    scratch = ws[3, 52:72].reshape((4, 5))
+    w_prior = 1.0 / (S_PRIOR_SPREAD * s_prior) ** 2 if s_prior > 0.0 else 0.0
+    chi = _normal_eq(y, wt, j0, m, off, amp, v0, s, h, g)
+    chi += w_prior * (s - s_prior) ** 2
+    h[3, 3] += w_prior
+    g[3] += w_prior * (s_prior - s)
+    lam = 0.0
+    for _ in range(MAX_ITER):
+        for r in range(4):
+            h[r, r] *= 1.0 + lam
+        solved = _solve4(h, g, dx, scratch)
+        for r in range(4):
+            h[r, r] /= 1.0 + lam
+        if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+            break  # at the minimum: h, the covariance, stays that of these parameters
+        n_v0, n_s = v0 + dx[2], s + dx[3]
+        if solved and 0.3 <= n_s <= 8.0 and abs(n_v0 - centre) <= half - 1:
+            n_chi = _normal_eq(y, wt, j0, m, off + dx[0], amp + dx[1], n_v0, n_s, ht, gt)
+            n_chi += w_prior * (n_s - s_prior) ** 2
+            ht[3, 3] += w_prior
+            gt[3] += w_prior * (s_prior - n_s)
+            if n_chi <= chi * (1.0 + 1e-9):
+                off += dx[0]
+                amp += dx[1]
+                v0 = n_v0
+                s = n_s
+                chi = n_chi
+                for r in range(4):
+                    g[r] = gt[r]
+                    for q in range(4):
+                        h[r, q] = ht[r, q]
+                lam = 0.0 if lam <= 1e-4 else lam * 0.1
+                if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+                    break
+                if s > s_max:
+                    break  # wider than any stripe: rejected whatever its exact width
+                continue
+        lam = max(lam * 10.0, 1e-2)
+        if lam > 1e4:
+            break
+    # covariance of (A, v0): h holds J' W J at the solution
+    unit = ws[3, 72:76]
+    col = ws[3, 76:80]
+    for r in range(4):
+        unit[r] = 0.0
+    unit[1] = 1.0
+    if not _solve4(h, unit, col, scratch):
+        return False
+    var_a = col[1]
+    unit[1] = 0.0
+    unit[2] = 1.0
+    if not _solve4(h, unit, col, scratch):
+        return False
+    var_v = col[2]
+    if not (amp > 0.0 and var_a > 0.0 and var_v > 0.0):
+        return False
+    z = amp / math.sqrt(var_a)
+    if nsat > 0:
+        # a clipped core: how far saturation lies above what the surface reaches
+        z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
+        # its flanks alone leave amplitude and width ill-determined: a fit whose
+        # centre left the clipped plateau (or that collapsed) gives way to the
+        # midpoint of the plateau's two edges
+        cc = min(max(c - j0, 0), m - 1)
+        if win[0, cc] >= sat_dn:
+            ja = cc
+            while ja > 0 and win[0, ja - 1] >= sat_dn:
+                ja -= 1
+            jb = cc
+            while jb < m - 1 and win[0, jb + 1] >= sat_dn:
+                jb += 1
+            if s < MIN_SAT_SIGMA or not (j0 + ja - 0.5 <= v0 <= j0 + jb + 0.5):
+                v0 = j0 + _plateau_centre(win, ja, jb, m, 0.5 * (ar + sat_dn))
+                var_v = 0.25
+    dot = nur * nlr + nug * nlg + nub * nlb
+    out[C_HVAR] = np.nan
+    out[C_POS] = v0
+    # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
+    # is known, report the peak before it (the stripe's own brightness)
+    out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
+    out[C_WIDTH] = s
+    out[C_Z] = z
+    out[C_SE_POS] = math.sqrt(var_v)
+    out[C_CHI2] = chi / max(nuse - 4, 1)
+    out[C_SAT] = 1.0 if nsat > 0 else 0.0
+    out[C_TEX] = math.sqrt(t2_max)
+    out[C_EDGE] = 1.0 - dot / math.sqrt((nur * nur + nug * nug + nub * nub)
+                                        * (nlr * nlr + nlg * nlg + nlb * nlb))
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _normal_eq(y: np.ndarray, wt: np.ndarray, j0: int, m: int, off: float, amp: float,
+               v0: float, s: float, h: np.ndarray, g: np.ndarray) -> float:  # pragma: no cover
+    """Weighted chi-square of the profile model at (off, amp, v0, s), with the
+    Gauss-Newton normal equations ``h = J' W J`` (4x4) and ``g = J' W r`` there."""
+    chi = 0.0
+    for r in range(4):
+        g[r] = 0.0
+        for q in range(r, 4):
+            h[r, q] = 0.0
+    # the Gaussian at successive rows by recurrence (two exponentials per pass)
+    t = (j0 - v0) / s
+    e_next = math.exp(-0.5 * t * t)
+    ratio = math.exp(-t / s - 0.5 / (s * s))
+    step = math.exp(-1.0 / (s * s))
+    for jj in range(m):
+        e = e_next
+        e_next = e * ratio
+        ratio *= step
+        t = (j0 + jj - v0) / s
+        wj = wt[jj]
+        if wj == 0.0:
+            continue
+        res = y[jj] - (off + amp * e)
+        chi += wj * res * res
+        j2 = amp * e * t / s
+        j3 = j2 * t
+        g[0] += wj * res
+        g[1] += wj * e * res
+        g[2] += wj * j2 * res
+        g[3] += wj * j3 * res
+        h[0, 0] += wj
+        h[0, 1] += wj * e
+        h[0, 2] += wj * j2
+        h[0, 3] += wj * j3
+        h[1, 1] += wj * e * e
+        h[1, 2] += wj * e * j2
+        h[1, 3] += wj * e * j3
+        h[2, 2] += wj * j2 * j2
+        h[2, 3] += wj * j2 * j3
+        h[3, 3] += wj * j3 * j3
+    for r in range(4):
+        for q in range(r):
+            h[r, q] = h[q, r]
+    return chi
+
+
+@njit(cache=True, nogil=True)
+def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: float,
+             min_delta_th: float, alpha: float, sat_dn: int, score: np.ndarray,
+             sat: np.ndarray) -> None:  # pragma: no cover
+    """Per-pixel laser evidence of column ``i`` (paper Eqs. 1-3), into ``score``.
+
+    On the contrast ``t = x - bg`` (light above the local background, ``bg`` a
+    vertical opening): Eq. 1/2 on the chromaticity of ``t``, ``t_r > min_th sum(t)``
+    and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3, white rejection,
+    ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
+    the background's colour removed to the share ``LAM_DETECT``, so texture, shading
+    and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
+    elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
+    red contrast and ``sat`` True.
+    """
+    n = img.shape[1]
+    # the weights depend on the background colour alone, and an opening is flat over
+    # long stretches: they are recomputed only where it changes
+    pr = pg = pb = -1
+    wr = wg = wb = 0.0
+    for j in range(n):
+        score[j] = -1.0
+        sat[j] = False
+        if not mask[i, j]:
+            continue
+        xr = img[i, j, 2]
+        br = bg[i, j, 2]
+        tr = float(xr) - br
+        if xr >= sat_dn:
+            sat[j] = True
+            score[j] = tr
+            continue
+        bgg = bg[i, j, 1]
+        bb = bg[i, j, 0]
+        tg = float(img[i, j, 1]) - bgg
+        tb = float(img[i, j, 0]) - bb
+        if br != pr or bgg != pg or bb != pb:
+            pr, pg, pb = br, bgg, bb
+            kr = br + 0.5
+            kg = bgg + 0.5
+            kb = bb + 0.5
+            nk = math.sqrt(kr * kr + kg * kg + kb * kb)
+            proj = (kr + XT * (kg + kb)) / nk
+            den = A_LASER - LAM_DETECT * proj * proj
+            f = LAM_DETECT * proj / nk
+            wr = (1.0 - f * kr) / den
+            wg = (XT - f * kg) / den
+            wb = (XT - f * kb) / den
+        # the tests combined without branches (their outcome is noise on most pixels)
+        ssum = tr + tg + tb
+        wht = max(tg, tb)
+        y = wr * tr + wg * tg + wb * tb
+        ok = (tr > 0.0) & (tr > min_th * ssum) & (tr - wht > min_delta_th * ssum) & \
+            (y > alpha * wht)
+        score[j] = y if ok else -1.0
+
+
+@njit(cache=True, nogil=True)
+def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centre: float,
+             run_n: int, amp: float, sigma: float) -> float:  # pragma: no cover
+    """Share of the positive evidence within ``CLUTTER_HALF`` rows (the candidate's
+    core left out) that comes within ``MIN_CLUTTER_RATIO`` of the amplitude ``amp``
+    (in quadrature with the noise): texture of a red surface, which colour cannot
+    tell from the laser, makes it large."""
+    n = score.shape[0]
+    c = int(centre + 0.5)
+    hw = max(CLUTTER_CORE, run_n // 2 + 2)
+    lim = amp / MIN_CLUTTER_RATIO
+    lim = math.sqrt(max(lim * lim - sigma * sigma, 0.0))
+    nn = 0
+    above = 0
+    for jj in range(max(c - CLUTTER_HALF, 0), min(c + CLUTTER_HALF + 1, n)):
+        if abs(jj - c) > hw and mask[i, jj] and not sat[jj]:
+            nn += 1
+            if score[jj] > lim:
+                above += 1
+    return above / nn if nn > 0 else 0.0
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      out: np.ndarray, out_avg: np.ndarray) -> None:  # pragma: no cover
+    """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
+
+    Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
+    least ``seed_dn``, and saturated red plateaus next to a red pixel (one alone is
+    a white highlight). A candidate's extent is the stretch around it where the
+    evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
+    surface is cut out of the surface's texture); longer than ``max_run_px``, it is
+    a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
+    are not refined), with ``C_CLUT`` from
+    :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
+    faint stripe, or noise) is fitted again on the column averaged with its
+    neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
+    width of the sheet there (``g_map`` (W, H), rows per metre, times ``sheet_m``)
+    is the fits' prior. ``out`` and ``out_avg`` have shape (W, K, N_FIELDS); NaN
+    where none.
+    """
+    n_lines = img.shape[0]
+    out[:] = np.nan
+    out_avg[:] = np.nan
+    for blk in prange(N_BLOCKS):
+        _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th,
+                          alpha, sat_dn, max_run_px, s_max, support_z, z_strong,
+                          g_map, sheet_m, blk * n_lines // N_BLOCKS,
+                          (blk + 1) * n_lines // N_BLOCKS, out, out_avg)
+
+
+@njit(cache=True, nogil=True)
+def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      i0: int, i1: int, out: np.ndarray,
+                      out_avg: np.ndarray) -> None:  # pragma: no cover
+    """:func:`column_candidates` for columns ``i0 .. i1 - 1`` (own workspace)."""
+    n = img.shape[1]
+    k_best = out.shape[1]
+    res = np.empty(N_FIELDS)
+    ws = np.empty((8, N_WORK))
+    rs = np.empty(k_best)
+    rc = np.empty(k_best)
+    rn = np.empty(k_best, np.int64)
+    score = np.empty(n)
+    sat = np.empty(n, np.bool_)
+    for i in range(i0, i1):
+        evidence(img, bg, mask, i, min_th, min_delta_th, alpha, sat_dn, score, sat)
+        nk = 0
+        j = 0
+        while j < n:
+            if score[j] < seed_dn:
+                j += 1
+                continue
+            if sat[j]:
+                j0 = j
+                peak = score[j]
+                while j < n and sat[j] and score[j] >= seed_dn:
+                    peak = max(peak, score[j])
+                    j += 1
+                red = (j0 > 0 and score[j0 - 1] >= seed_dn) or (j < n and score[j] >= seed_dn)
+                if not red:
+                    continue
+                centre = 0.5 * (j0 + j - 1)
+                lim = max(seed_dn, CORE_SHARE * peak)
+                a = j0
+                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                    a -= 1
+                b = j
+                while b < n and score[b] >= lim and not sat[b]:
+                    b += 1
+            else:
+                is_max = True
+                for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
+                    if q != j and (score[q] > score[j] or (score[q] == score[j] and q < j)
+                                   or sat[q]):
+                        is_max = False
+                        break
+                if not is_max:
+                    j += 1
+                    continue
+                peak = score[j]
+                centre = float(j)
+                lim = max(seed_dn, CORE_SHARE * peak)
+                a = j
+                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                    a -= 1
+                b = j + 1
+                while b < n and score[b] >= lim and not sat[b]:
+                    b += 1
+                j += 1
+            run_n = b - a
+            if run_n > max_run_px:
+                continue
+            if nk < k_best:
+                slot = nk
+                nk += 1
+            elif peak > rs[nk - 1]:
+                slot = nk - 1
+            else:
+                continue
+            while slot > 0 and rs[slot - 1] < peak:
+                rs[slot] = rs[slot - 1]
+                rc[slot] = rc[slot - 1]
+                rn[slot] = rn[slot - 1]
+                slot -= 1
+            rs[slot] = peak
+            rc[slot] = centre
+            rn[slot] = run_n
+        for q in range(nk):
+            if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
+                break  # Eq. 4 cannot prefer it to a strong first candidate
+            s_core = 0.0
+            if sheet_m > 0.0:
+                gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
+                if np.isfinite(gpx):
+                    s_core = gpx * sheet_m
+            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
+                               ws, res):
+                continue
+            for f in range(N_FIELDS):
+                out[i, q, f] = res[f]
+            out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
+            if support_z <= res[C_Z] < z_strong and \
+                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
+                                ws,
+                                res):
+                for f in range(N_FIELDS):
+                    out_avg[i, q, f] = res[f]
+                out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
+                                                 res[C_AMP], sigma)
+
+
+@njit(cache=True, nogil=True)
+def fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndarray,
+           sigma: float, sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+           sheet_m: float, out: np.ndarray) -> None:  # pragma: no cover
+    """Fit the profile at given columns and starting rows (a segment's gaps), on each
+    column and, where the stripe's slope (``slopes``, rows per column) is at most
+    ``AVG_MAX_SLOPE`` (steeper, averaging smears it), on the three columns averaged;
+    the more significant fit goes to ``out[k]`` (N_FIELDS; NaN if neither converges;
+    ``C_HVAR`` the sampling variance across columns). Conventions as
+    :func:`column_candidates`."""
+    ws = np.empty((8, N_WORK))
+    res = np.empty(N_FIELDS)
+    _fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map, sheet_m, ws,
+            res, out)
+
+
+@njit(cache=True, nogil=True)
+def _fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndarray,
+            sigma: float, sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+            sheet_m: float, ws: np.ndarray, res: np.ndarray,
+            out: np.ndarray) -> None:  # pragma: no cover
+    """:func:`fit_at` with workspaces ``ws`` (8, N_WORK) and ``res`` (N_FIELDS,)."""
+    n = img.shape[1]
+    for k in range(cols.shape[0]):
+        out[k] = np.nan
+        i = cols[k]
+        c = rows[k]
+        s_core = 0.0
+        if sheet_m > 0.0:
+            gpx = g_map[i, min(max(int(c + 0.5), 0), n - 1)]
+            if np.isfinite(gpx):
+                s_core = gpx * sheet_m
+        for averaged in (False, True):
+            if averaged and abs(slopes[k]) > AVG_MAX_SLOPE:
+                continue
+            if fit_profile(img, i, c, 3, sigma_avg if averaged else sigma, sat_dn, s_max,
+                           s_core, slopes[k], averaged, ws, res):
+                if not np.isfinite(out[k, C_Z]) or res[C_Z] > out[k, C_Z]:
+                    for f in range(N_FIELDS):
+                        out[k, f] = res[f]
+                    out[k, C_HVAR] = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
+
+
+@njit(cache=True, nogil=True)
+def extend_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, sigma: float,
+                sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
+                sheet_m: float, max_jump_px: float, z_min: float, min_peak_dn: float,
+                share: float, n_max: int, row_px: float) -> None:  # pragma: no cover
+    """Carry kept segments on past their ends where the stripe fades (up to ``n_max``
+    columns each way): at the row extrapolated along the segment's last three
+    columns a fit (:func:`fit_at`) within ``row_px`` of it, of significance
+    ``z_min``, amplitude ``min_peak_dn`` and at least ``share`` of the previous
+    column's (a fade is gradual, an object's edge abrupt), extends the segment; the
+    first failure stops it. ``pick`` (W, N_FIELDS) and ``keep`` (W,) are updated."""
+    w = pick.shape[0]
+    cols = np.empty(1, np.int64)
+    rows = np.empty(1)
+    slopes = np.empty(1)
+    res = np.empty((1, N_FIELDS))
+    ws = np.empty((8, N_WORK))
+    one = np.empty(N_FIELDS)
+    for u in range(w):
+        if not keep[u]:
+            continue
+        for d in (-1, 1):
+            if 0 <= u + d < w and keep[u + d]:
+                continue
+            # slope from up to three kept columns behind the end, on the same segment
+            slope = 0.0
+            nb = 0
+            for b in range(1, 4):
+                x = u - d * b
+                if not (0 <= x < w) or not keep[x]:
+                    break
+                # one stripe: a small step, or along a steep one (see select.links)
+                dv = abs(pick[x, C_POS] - pick[x + d, C_POS])
+                if dv > max_jump_px and \
+                        dv > math.sqrt(3.0) * (pick[x, C_WIDTH] + pick[x + d, C_WIDTH]):
+                    break
+                nb = b
+            if nb > 0:
+                slope = (pick[u, C_POS] - pick[u - d * nb, C_POS]) / nb
+            for step in range(1, n_max + 1):
+                x = u + d * step
+                if not (0 <= x < w) or keep[x]:
+                    break
+                cols[0] = x
+                rows[0] = pick[u, C_POS] + slope * step
+                if not (0.0 <= rows[0] <= img.shape[1] - 1.0):
+                    break
+                slopes[0] = slope
+                _fit_at(img, cols, rows, slopes, sigma, sigma_avg, sat_dn, s_max, g_map,
+                        sheet_m, ws, one, res)
+                prev = pick[x - d, C_AMP]
+                if not (abs(res[0, C_POS] - rows[0]) <= row_px and res[0, C_Z] >= z_min
+                        and res[0, C_AMP] >= max(min_peak_dn, share * prev)
+                        and res[0, C_WIDTH] <= s_max):
+                    break
+                for f in range(N_FIELDS):
+                    pick[x, f] = res[0, f]
+                keep[x] = True
