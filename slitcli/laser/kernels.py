@@ -855,11 +855,15 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
-            out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
-            if support_z <= res[C_Z] < z_strong and \
+            if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
+                out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
+                                             sigma)
+            # a faint candidate, in a column without a strong one, is fitted again on
+            # the column averaged with its neighbours
+            strong = q > 0 and out[i, 0, C_Z] >= z_strong
+            if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                ws,
-                                res):
+                                ws, res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
