@@ -10,17 +10,17 @@ columns is compiled (:mod:`slitcli.laser.kernels`, :mod:`slitcli.laser.select`):
    rejection (Eq. 3), and the laser estimate with the surface colour removed.
 3. Candidates per column: local maxima of the evidence and saturated red plateaus,
    each fitted with a Gaussian on the texture-cancelled red signal (generalised least
-   squares over the colour channels, saturated samples left out), in the image and
-   in the image averaged over three columns (more signal for faint stripes).
+   squares over the colour channels, saturated samples left out, the sheet's width
+   as a prior); faint ones again on the column averaged with its neighbours.
 4. Eq. 4: per column the best valid candidate by red peak, continuity with the
    neighbouring columns and the previous frame, and narrowness; valid candidates
    are Gaussians of the laser's sheet thickness, above the clutter of their
    surroundings, not on an edge between two surfaces.
 5. Segments: columns joined by small row steps (or along a steep stripe); short
    segments and columns whose running median brightness is below ``min_peak_dn``
-   are dropped; gaps are filled and fading ends carried on by fits at the rows the
-   segment predicts; each row is finally smoothed along its segment (weighted
-   quadratic over nine columns).
+   are dropped, dim end columns too; gaps are filled and fading ends carried on by
+   fits at the rows the segment predicts; each row is finally smoothed along its
+   segment (weighted quadratic over nine columns).
 
 The kernels walk image columns (transposed views of the arrays).
 """
@@ -36,7 +36,7 @@ import numpy as np
 from slitcli.laser import kernels, select
 from slitcli.laser.params import LaserParams
 
-#: candidates fitted per column and per source (the image, the averaged image)
+#: candidates fitted per column
 K_BEST = 2
 #: every NOISE_STEP-th column estimates the noise
 NOISE_STEP = 32

@@ -65,7 +65,8 @@ class LaserFrame:
     Attributes
     ----------
     u_px, v_px : column and sub-pixel stripe row, pixels.
-    strength_dn : red contrast of the stripe above its local background, DN.
+    strength_dn : the stripe's peak brightness in the red channel (light it adds above the
+        surface, texture cancelled, pixel blur undone where the rig geometry is known), DN.
     saturated : the stripe core is clipped.
     x_m, y_m : sensor-frame position of the lit point, metres.
     range_m : horizontal distance ``hypot(x, y)`` from the point below the left camera.

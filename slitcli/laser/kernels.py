@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 #: green and blue response to the red laser, fraction of the red response (a red
 #: diode seen through a Bayer colour filter; the renderer's default crosstalk)
@@ -38,7 +38,8 @@ NOISE_BLOCK = 16  # rows sharing one surface colour in the noise estimate
 NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
 MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
-CONVERGED_PX = 2e-3  # a fit has converged when its centre and sigma move less, px
+CONVERGED_PX = 2e-3  # a fit has converged when its centre moves less (px)
+CONVERGED_REL_S = 0.02  # and its width less than this share of itself
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
@@ -59,7 +60,6 @@ CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
 #: above all but CLUTTER_SHARE of the evidence around it
 MIN_CLUTTER_RATIO = 1.5
 CLUTTER_SHARE = 0.2
-N_BLOCKS = 8  # column blocks processed in parallel
 AVG_MAX_SLOPE = 0.5  # steeper stripes (rows per column) are not averaged across columns
 
 #: fields of a candidate row (last axis of the candidate table)
@@ -528,7 +528,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         solved = _solve4(h, g, dx, scratch)
         for r in range(4):
             h[r, r] /= 1.0 + lam
-        if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+        if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
             break  # at the minimum: h, the covariance, stays that of these parameters
         n_v0, n_s = v0 + dx[2], s + dx[3]
         if solved and 0.3 <= n_s <= 8.0 and abs(n_v0 - centre) <= half - 1:
@@ -547,7 +547,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                     for q in range(4):
                         h[r, q] = ht[r, q]
                 lam = 0.0 if lam <= 1e-4 else lam * 0.1
-                if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 10.0 * CONVERGED_PX:
+                if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
                     break
                 if s > s_max:
                     break  # wider than any stripe: rejected whatever its exact width
@@ -732,7 +732,7 @@ def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centr
     return above / nn if nn > 0 else 0.0
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
                       sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
                       alpha: float, sat_dn: int, max_run_px: int, s_max: float,
@@ -757,11 +757,9 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     n_lines = img.shape[0]
     out[:] = np.nan
     out_avg[:] = np.nan
-    for blk in prange(N_BLOCKS):
-        _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th,
-                          alpha, sat_dn, max_run_px, s_max, support_z, z_strong,
-                          g_map, sheet_m, blk * n_lines // N_BLOCKS,
-                          (blk + 1) * n_lines // N_BLOCKS, out, out_avg)
+    _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th, alpha,
+                      sat_dn, max_run_px, s_max, support_z, z_strong, g_map, sheet_m, 0,
+                      n_lines, out, out_avg)
 
 
 @njit(cache=True, nogil=True)
@@ -857,11 +855,15 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
-            out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP], sigma)
-            if support_z <= res[C_Z] < z_strong and \
+            if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
+                out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
+                                             sigma)
+            # a faint candidate, in a column without a strong one, is fitted again on
+            # the column averaged with its neighbours
+            strong = q > 0 and out[i, 0, C_Z] >= z_strong
+            if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                ws,
-                                res):
+                                ws, res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],

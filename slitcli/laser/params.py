@@ -14,48 +14,58 @@ class LaserParams:
     Attributes
     ----------
     min_th : float
-        Eq. 2: minimum red chromaticity ``R = r / (r + g + b)`` of a stripe pixel
-        (unitless, 1/3 is grey). The paper gives no value; 0.35.
+        Eq. 2: minimum red chromaticity ``R = r / (r + g + b)`` of the light a pixel
+        adds above its background (its contrast; unitless, 1/3 is grey). The paper
+        gives no value; 0.35.
     min_delta_th : float
-        Eq. 2: minimum ``R - max(G, B)`` (unitless). The paper gives no value; 0.02.
+        Eq. 2: minimum ``R - max(G, B)`` of the contrast (unitless). The paper gives no
+        value; 0.02.
     alpha : float
-        Eq. 3 white-brightness rejection, paper value 0.32: on the light a pixel adds
-        above its local background (its contrast, DN), the red contrast must exceed
-        the white contrast ``max(g, b)`` by ``alpha`` of the red contrast.
+        Eq. 3 white-brightness rejection, paper value 0.32: the laser estimate of a
+        pixel (its red contrast less what its green and blue explain along the
+        surface's colour) must exceed ``alpha`` times its white contrast
+        ``max(t_g, t_b)``.
     beta : float
         Eq. 4 weight of the continuity term f(y) (paper 0.25).
     gamma : float
         Eq. 4 weight of the narrowness term g(I) (paper 0.25).
     max_width_px : float
-        A candidate run whose equivalent width (run sum / run peak of the red
-        contrast) exceeds this is a red object, not the laser, pixels.
+        Widest stripe: its equivalent width (2.5 fitted Gaussian sigmas) may not
+        exceed this, and a candidate run longer than three times it is an object,
+        pixels.
     background_window_px : int
         Length of the vertical window of the morphological opening that estimates
         the background under the stripe, pixels (odd; narrower features are "contrast").
     min_peak_dn : float
-        Minimum red contrast of a stripe, DN (8-bit digital numbers).
+        Minimum peak brightness of a stripe (the red light it adds, before the pixels'
+        blur), as the running median along its segment, DN. The renderer's truth calls
+        a stripe visible from an expected peak of 20 DN.
     noise_k : float
-        A stripe's red contrast must also exceed ``noise_k`` times the image noise
-        sigma, estimated from the green-minus-blue high-pass (unitless).
+        Significance (fitted amplitude over its standard error) of a strong candidate;
+        weak ones, which need an agreeing neighbour, 0.6 of it (unitless).
     seed_fraction : float
-        Pixels join a candidate run where their red contrast exceeds this fraction
-        of the acceptance threshold (unitless).
+        Candidates are seeded where the laser evidence exceeds this fraction of
+        ``max(min_peak_dn, noise_k x noise sigma)`` (and three noise sigmas of the
+        evidence) (unitless).
     saturation_dn : int
-        Red values at or above this are saturated (DN); a saturated core is exempt
-        from Eqs. 2-3 when the run also holds genuinely red pixels.
+        Values at or above this are saturated (DN); a saturated red core is exempt
+        from Eqs. 2-3 when a red pixel borders it, and is fitted on its flanks.
     continuity_px : float
         Scale of the continuity term: f(y) = exp(-dv^2 / (2 continuity_px^2)), pixels.
     max_jump_px : float
-        Largest row change between neighbouring columns of one stripe segment, pixels.
+        Largest row change between neighbouring columns of one stripe segment, pixels
+        (along a steep stripe the profile's own width allows more).
     min_segment_cols : int
-        Stripe segments shorter than this many columns are dropped (noise).
+        Stripe segments shorter than this many columns are dropped unless each of
+        their columns is 1.6 ``noise_k`` significant.
     max_search_range_m : float
         Only rows whose laser-plane intersection lies within this horizontal range
         are searched, metres.
     sheet_sigma_mm : float
         Thickness of the laser sheet (Gaussian sigma across the plane), millimetres.
         With the rig geometry, a candidate whose fitted width implies a sheet more
-        than 1.6 times thicker or thinner is not the laser; 0 turns the test off.
+        than 1.6 times thicker or thinner is not the laser (a frame that shows its own
+        thickness clearly uses that); 0 turns the test off.
     """
 
     min_th: float = 0.35
