@@ -23,7 +23,15 @@ from slitcli.io.atomic import write_png_atomic, write_text_atomic
 from slitcli.io.bags import BagPairs
 from slitcli.io.batch import FrameBatch, run_pool, single_thread_worker
 from slitcli.io.sequence import StereoSequence, read_image
-from slitcli.laser import LaserFrame, LaserGeometry, LaserParams, detect_laser, laser_table
+from slitcli.laser import (
+    LaserFrame,
+    LaserGeometry,
+    LaserParams,
+    detect_laser,
+    laser_sight_range_m,
+    laser_table,
+)
+from slitcli.laser import bearing_bin_centres_deg as laser_bins_centres
 from slitcli.laser import nearest_range_per_bin as laser_bins
 from slitcli.rig import Rig
 from slitcli.sim.sequence import encode_depth_png, encode_disparity_png
@@ -109,6 +117,8 @@ class Detector:
         self.fusion = FusionParams(mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
                                    stereo_max_range_m=rig.stereo.max_range_m)
         self._laser_geometry = LaserGeometry.from_rig(self.rectified_rig, self.params.laser)
+        self._laser_sight_m = laser_sight_range_m(
+            self.rectified_rig, laser_bins_centres(self.rectified_rig, self.params.bin_deg))
 
     def laser(self, left_rect_bgr: np.ndarray, previous: LaserFrame | None = None
               ) -> LaserFrame:
@@ -134,7 +144,8 @@ class Detector:
         lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg)
         if not np.array_equal(lb.bearing_deg, st.bearing_deg):
             raise RuntimeError("laser and stereo bearing bins differ")
-        fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion)
+        fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
+                     laser_sight_m=self._laser_sight_m)
         return FrameDetection(las, st, lb.bearing_deg, lb.range_m, st.range_m,
                               st.has_features, fused)
 

@@ -12,6 +12,17 @@ Paper mode (Eq. 11 as read in DESIGN §7), per bin:
    wrong for an obstacle that overhangs the laser sheet (a table top, a shelf): the
    robot then believes the obstacle is at least ``laser_max_range`` away.
 
+Rule 3 reads the paper's "no laser return" (a return beyond the band counts as none:
+the stripe is too faint there to trust) as "the obstacle is beyond the laser's reach".
+Two cases where that reading does not hold, and what this module does:
+
+* the stereo return lies nearer than the laser can see at that bearing (the stripe
+  of an obstacle there would fall below the image; ``laser_sight_m``): the laser's
+  silence says nothing, so the stereo range is kept as it is;
+* the bin is next to one with a laser return in the band: the lit object's edge can
+  enter this bin by less than one stripe column, so the silence is a matter of pixel
+  resolution, not of reach, and the stereo range is kept.
+
 Conservative mode: the plain minimum of the two returns.
 """
 
@@ -58,16 +69,21 @@ class FusedRanges:
 
 
 def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
-         stereo_has_features: np.ndarray, params: FusionParams) -> FusedRanges:
+         stereo_has_features: np.ndarray, params: FusionParams, *,
+         laser_sight_m: np.ndarray | None = None) -> FusedRanges:
     """Combine laser and stereo ranges per bearing bin (paper Eq. 11).
 
     Parameters
     ----------
     laser_range_m, stereo_range_m : ndarray, shape (B,)
-        Nearest return per bin, metres; NaN = no return.
+        Nearest return per bin, metres; NaN = no return. Bins are adjacent in bearing
+        order (neighbours in the array are neighbours in the field of view).
     stereo_has_features : ndarray of bool, shape (B,)
         Whether stereo saw enough texture in the bin to be trusted at all.
     params : FusionParams
+    laser_sight_m : ndarray, shape (B,), optional
+        Nearest range at which the laser stripe is inside the image at each bin's
+        bearing (:func:`slitcli.laser.laser_sight_range_m`); None: everywhere.
 
     Returns
     -------
@@ -80,15 +96,29 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     feat = np.asarray(stereo_has_features, dtype=bool) | np.isfinite(stereo)
     stereo = np.where(stereo <= params.stereo_max_range_m, stereo, np.nan)
     has_l, has_s = np.isfinite(laser), np.isfinite(stereo)
-    nearer_stereo = has_s & (~has_l | (stereo < laser))
-    min_rng = np.where(nearer_stereo, stereo, laser)
-    min_src = np.where(nearer_stereo, SOURCE_STEREO, np.where(has_l, SOURCE_LASER, SOURCE_NONE))
+    min_rng, min_src = _nearest(laser, stereo)
     if params.mode == "conservative":
-        return FusedRanges(min_rng, min_src.astype(object))
+        return FusedRanges(min_rng, min_src)
     laser_in_band = has_l & (laser < params.laser_max_range_m)
-    beyond = np.where(has_s, np.maximum(stereo, params.laser_max_range_m), np.nan)
-    rng = np.where(~feat, laser, np.where(laser_in_band, min_rng, beyond))
+    sight = (np.zeros_like(stereo) if laser_sight_m is None
+             else np.asarray(laser_sight_m, dtype=float))
+    beside_lit = np.zeros_like(laser_in_band)
+    beside_lit[1:] |= laser_in_band[:-1]
+    beside_lit[:-1] |= laser_in_band[1:]
+    with np.errstate(invalid="ignore"):
+        trust_silence = has_s & (stereo >= sight) & ~beside_lit
+    silent_rng = np.where(trust_silence, np.maximum(stereo, params.laser_max_range_m), stereo)
+    silent_src = np.where(has_s, SOURCE_STEREO, SOURCE_NONE)
+    rng = np.where(~feat, laser, np.where(laser_in_band, min_rng, silent_rng))
     src = np.where(~feat, np.where(has_l, SOURCE_LASER, SOURCE_NONE),
-                   np.where(laser_in_band, min_src,
-                            np.where(has_s, SOURCE_STEREO, SOURCE_NONE)))
+                   np.where(laser_in_band, min_src, silent_src))
     return FusedRanges(rng, src.astype(object))
+
+
+def _nearest(laser: np.ndarray, stereo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per bin, the nearer of two returns (NaN = none) and its source name."""
+    has_l, has_s = np.isfinite(laser), np.isfinite(stereo)
+    nearer_stereo = has_s & (~has_l | (stereo < laser))
+    rng = np.where(nearer_stereo, stereo, laser)
+    src = np.where(nearer_stereo, SOURCE_STEREO, np.where(has_l, SOURCE_LASER, SOURCE_NONE))
+    return rng, src.astype(object)

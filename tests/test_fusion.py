@@ -45,3 +45,36 @@ def test_conservative_mode_is_the_plain_minimum():
 def test_unknown_mode_is_an_input_error():
     with pytest.raises(SlitcliError, match="--fusion 'best'"):
         FusionParams(mode="best")
+
+
+def test_laser_silence_nearer_than_its_sight_is_not_trusted():
+    # the stripe of an obstacle at 0.62 m falls below the image where the laser's sight
+    # begins at 0.65 m: stereo's 0.62 m stands; where sight begins at 0.60 m it is clamped
+    laser, stereo, feat = np.array([NAN, NAN]), np.array([0.62, 0.62]), np.array([True, True])
+    f = fuse(laser, stereo, feat, FusionParams(), laser_sight_m=np.array([0.65, 0.60]))
+    np.testing.assert_allclose(f.range_m, [0.62, 1.0])
+    assert list(f.source) == ["stereo", "stereo"]
+
+
+def test_laser_silence_beside_a_lit_bin_is_not_trusted():
+    # bin 0: laser sees an object at 0.90 m; bin 1: its edge, seen by stereo only;
+    # bin 3 (not beside a lit bin): the paper's clamp holds
+    laser = np.array([0.90, NAN, NAN, NAN])
+    stereo = np.array([0.91, 0.93, NAN, 0.93])
+    f = fuse(laser, stereo, np.ones(4, bool), FusionParams())
+    np.testing.assert_allclose(f.range_m, [0.90, 0.93, NAN, 1.0], equal_nan=True)
+    assert list(f.source) == ["laser", "stereo", "none", "stereo"]
+
+
+def test_laser_sight_geometry_matches_the_stripe_row():
+    from slitcli.laser import laser_sight_range_m
+    from slitcli.rig import paper_rig
+
+    rig = paper_rig()
+    bearings = np.array([-30.0, -10.0, 0.0, 15.0, 30.0])
+    sight = laser_sight_range_m(rig, bearings, margin_px=2.0)
+    # straight ahead: the stripe row on a wall at the sight range is the last row in sight
+    row = rig.stripe_row_on_wall(float(sight[2]))
+    assert rig.height_px - 3.3 <= row <= rig.height_px - 3.0
+    # a roll-free rig's stripe row depends on the forward distance only
+    np.testing.assert_allclose(sight * np.cos(np.radians(bearings)), sight[2], atol=2e-3)

@@ -14,6 +14,7 @@ from slitcli.laser.frame import (
     LaserGeometry,
     bearing_bin_centres_deg,
     detect_laser,
+    laser_sight_range_m,
     nearest_range_per_bin,
     triangulate_stripe,
 )
@@ -34,6 +35,7 @@ __all__ = [
     "draw_overlay",
     "extract_stripe",
     "kernels",
+    "laser_sight_range_m",
     "laser_table",
     "nearest_range_per_bin",
     "run_laser",

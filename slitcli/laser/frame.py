@@ -173,6 +173,44 @@ def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:
     return np.arange(k0, k1 + 1, dtype=np.float64) * bin_deg
 
 
+def laser_sight_range_m(rig: Rig, bearing_deg: np.ndarray, *, margin_px: float = 2.0,
+                        max_range_m: float = 10.0, step_m: float = 1e-3) -> np.ndarray:
+    """Nearest horizontal range at which the laser can be seen, per bearing.
+
+    The lit point at bearing ``b`` and range ``r`` lies on the laser plane; it is in
+    sight when it projects inside the left image with ``margin_px`` to spare (the
+    stripe's width needs a few rows). Nearer than this the stripe of an obstacle falls
+    out of the image (below it, for the paper's rig: about 0.6 m straight ahead, more
+    to the sides), so the laser's silence there says nothing (fusion, Eq. 11).
+
+    Parameters
+    ----------
+    rig : Rig
+    bearing_deg : ndarray, shape (B,)
+        Bearings, sensor frame, positive left, degrees.
+
+    Returns
+    -------
+    ndarray, shape (B,)
+        Metres, sampled every ``step_m``; inf where the laser is never in sight up
+        to ``max_range_m``.
+    """
+    b = np.radians(np.asarray(bearing_deg, dtype=float))[:, None]
+    r = np.arange(step_m, max_range_m + step_m / 2, step_m)[None, :]
+    n_s, d_s = rig.laser_plane_sensor()
+    x, y = r * np.cos(b), r * np.sin(b)
+    if abs(n_s[2]) < 1e-9:
+        return np.full(b.shape[0], np.inf)
+    z = (d_s - n_s[0] * x - n_s[1] * y) / n_s[2]
+    u, v = rig.project_cam(rig.sensor_to_cam(np.stack([x, y, z], axis=-1)))
+    w, h = rig.image_size_px
+    with np.errstate(invalid="ignore"):
+        inside = ((u >= margin_px) & (u <= w - 1 - margin_px)
+                  & (v >= margin_px) & (v <= h - 1 - margin_px))
+    first = np.argmax(inside, axis=1)
+    return np.where(inside.any(axis=1), r[0, first], np.inf)
+
+
 @dataclass(frozen=True)
 class LaserBins:
     """Nearest laser range per bearing bin (shape (B,) each).
