@@ -142,8 +142,6 @@ class Detector:
         las = self.laser(left, prev)
         st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
         lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg)
-        if not np.array_equal(lb.bearing_deg, st.bearing_deg):
-            raise RuntimeError("laser and stereo bearing bins differ")
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
                      laser_sight_m=self._laser_sight_m)
         return FrameDetection(las, st, lb.bearing_deg, lb.range_m, st.range_m,

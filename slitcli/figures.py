@@ -257,7 +257,8 @@ def make_figures(work: str | Path, out: str | Path, *, fmt: str = "png", dpi: in
     written.append(save(fig, o / f"fig7.{fmt}", dpi=dpi))
 
     dwa = w / "dwa"
-    from slitcli.sim.scene import footprints, load_scene
+    from slitcli.sim.scene import load_scene
+    from slitcli.sim.truth import footprints
 
     world = load_scene(_need(dwa / "world.yaml", "slitcli simulate-dwa --scenario paper"))
     fp = footprints(world, z_low_m=0.0, z_high_m=np.inf)

@@ -59,6 +59,16 @@ class Mount:
     forward_m: float = 0.0
 
 
+def unit_plane(normal: tuple[float, float, float], offset_m: float) -> tuple[np.ndarray, float]:
+    """The plane ``normal . X = offset_m`` with its normal scaled to unit length.
+
+    Returns the unit normal (3,) and the offset in metres.
+    """
+    n = np.asarray(normal, dtype=float)
+    norm = float(np.linalg.norm(n))
+    return n / norm, float(offset_m) / norm
+
+
 @dataclass(frozen=True)
 class Laser:
     """The laser sheet: plane ``normal . X = offset_m`` in the left camera frame (metres).
@@ -75,13 +85,12 @@ class Laser:
     @property
     def unit_normal(self) -> np.ndarray:
         """Normal scaled to unit length (shape (3,))."""
-        n = np.asarray(self.normal, dtype=float)
-        return n / np.linalg.norm(n)
+        return unit_plane(self.normal, self.offset_m)[0]
 
     @property
     def unit_offset_m(self) -> float:
         """Offset of the plane once its normal is scaled to unit length, metres."""
-        return float(self.offset_m / np.linalg.norm(np.asarray(self.normal, dtype=float)))
+        return unit_plane(self.normal, self.offset_m)[1]
 
 
 @dataclass(frozen=True)
@@ -291,6 +300,26 @@ class Rig:
         left = math.degrees(math.atan((c.cx_px + 0.5) / c.fx_px))
         right = -math.degrees(math.atan((w - 0.5 - c.cx_px) / c.fx_px))
         return right, left
+
+    def bearing_bins(self, bin_deg: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bearing bins over the left image's horizontal field of view (DESIGN §6).
+
+        Bin centres are the multiples of ``bin_deg`` whose bins lie (at least half)
+        inside the field of view; bin ``c`` holds bearings in ``[c - w/2, c + w/2)``.
+        Every range table (ground truth, laser, stereo, fused) uses these bins.
+
+        Returns
+        -------
+        centres, lower, upper : ndarray, shape (B,)
+            Degrees, sensor frame, positive left, ascending (right to left).
+        """
+        if not bin_deg > 0:
+            raise ValueError("bin_deg must be positive")
+        right, left = self.bearing_limits_deg()
+        k0 = math.ceil(right / bin_deg - 1e-9)
+        k1 = math.floor(left / bin_deg + 1e-9)
+        centres = np.arange(k0, k1 + 1, dtype=np.float64) * bin_deg
+        return centres, centres - bin_deg / 2, centres + bin_deg / 2
 
     # ------------------------------------------------------------------ file form
     def to_dict(self) -> dict[str, Any]:

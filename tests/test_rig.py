@@ -113,3 +113,20 @@ def test_malformed_yaml_is_an_input_error(tmp_path):
     p.write_text(yaml.safe_dump([1, 2]))
     with pytest.raises(SlitcliError, match="must be a mapping"):
         load_rig(p)
+
+
+def test_bearing_bins_by_hand():
+    # paper rig: cx = 159.5 of 320 columns, f = 250 px -> outer column edges at
+    # +-atan(160 / 250) = +-32.62 deg; a bin is kept when its centre lies inside
+    rig = paper_rig()
+    right, left = rig.bearing_limits_deg()
+    assert left == pytest.approx(math.degrees(math.atan(160 / 250)))
+    assert right == pytest.approx(-left)
+    for width, first, count in ((1.0, -32.0, 65), (2.0, -32.0, 33), (5.0, -30.0, 13)):
+        centres, lo, hi = rig.bearing_bins(width)
+        assert centres[0] == first and centres.size == count
+        np.testing.assert_allclose(np.diff(centres), width)
+        np.testing.assert_allclose(hi - lo, width)
+        np.testing.assert_allclose((lo + hi) / 2, centres)
+    with pytest.raises(ValueError):
+        rig.bearing_bins(0.0)

@@ -10,7 +10,8 @@ import pytest
 from slitcli.errors import SlitcliError
 from slitcli.rig import paper_rig
 from slitcli.sim.render import frame_truth, render_frame
-from slitcli.sim.scene import Pose2D, bearing_bins, scene_from_dict, true_ranges
+from slitcli.sim.scene import Pose2D, scene_from_dict
+from slitcli.sim.truth import true_ranges
 
 
 def wall_scene(x_m: float, **extra) -> dict:
@@ -89,7 +90,7 @@ def test_range_truth_of_a_box_matches_hand_geometry():
     rig = paper_rig()
     scene = scene_from_dict({"slitcli_scene": 1, "objects": [
         {"type": "box", "centre_xy_m": [1.15, 0.1], "size_m": [0.3, 0.6, 0.5]}]})
-    centres, lo, hi = bearing_bins(rig.bearing_limits_deg())
+    centres, lo, hi = rig.bearing_bins()
     r = true_ranges(scene, Pose2D(0, 0, 0), lo, hi)
     # front face x = 1.0, y in [-0.2, 0.4]: a bin's nearest point is on the face at the
     # bin edge nearer to bearing 0 (or at bearing 0 itself)

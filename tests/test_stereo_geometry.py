@@ -14,7 +14,6 @@ from slitcli.errors import SlitcliError
 from slitcli.rig import RawCalibration, paper_rig
 from slitcli.stereo.obstacles import (
     ObstacleParams,
-    bearing_bin_centres_deg,
     bearing_ranges,
     depth_from_disparity,
     obstacle_points,
@@ -108,15 +107,6 @@ def test_floor_test_allows_for_disparity_noise():
     # 0.25 px of disparity noise lifts far floor points by centimetres; the test widens
     # its margin with depth, so almost no floor pixel becomes an obstacle
     assert obstacle[~sees_wall].mean() <= 0.01
-
-
-def test_bins_are_the_ground_truth_bins():
-    from slitcli.sim.scene import bearing_bins
-
-    rig = paper_rig()
-    for width in (1.0, 2.0, 5.0):
-        centres, _, _ = bearing_bins(rig.bearing_limits_deg(), width)
-        np.testing.assert_array_equal(bearing_bin_centres_deg(rig, width), centres)
 
 
 # ------------------------------------------------------------------ rectification

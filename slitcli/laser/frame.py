@@ -7,7 +7,6 @@ per-bearing range table of DESIGN §6.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,13 +163,9 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
 
 
 def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:
-    """Bearing bin centres (DESIGN §6): integer multiples of ``bin_deg`` within the
-    left camera's horizontal field of view, ascending (right to left), degrees."""
-    if not bin_deg > 0:
-        raise ValueError("bin_deg must be positive")
-    lo, hi = rig.bearing_limits_deg()
-    k0, k1 = math.ceil(lo / bin_deg - 1e-9), math.floor(hi / bin_deg + 1e-9)
-    return np.arange(k0, k1 + 1, dtype=np.float64) * bin_deg
+    """Bearing bin centres of the range tables (:meth:`slitcli.rig.Rig.bearing_bins`),
+    ascending (right to left), degrees."""
+    return rig.bearing_bins(bin_deg)[0]
 
 
 def laser_sight_range_m(rig: Rig, bearing_deg: np.ndarray, *, margin_px: float = 2.0,

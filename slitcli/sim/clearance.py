@@ -3,7 +3,7 @@
 Used to detect collisions, to measure clearance along a trajectory and to refuse
 impossible worlds (a start in collision, a goal inside an obstacle). World frame,
 metres. An obstacle counts when it reaches into the robot's height band, as for
-:func:`slitcli.sim.scene.true_ranges`.
+:func:`slitcli.sim.truth.true_ranges`.
 """
 
 from __future__ import annotations

@@ -32,15 +32,8 @@ from slitcli.io.progress import progress_bar
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
-from slitcli.sim.scene import (
-    Footprints,
-    Pose2D,
-    Scene,
-    bearing_bins,
-    footprints,
-    sensor_origin_xy,
-    wedge_min_range,
-)
+from slitcli.sim.scene import Pose2D, Scene
+from slitcli.sim.truth import Footprints, footprints, sensor_origin_xy, wedge_min_range
 from slitcli.sim.worlds import (
     PAPER_SENSING_RANGES_M,
     World,
@@ -89,7 +82,7 @@ class PerfectSensor:
 
     Bins cover the rig's horizontal field of view (``bin_deg`` wide); obstacles count
     when they reach between the floor margin (2 cm) and the robot's height, as in
-    :func:`slitcli.sim.scene.true_ranges`, whose outlines are computed once here.
+    :func:`slitcli.sim.truth.true_ranges`, whose outlines are computed once here.
     """
 
     outlines: Footprints
@@ -111,7 +104,7 @@ def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
     """The ``perfect`` sensing mode for a scene seen through ``rig``'s field of view."""
     if not sensing_range_m > 0:
         raise SlitcliError(f"--sensing-range {sensing_range_m:g} must be > 0 m")
-    centres, lo, hi = bearing_bins(rig.bearing_limits_deg(), bin_deg)
+    centres, lo, hi = rig.bearing_bins(bin_deg)
     outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
     return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
 

@@ -27,8 +27,9 @@ from slitcli.sim.raycast import (
     hit_object,
     object_hull,
 )
-from slitcli.sim.scene import Pose2D, Scene, Surface, bearing_bins, true_ranges
+from slitcli.sim.scene import Pose2D, Scene, Surface
 from slitcli.sim.texture import value_noise
+from slitcli.sim.truth import true_ranges
 
 SKY_DN = 0.7 * 255.0
 FLOOR_MARGIN_M = 0.02
@@ -397,7 +398,7 @@ def frame_truth(scene: Scene, rig: Rig, pose: Pose2D, *, bin_deg: float = 1.0) -
                              for s in _surfaces(scene)])
     textured = (obj >= 0) & textured_ids[np.where(obj >= 0, obj, 0)]
     stripe_v, stripe_peak, stripe_xyz = _stripe_truth(scene, rig, pose, left, hits, depth)
-    centres, lo, hi = bearing_bins(rig.bearing_limits_deg(), bin_deg)
+    centres, lo, hi = rig.bearing_bins(bin_deg)
     ranges = true_ranges(scene, pose, lo, hi, forward_m=rig.mount.forward_m,
                          floor_margin_m=FLOOR_MARGIN_M)
     return FrameTruth(depth, disparity, mask, textured, obj, stripe_v, stripe_peak, stripe_xyz,

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slitcli.rig import RawCalibration
+from slitcli.rig import RawCalibration, unit_plane
 from slitcli.sim.texture import value_noise
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-8)
@@ -136,12 +136,13 @@ class LaserSheet:
 
     @property
     def unit_normal(self) -> np.ndarray:
-        n = np.asarray(self.normal, dtype=float)
-        return n / np.linalg.norm(n)
+        """Normal scaled to unit length (shape (3,))."""
+        return unit_plane(self.normal, self.offset_m)[0]
 
     @property
     def unit_offset_m(self) -> float:
-        return float(self.offset_m / np.linalg.norm(np.asarray(self.normal, dtype=float)))
+        """Offset of the plane once its normal is scaled to unit length, metres."""
+        return unit_plane(self.normal, self.offset_m)[1]
 
 
 @dataclass(frozen=True)

@@ -96,13 +96,10 @@ class BearingRanges:
 def bearing_bin_centres_deg(rig: Rig, bin_width_deg: float = 1.0) -> np.ndarray:
     """Bin centres over the left camera's horizontal field of view (DESIGN §6).
 
-    The same bins as the ground truth (:func:`slitcli.sim.scene.bearing_bins`):
+    The same bins as the ground truth (:meth:`slitcli.rig.Rig.bearing_bins`):
     multiples of ``bin_width_deg`` whose bins lie at least half inside the view.
     """
-    from slitcli.sim.scene import bearing_bins
-
-    centres, _, _ = bearing_bins(rig.bearing_limits_deg(), bin_width_deg)
-    return centres
+    return rig.bearing_bins(bin_width_deg)[0]
 
 
 @dataclass(frozen=True)
