@@ -26,7 +26,7 @@ import pandas as pd
 from slitcli.errors import SlitcliError
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENES = {"fig4": 1, "corridor": 30, "distractors": 3, "overhang": 4}
+SCENES = {"fig4": 1, "corridor": 12, "distractors": 3, "overhang": 4}
 DWA_RANGES_M = (0.6, 1.0, 1.5, 2.0, 2.5, 3.0)
 
 
