@@ -339,7 +339,7 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
                  rdisp: np.ndarray) -> None:
     """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
     the outputs (``rdisp``: the right view's disparities, a scratch output)."""
-    from slitcli.stereo import _boundary, _kernel
+    from slitcli.stereo import _boundary, _kernel, _nssd
 
     h, w = pl.shape
     m = params.window_w_px // 2
@@ -348,7 +348,7 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
     args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
             float(params.uniqueness_ratio), float(params.lr_max_diff_px),
             params.subpixel == "parabola", disp, cost, energy, reason, rdisp)
-    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
+    run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), h,
                   pool, threads, min_rows=2 * n + 1)
     if params.texture_min_dn > 0:
         if params.prefilter == "none":
