@@ -37,6 +37,7 @@ _INF_BITS = np.int32(0x7F800000)
 # set by slitcli.stereo.matcher
 REASON_VALID = 0
 REASON_NO_CANDIDATE = 1
+REASON_TEXTURE = 2
 REASON_UNIQUENESS = 3
 REASON_LEFT_RIGHT = 4
 
@@ -168,9 +169,9 @@ def _keys(cb, rkey, i0, key_mask, n):
 
 
 @nb.njit(cache=True, error_model="numpy", nogil=True)
-def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
-              disp_out, cost_out, energy_out, reason_out, rdisp_out):
-    """Eq. 10 winner-take-all with subpixel, uniqueness and left-right check.
+def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, texture_min,
+              disp_out, cost_out, reason_out, rdisp_out):
+    """Eq. 10 winner-take-all with subpixel, uniqueness, left-right and texture check.
 
     Parameters
     ----------
@@ -193,9 +194,13 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
         Left-right tolerance in px (< 0 = off).
     subpixel : bool
         Parabola refinement.
-    disp_out, cost_out, energy_out : (H, W) float32
-        Disparity (NaN where no candidate), Eq. 10 cost of the winner (+inf where
-        none) and left window energy ``sum P_l^2`` over the window clipped to the image.
+    texture_min : float32
+        A pixel whose left window energy ``sum P_l^2`` (window clipped to the image) is
+        below ``texture_min`` x its pixel count gets REASON_TEXTURE if it is otherwise
+        valid (0 = off).
+    disp_out, cost_out : (H, W) float32
+        Disparity (NaN where no candidate) and Eq. 10 cost of the winner (+inf where
+        none).
     reason_out : (H, W) uint8
         REASON_* code per pixel.
     rdisp_out : (H, W) float32
@@ -236,6 +241,8 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
     ir = np.empty(width, np.float32)
     irr = np.empty(width, np.float32)
     er = np.empty(width, np.float32)
+    el = np.empty(width, np.float32)
+    p_el = ptr(el)
     p_il = ptr(il)
     p_ir = ptr(ir)
     p_irr = ptr(irr)
@@ -273,7 +280,8 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
                       width)
         _prefix(vl, cly, width)
         _prefix(vr, cry, width)
-        _window_energy_row(cly, offset(ptr(energy_out), y * width), p_il, m, width)
+        _window_energy_row(cly, p_el, p_il, m, width)
+        rows_y = np.float32(min(y + n, height - 1) - max(y - n, 0) + 1)
         _window_energy_row(cry, p_er, p_ir, m, width)
         for j in range(_U(width)):
             irr[j] = ir[_U(width - 1) - j]
@@ -384,4 +392,8 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel,
                 xr = x - d
                 if xr < 0 or xr >= width or abs(rbest_i[xr] - i) > lr_tol:
                     reason = REASON_LEFT_RIGHT
+            if reason == REASON_VALID and texture_min > 0:
+                cols_x = np.float32(min(x + m, width - 1) - max(x - m, 0) + 1)
+                if not el[x] >= texture_min * (rows_y * cols_x):
+                    reason = REASON_TEXTURE
             reason_out[y, x] = reason

@@ -60,7 +60,6 @@ filled in.
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from collections.abc import Callable
@@ -302,7 +301,6 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     cost = np.empty((h, w), np.float32)
-    energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = _kernel_threads()
@@ -315,28 +313,16 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
             pl = prefilter_image(left_grey, params)
             pr = prefilter_image(right_grey, params)
         _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
-                     energy, reason, rdisp)
+                     reason, rdisp)
     disp, reason = _apply_speckle(disp, reason, params)
     disp[reason != REASON_VALID] = np.nan
     return DisparityResult(disp, reason, cost)
 
 
-@functools.lru_cache(maxsize=8)
-def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
-    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w),
-    read-only (a small memo: it depends on the sizes only)."""
-    rows = np.minimum(np.arange(h) + n, h - 1) - np.maximum(np.arange(h) - n, 0) + 1
-    cols = np.minimum(np.arange(w) + m, w - 1) - np.maximum(np.arange(w) - m, 0) + 1
-    out = (rows[:, None] * cols[None, :]).astype(np.float32)
-    out.setflags(write=False)
-    return out
-
-
 def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
                  right_grey: np.ndarray, params: MatcherParams,
                  pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
-                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray,
-                 rdisp: np.ndarray) -> None:
+                 cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
     """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
     the outputs (``rdisp``: the right view's disparities, a scratch output)."""
     from slitcli.stereo import _boundary, _kernel, _nssd
@@ -345,22 +331,18 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
     m = params.window_w_px // 2
     n = params.window_h_px // 2
     prr = np.ascontiguousarray(pr[:, ::-1])
+    # the prefiltered image is zero-mean: its window RMS is its texture, tested in the
+    # kernel on the window energy: RMS / 4 < t  <=>  energy < (4 t)^2 x pixel count
+    energy_min = (params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none" else 0.0
     args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
             float(params.uniqueness_ratio), float(params.lr_max_diff_px),
-            params.subpixel == "parabola", disp, cost, energy, reason, rdisp)
+            params.subpixel == "parabola", np.float32(energy_min), disp, cost, reason, rdisp)
     run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), h,
                   pool, threads, min_rows=2 * n + 1)
-    if params.texture_min_dn > 0:
-        if params.prefilter == "none":
-            texture_ok = window_std_dn(pl, params.window_w_px,
-                                       params.window_h_px) >= params.texture_min_dn
-        else:
-            # the prefiltered image is zero-mean: its window RMS is its texture
-            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
-            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
-            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
-        weak = (reason == REASON_VALID) & ~texture_ok
-        reason[weak] = REASON_TEXTURE
+    if params.texture_min_dn > 0 and params.prefilter == "none":
+        texture_ok = window_std_dn(pl, params.window_w_px,
+                                   params.window_h_px) >= params.texture_min_dn
+        reason[(reason == REASON_VALID) & ~texture_ok] = REASON_TEXTURE
     gl = np.asarray(left_grey, np.float32)
     gr = np.asarray(right_grey, np.float32)
     smin = float(params.support_min_zncc)
