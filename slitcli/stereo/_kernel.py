@@ -176,3 +176,77 @@ def clip_quantise(grey, smooth, sign, cap, scale, out):
             v = grey[y, x] - sign * smooth[y, x]
             v = min(max(v, -cap), cap)
             out[y, x] = np.float32(np.rint(v * scale))
+
+
+@nb.njit(cache=True, inline="always")
+def _root(parent, i):
+    """Root of i's set (path halving; every link points to an earlier pixel)."""
+    while parent[i] != i:
+        p = parent[i]
+        parent[i] = parent[p]
+        i = p
+    return i
+
+
+@nb.njit(cache=True, nogil=True)
+def speckle_finish(disp, reason, max_size, max_diff_16, speckle_code):
+    """Speckle removal, then NaN for every invalid pixel, in place.
+
+    The regions are those of ``cv2.filterSpeckles`` on the disparities in 1/16 px
+    (``trunc(16 d)``): 4-connected valid pixels whose neighbours differ by at most
+    ``max_diff_16``. Valid pixels of regions of at most ``max_size`` pixels get
+    ``speckle_code`` (``max_size`` 0: no speckle removal). The regions are the
+    connected components of a union-find built in one raster pass (a pixel joins the
+    run on its left, runs join the row above; every set is rooted at its first pixel,
+    so a second raster pass reads each pixel's root in O(1)): O(pixels), and
+    independent of the order of the pass.
+    """
+    height, width = disp.shape
+    nan = np.float32(np.nan)
+    if max_size <= 0:
+        for y in range(height):
+            for x in range(width):
+                if reason[y, x] != 0:
+                    disp[y, x] = nan
+        return
+    npx = height * width
+    fixed = np.empty(npx, np.int32)
+    parent = np.empty(npx, np.int32)
+    size = np.empty(npx, np.int32)
+    for y in range(height):
+        run = -1     # root of the set of pixel x - 1, -1 when it is invalid
+        for x in range(width):
+            i = y * width + x
+            if reason[y, x] != 0:
+                run = -1
+                continue
+            f = np.int32(np.int16(disp[y, x] * np.float32(16.0)))
+            fixed[i] = f
+            if run >= 0 and abs(f - fixed[i - 1]) <= max_diff_16:
+                parent[i] = run
+                size[run] += 1
+                root = run
+            else:
+                parent[i] = i
+                size[i] = 1
+                root = i
+            if y > 0 and reason[y - 1, x] == 0 and abs(f - fixed[i - width]) <= max_diff_16:
+                up = _root(parent, i - width)
+                if up != root:
+                    lo = min(up, root)
+                    hi = max(up, root)
+                    parent[hi] = lo
+                    size[lo] += size[hi]
+                    root = lo
+            run = root
+    for y in range(height):
+        for x in range(width):
+            i = y * width + x
+            if reason[y, x] == 0:
+                r = parent[parent[i]]   # parent[i] < i is already flattened to its root
+                parent[i] = r
+                if size[r] <= max_size:
+                    reason[y, x] = speckle_code
+                    disp[y, x] = nan
+            else:
+                disp[y, x] = nan

@@ -314,8 +314,11 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
             pr = prefilter_image(right_grey, params)
         _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
                      reason, rdisp)
-    disp, reason = _apply_speckle(disp, reason, params)
-    disp[reason != REASON_VALID] = np.nan
+    from slitcli.stereo import _kernel
+
+    # speckle regions as cv2.filterSpeckles finds them on 1/16 px, then NaN = invalid
+    _kernel.speckle_finish(disp, reason, int(params.speckle_window_px),
+                           max(1, math.ceil(params.speckle_range_px * 16.0)), REASON_SPECKLE)
     return DisparityResult(disp, reason, cost)
 
 
@@ -402,23 +405,6 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
         return
     for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
         f.result()
-
-
-def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
-                   params: MatcherParams) -> tuple[np.ndarray, np.ndarray]:
-    """Mark small connected disparity blobs invalid (cv2.filterSpeckles on 1/16 px)."""
-    if params.speckle_window_px <= 0:
-        return disp, reason
-    valid = reason == REASON_VALID
-    bad = np.int16(-32768)
-    # 1/16 px units (disparities are < 2048 px, so they fit in int16)
-    fixed = np.where(valid, disp * np.float32(16.0), np.float32(bad)).astype(np.int16)
-    cv2.filterSpeckles(fixed, int(bad), int(params.speckle_window_px),
-                       max(1, math.ceil(params.speckle_range_px * 16.0)))
-    removed = valid & (fixed == bad)
-    reason = reason.copy()
-    reason[removed] = REASON_SPECKLE
-    return disp, reason
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
