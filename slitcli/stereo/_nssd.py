@@ -102,6 +102,38 @@ def _border_x(cb, ssum, cly, cry, i0, i1, x, dmin, m, width):
         cb[i] = bits((ssum[i] + SSD_EPS) * g)
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _masked_norm(sl, sr):
+    """Eq. 10's inverse norm over a clipped window pair (as in :func:`_border_x`),
+    branch-free."""
+    half = np.float32(0.5)
+    low_l = sl < half
+    low_r = sr < half
+    inv = np.float32(1.0) / np.sqrt(max(sl, sr) if low_l or low_r else sl * sr)
+    return BIG_INV * (BIG_INV if low_l and low_r else inv) if low_l or low_r else inv
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _diagonal_norms(g, cly_hi, cly_lo, sr, n):
+    """Inverse norms of the windows that the right image's left edge clips, for one
+    offset k = x - d < m and n disparities from dmin: the left window is columns
+    d .. d + k + m (``cly_hi`` = prefix from column dmin + k + m + 1, ``cly_lo`` from
+    dmin), the right one columns 0 .. k + m (energy ``sr``)."""
+    for i in range(n):
+        g[i] = _masked_norm(np.float32(cly_hi[i] - cly_lo[i]), sr)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _right_edge_costs(cb, ssum, sl, cry_hi, cry_lo, n):
+    """Eq. 10 bits of a pixel x > W-1-m whose left window (energy ``sl``) the image's
+    right edge clips, for n disparities d from dmin (all <= x - m): the right window
+    is columns x-m-d .. W-1-d (``cry_hi[-i]`` = prefix at W - d, ``cry_lo[-i]`` at
+    x - m - d)."""
+    for i in range(n):
+        g = _masked_norm(sl, np.float32(cry_hi[-i] - cry_lo[-i]))
+        cb[i] = bits((ssum[i] + SSD_EPS) * g)
+
+
 # ---- per-pixel loops over the disparities (pointer arguments: slitcli.stereo._simd)
 
 
@@ -166,6 +198,37 @@ def _keys(cb, rkey, i0, key_mask, n):
         rk = rkey[k]
         rkey[k] = key if key < rk else rk
     return lk
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _finish_row(best_i, c_0, c_m, c_p, second, rbest_i, el, disp_o, cost_o, reason_o, width,
+                dmin, num, m, uniq, lr_tol, subpixel, texture_min, rows_y):
+    """Subpixel disparity, validity code and cost of one row from the winners (branch-
+    free, so it vectorises; the quotient is IEEE-exact). ``best_i`` -1: no candidate;
+    ``second``: best cost more than 1 px from the winner; ``rbest_i``: the right
+    pixels' winners; ``el``: left window energies."""
+    inf = np.float32(np.inf)
+    for x in range(width):
+        i = best_i[x]
+        c1v = c_0[x]
+        cm = c_m[x]
+        cp = c_p[x]
+        d = dmin + i
+        den = cm - 2.0 * c1v + cp
+        refine = subpixel and i > 0 and i < num - 1 and cm < inf and cp < inf and den > 0.0
+        delta = np.float32(0.5 * (cm - cp) / den) if refine else np.float32(0.0)
+        xr = min(max(x - d, 0), width - 1)
+        lr_bad = lr_tol >= 0.0 and (x - d < 0 or x - d >= width or
+                                    abs(rbest_i[xr] - i) > lr_tol)
+        cols_x = np.float32(min(x + m, width - 1) - max(x - m, 0) + 1)
+        flat = texture_min > 0 and not el[x] >= texture_min * (rows_y * cols_x)
+        reason = REASON_TEXTURE if flat else REASON_VALID
+        reason = REASON_LEFT_RIGHT if lr_bad else reason
+        reason = REASON_UNIQUENESS if uniq > 0.0 and second[x] < c1v * (1.0 + uniq) else reason
+        found = i >= 0 and c1v < inf
+        reason_o[x] = reason if found else REASON_NO_CANDIDATE
+        disp_o[x] = np.float32(d) + delta if found else np.float32(np.nan)
+        cost_o[x] = c1v
 
 
 @nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -242,34 +305,45 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
     irr = np.empty(width, np.float32)
     er = np.empty(width, np.float32)
     el = np.empty(width, np.float32)
-    p_el = ptr(el)
-    p_il = ptr(il)
-    p_ir = ptr(ir)
-    p_irr = ptr(irr)
-    p_er = ptr(er)
-    p_col = ptr(colsum)
-    p_ssum = ptr(ssum)
-    p_cb = ptr(cb)
-    p_rkey = ptr(rkey)
-    p_prr = ptr(prr)
-    p_pl = ptr(pl)
-    p_pr = ptr(pr)
-    p_zero = ptr(zeros)
+    # the clipped windows at the borders take the slow scalar path (_border_x) unless
+    # the disparities are non-negative and the image is wider than the window: then
+    # the left border's norms are a table per row (offset k = x - d < m, disparity)
+    # and the right border's are computed per pixel, both vectorised
+    fast_border = dmin >= 0 and width >= m2
+    diag = np.empty((max(m, 1), num), np.float32)
     # pixels x0 .. x1 - 1 have every disparity and its window inside both images
     x0 = max(m, num - 1 + dmin + m, 0)
     x1 = min(width - m, width - m + dmin, width + dmin)
     # the band's first window: rows y0 - n .. y0 + n - 1 (row y0 + n is added below)
     for r in range(max(0, y0 - n), min(height, y0 + n)):
-        _slide_energy(ptr(vl), offset(p_pl, r * width), p_zero, one, zero, width)
-        _slide_energy(ptr(vr), offset(p_pr, r * width), p_zero, one, zero, width)
+        p_zero = ptr(zeros)
+        _slide_energy(ptr(vl), offset(ptr(pl), r * width), p_zero, one, zero, width)
+        _slide_energy(ptr(vr), offset(ptr(pr), r * width), p_zero, one, zero, width)
         for c in range(width):
             lo = max(0, c - width + 1 - dmin)
             hi = min(num, c - dmin + 1)
             if lo < hi:
-                rr = offset(p_prr, r * width + width - 1 - c + dmin + lo)
-                _column_sums(offset(p_col, (c + m + 1) * num + lo), rr, rr, pl[r, c],
+                rr = offset(ptr(prr), r * width + width - 1 - c + dmin + lo)
+                _column_sums(offset(ptr(colsum), (c + m + 1) * num + lo), rr, rr, pl[r, c],
                              pl[r, c], one, zero, _U(hi - lo))
     for y in range(y0, y1):
+        # numba frees an array after its last use: the pointers are taken here, in the
+        # loop, so every array stays alive while they are used (slitcli.stereo._simd)
+        p_el = ptr(el)
+        p_il = ptr(il)
+        p_ir = ptr(ir)
+        p_irr = ptr(irr)
+        p_er = ptr(er)
+        p_col = ptr(colsum)
+        p_ssum = ptr(ssum)
+        p_cb = ptr(cb)
+        p_rkey = ptr(rkey)
+        p_prr = ptr(prr)
+        p_pl = ptr(pl)
+        p_pr = ptr(pr)
+        p_zero = ptr(zeros)
+        p_cly = ptr(cly)
+        p_cry = ptr(cry)
         ra = min(y + n, height - 1)
         rs = max(y - n - 1, 0)
         wa = one if y + n < height else zero
@@ -283,6 +357,11 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
         _window_energy_row(cly, p_el, p_il, m, width)
         rows_y = np.float32(min(y + n, height - 1) - max(y - n, 0) + 1)
         _window_energy_row(cry, p_er, p_ir, m, width)
+        if fast_border:
+            for k in range(m):
+                nk = max(0, min(num, width - k - m - dmin))
+                _diagonal_norms(offset(ptr(diag), k * num), offset(p_cly, dmin + k + m + 1),
+                                offset(p_cly, dmin), np.float32(cry[k + m + 1] - cry[0]), nk)
         for j in range(_U(width)):
             irr[j] = ir[_U(width - 1) - j]
         rkey[:] = inf_key
@@ -340,8 +419,18 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
                 if ilo < ihi:
                     _interior_costs(offset(p_cb, ilo), offset(p_ssum, ilo),
                                     offset(p_irr, j0 + ilo), il[x], _U(ihi - ilo))
-                _border_x(cb, ssum, cly, cry, vlo, ilo, x, dmin, m, width)
-                _border_x(cb, ssum, cly, cry, ihi, vhi, x, dmin, m, width)
+                if fast_border and x <= width - 1 - m:
+                    # left border: every disparity of [ihi, vhi) has x - d < m
+                    for i in range(ihi, vhi):
+                        cb[i] = bits((ssum[i] + SSD_EPS) * diag[x - dmin - i, i])
+                elif fast_border and dmin + vhi - 1 <= x - m:
+                    _right_edge_costs(offset(p_cb, vlo), offset(p_ssum, vlo),
+                                      np.float32(cly[width] - cly[x - m]),
+                                      offset(p_cry, width - dmin - vlo),
+                                      offset(p_cry, x - m - dmin - vlo), vhi - vlo)
+                else:
+                    _border_x(cb, ssum, cly, cry, vlo, ilo, x, dmin, m, width)
+                    _border_x(cb, ssum, cly, cry, ihi, vhi, x, dmin, m, width)
                 lk = _keys(offset(p_cb, vlo), offset(p_rkey, j0 + vlo), vlo, key_mask,
                            _U(vhi - vlo))
             if lk >= inf_key:
@@ -368,32 +457,7 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
             rk = rkey[width - 1 - x]
             rbest_i[x] = np.int32(rk & index_mask) if rk < inf_key else -1
             rdisp_out[y, x] = np.float32(dmin + rbest_i[x]) if rbest_i[x] >= 0 else np.nan
-        for x in range(width):
-            i = best_i[x]
-            c1v = c_0[x]
-            cost_out[y, x] = c1v
-            if i < 0 or not (c1v < inf):
-                disp_out[y, x] = np.nan
-                reason_out[y, x] = REASON_NO_CANDIDATE
-                continue
-            d = dmin + i
-            delta = np.float32(0.0)
-            if subpixel and i > 0 and i < num - 1:
-                cm = c_m[x]
-                cp = c_p[x]
-                den = cm - 2.0 * c1v + cp
-                if cm < inf and cp < inf and den > 0.0:
-                    delta = np.float32(0.5 * (cm - cp) / den)
-            disp_out[y, x] = np.float32(d) + delta
-            reason = REASON_VALID
-            if uniq > 0.0 and second[x] < c1v * (1.0 + uniq):
-                reason = REASON_UNIQUENESS
-            if reason == REASON_VALID and lr_tol >= 0.0:
-                xr = x - d
-                if xr < 0 or xr >= width or abs(rbest_i[xr] - i) > lr_tol:
-                    reason = REASON_LEFT_RIGHT
-            if reason == REASON_VALID and texture_min > 0:
-                cols_x = np.float32(min(x + m, width - 1) - max(x - m, 0) + 1)
-                if not el[x] >= texture_min * (rows_y * cols_x):
-                    reason = REASON_TEXTURE
-            reason_out[y, x] = reason
+        _finish_row(ptr(best_i), ptr(c_0), ptr(c_m), ptr(c_p), ptr(second), ptr(rbest_i), p_el,
+                    offset(ptr(disp_out), y * width), offset(ptr(cost_out), y * width),
+                    offset(ptr(reason_out), y * width), width, dmin, num, m, uniq, lr_tol,
+                    subpixel, texture_min, rows_y)

@@ -8,7 +8,11 @@ loops (slitcli.stereo._nssd): inlined into the pixel loop they stay scalar (LLVM
 model rejects the per-pixel overlap checks), and as separate functions they vectorise
 but each call passes every array as a 7-9 field struct. Passing data pointers instead
 of arrays cuts a call to a handful of arguments (about 40 % faster per pixel at 64
-disparities). The pointers are always taken from arrays the caller keeps alive.
+disparities).
+
+A pointer does not keep its array alive, and numba frees an array right after the
+last use of its variable: take pointers inside the loop that uses them (the array's
+variable is then live through the loop), never once before it.
 """
 
 from __future__ import annotations
