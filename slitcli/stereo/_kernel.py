@@ -1,10 +1,10 @@
 """Compiled (numba) kernels of the stereo pipeline besides the matcher itself
-(slitcli.stereo._nssd).
+(slitcli.stereo._nssd) and its support and depth-edge tests (slitcli.stereo._boundary).
 
-- :func:`warp_rows`, :func:`support_rows`: the local-support correlation;
 - :func:`clip_quantise`: the prefilter's clip and quantisation;
 - :func:`reproject`, :func:`bin_percentile`: depth, sensor-frame points, obstacle
-  tests and the per-bearing range percentile.
+  tests and the per-bearing range percentile;
+- :func:`speckle_finish`: speckle removal and the NaN of invalid pixels.
 
 All release the GIL (``nogil``) so bands of rows can run on plain threads. Compiled on
 first use and cached on disk (``cache=True``).
@@ -17,74 +17,6 @@ import numpy as np
 
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}
 _U = nb.uint64
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def warp_rows(gr, disp, warped, y0, y1):
-    """``warped(x, y) = gr(x - disp(x, y), y)`` for rows y0..y1-1 (linear in x, clamped
-    to the image; no shift where ``disp`` is NaN)."""
-    _warp_rows(gr, gr, disp, warped, y0, y1)
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def support_rows(gl, warped, r, y0, y1, out):
-    """Zero-mean normalised correlation of the (2r+1)^2 windows of ``gl`` and
-    ``warped`` (clipped to the image) for rows y0..y1-1: ``out`` in [-1, 1], 0 where a
-    window is flat. ``warped`` must be complete for rows y0 - r .. y1 - 1 + r."""
-    width = gl.shape[1]
-    s = np.zeros((5, width + 2 * r), np.float32)
-    h = np.zeros((5, width), np.float32)
-    for y in range(y0, y1):
-        _support_row(gl, warped, y, r, s, h, out)
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _warp_rows(gl, gr, disp, warped, y0, y1):
-    width = gl.shape[1]
-    for y in range(y0, y1):
-        for x in range(width):
-            d = disp[y, x]
-            xr = np.float32(x) - (d if d == d else np.float32(0.0))
-            xr = min(max(xr, np.float32(0.0)), np.float32(width - 1))
-            x0 = min(int(xr), width - 2)
-            t = xr - np.float32(x0)
-            warped[y, x] = (np.float32(1.0) - t) * gr[y, x0] + t * gr[y, x0 + 1]
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _support_row(gl, warped, y, r, s, h, out):
-    height, width = gl.shape
-    # column sums over the window's rows, zero-padded by r on both sides, then window
-    # sums along x as 2r+1 shifted adds (vectorised)
-    s[:] = 0.0
-    h[:] = 0.0
-    y0 = max(0, y - r)
-    y1 = min(height, y + r + 1)
-    uw = _U(width)
-    ur = _U(r)
-    for yy in range(_U(y0), _U(y1)):
-        for x in range(uw):
-            a = gl[yy, x]
-            b = warped[yy, x]
-            s[0, ur + x] += a
-            s[1, ur + x] += b
-            s[2, ur + x] += a * a
-            s[3, ur + x] += b * b
-            s[4, ur + x] += a * b
-    for q in range(_U(5)):
-        for k in range(_U(2 * r + 1)):
-            for x in range(uw):
-                h[q, x] += s[q, x + k]
-    rows = np.float32(y1 - y0)
-    for x in range(width):
-        cnt = rows * np.float32(min(width, x + r + 1) - max(0, x - r))
-        a = h[0, x]
-        b = h[1, x]
-        var_a = h[2, x] - a * a / cnt
-        var_b = h[3, x] - b * b / cnt
-        cov = h[4, x] - a * b / cnt
-        den = np.sqrt(max(var_a, np.float32(0.0)) * max(var_b, np.float32(0.0)))
-        out[y, x] = cov / den if den > 1e-3 else np.float32(0.0)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)

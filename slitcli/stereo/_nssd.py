@@ -201,34 +201,47 @@ def _keys(cb, rkey, i0, key_mask, n):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _finish_row(best_i, c_0, c_m, c_p, second, rbest_i, el, disp_o, cost_o, reason_o, width,
-                dmin, num, m, uniq, lr_tol, subpixel, texture_min, rows_y):
+def _finish_row(best_i, c_0, c_m, c_p, second, rbest_i, el, disp_o, cost_o, reason_o, lr_o,
+                width, dmin, num, m, uniq, lr_tol, subpixel, texture_min, rows_y):
     """Subpixel disparity, validity code and cost of one row from the winners (branch-
     free, so it vectorises; the quotient is IEEE-exact). ``best_i`` -1: no candidate;
     ``second``: best cost more than 1 px from the winner; ``rbest_i``: the right
     pixels' winners; ``el``: left window energies."""
     inf = np.float32(np.inf)
+    lr_on = lr_tol >= 0.0
+    uniq_on = uniq > 0.0
+    tex_on = texture_min > 0
+    # bitwise & and | (not and / or): no branches; and one output per loop, as LLVM
+    # vectorises a loop only while it needs few run-time overlap checks
     for x in range(width):
         i = best_i[x]
         c1v = c_0[x]
         cm = c_m[x]
         cp = c_p[x]
-        d = dmin + i
         den = cm - 2.0 * c1v + cp
-        refine = subpixel and i > 0 and i < num - 1 and cm < inf and cp < inf and den > 0.0
-        delta = np.float32(0.5 * (cm - cp) / den) if refine else np.float32(0.0)
-        xr = min(max(x - d, 0), width - 1)
-        lr_bad = lr_tol >= 0.0 and (x - d < 0 or x - d >= width or
-                                    abs(rbest_i[xr] - i) > lr_tol)
+        refine = subpixel & (i > 0) & (i < num - 1) & (cm < inf) & (cp < inf) & (den > 0.0)
+        delta = np.float32(0.5 * (cm - cp) / den)
+        delta = delta if refine else np.float32(0.0)
+        found = (i >= 0) & (c1v < inf)
+        disp_o[x] = np.float32(dmin + i) + delta if found else np.float32(np.nan)
+    for x in range(width):
+        cost_o[x] = c_0[x]
+    for x in range(width):
+        # the left-right test's partner (a gather: its own loop)
+        xr = x - (dmin + best_i[x])
+        rb = rbest_i[min(max(xr, 0), width - 1)]
+        bad = lr_on & ((xr < 0) | (xr >= width) | (abs(rb - best_i[x]) > lr_tol))
+        lr_o[x] = np.uint8(1) if bad else np.uint8(0)
+    for x in range(width):
+        i = best_i[x]
+        c1v = c_0[x]
         cols_x = np.float32(min(x + m, width - 1) - max(x - m, 0) + 1)
-        flat = texture_min > 0 and not el[x] >= texture_min * (rows_y * cols_x)
+        flat = tex_on & (el[x] < texture_min * (rows_y * cols_x))
         reason = REASON_TEXTURE if flat else REASON_VALID
-        reason = REASON_LEFT_RIGHT if lr_bad else reason
-        reason = REASON_UNIQUENESS if uniq > 0.0 and second[x] < c1v * (1.0 + uniq) else reason
-        found = i >= 0 and c1v < inf
+        reason = REASON_LEFT_RIGHT if lr_o[x] != 0 else reason
+        reason = REASON_UNIQUENESS if uniq_on & (second[x] < c1v * (1.0 + uniq)) else reason
+        found = (i >= 0) & (c1v < inf)
         reason_o[x] = reason if found else REASON_NO_CANDIDATE
-        disp_o[x] = np.float32(d) + delta if found else np.float32(np.nan)
-        cost_o[x] = c1v
 
 
 @nb.njit(cache=True, error_model="numpy", nogil=True)
@@ -284,6 +297,7 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
     c_m = np.empty(width, np.float32)
     c_p = np.empty(width, np.float32)
     second = np.empty(width, np.float32)
+    lr_fail = np.empty(width, np.uint8)
     zeros = np.zeros(max(width, num), np.float32)
     idx = np.arange(num).astype(np.int32)
     vl = np.zeros(width, np.float32)
@@ -459,5 +473,6 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
             rdisp_out[y, x] = np.float32(dmin + rbest_i[x]) if rbest_i[x] >= 0 else np.nan
         _finish_row(ptr(best_i), ptr(c_0), ptr(c_m), ptr(c_p), ptr(second), ptr(rbest_i), p_el,
                     offset(ptr(disp_out), y * width), offset(ptr(cost_out), y * width),
-                    offset(ptr(reason_out), y * width), width, dmin, num, m, uniq, lr_tol,
+                    offset(ptr(reason_out), y * width), ptr(lr_fail), width, dmin, num, m,
+                    uniq, lr_tol,
                     subpixel, texture_min, rows_y)

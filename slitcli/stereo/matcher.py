@@ -328,9 +328,9 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
                  cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
     """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
     the outputs (``rdisp``: the right view's disparities, a scratch output)."""
-    from slitcli.stereo import _boundary, _kernel, _nssd
+    from slitcli.stereo import _boundary, _nssd
 
-    h, w = pl.shape
+    h = pl.shape[0]
     m = params.window_w_px // 2
     n = params.window_h_px // 2
     prr = np.ascontiguousarray(pr[:, ::-1])
@@ -346,39 +346,17 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
         texture_ok = window_std_dn(pl, params.window_w_px,
                                    params.window_h_px) >= params.texture_min_dn
         reason[(reason == REASON_VALID) & ~texture_ok] = REASON_TEXTURE
-    gl = np.asarray(left_grey, np.float32)
-    gr = np.asarray(right_grey, np.float32)
     smin = float(params.support_min_zncc)
-    zncc = disp  # not read when the support test is off
-    if smin != 0:
-        warped = np.empty((h, w), np.float32)
-        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
-                      threads)
-        zncc = np.empty((h, w), np.float32)
-        r = int(params.support_radius_px)
-        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
-                      pool, threads)
     if smin == 0 and params.boundary_ratio <= 0:
         return
+    gl = np.asarray(left_grey, np.float32)
+    gr = np.asarray(right_grey, np.float32)
     tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
-    left_cand = np.empty((h, w), np.float32)
-    right_cand = np.empty((h, w), np.float32)
     args = (smin, float(params.support_side_min_zncc), int(params.support_radius_px), int(n),
-            tol)
-    run_row_bands(lambda y0, y1: _boundary.support_rows(
-        gl, gr, disp, rdisp, zncc, *args, y0, y1, reason, left_cand, right_cand), h, pool,
-        threads)
-    if params.boundary_ratio <= 0:
-        return
-    # smallest candidate within +-radius columns: most pixels have no step and skip
-    k = np.ones((1, 2 * int(params.boundary_radius_px) + 1), np.uint8)
-    left_min = cv2.erode(left_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
-    right_min = cv2.erode(right_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
-    args = (float(params.boundary_step_px), int(params.boundary_radius_px), int(n),
-            float(params.boundary_ratio), float(params.boundary_noise_dn) ** 2)
-    run_row_bands(lambda y0, y1: _boundary.depth_edge_rows(
-        gl, gr, disp, left_cand, right_cand, left_min, right_min, *args, y0, y1, reason), h,
-        pool, threads)
+            tol, float(params.boundary_ratio), float(params.boundary_step_px),
+            int(params.boundary_radius_px), float(params.boundary_noise_dn) ** 2)
+    run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, disp, rdisp, *args, y0, y1,
+                                                     reason), h, pool, threads)
 
 
 def _kernel_threads() -> int:
