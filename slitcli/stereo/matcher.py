@@ -62,6 +62,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -304,7 +306,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = _kernel_threads()
-    with ThreadPoolExecutor(max_workers=threads) if threads > 1 else nullcontext() as pool:
+    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
         if pool is not None:
             right_job = pool.submit(prefilter_image, right_grey, params)
             pl = prefilter_image(left_grey, params)
@@ -360,9 +362,26 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
 
 
 def _kernel_threads() -> int:
-    """Threads for the compiled kernels: numba's setting (``NUMBA_NUM_THREADS``; 1 in
-    the workers of a process pool)."""
-    return int(numba.get_num_threads())
+    """Threads for the compiled kernels of one frame.
+
+    At most numba's setting (``NUMBA_NUM_THREADS``, default the number of cores; 1 in
+    the workers of a process pool), and only cores that no other runnable task holds
+    right now (Linux ``/proc/loadavg``; this thread is one of the runnable tasks). A
+    band of rows handed to a core that another process holds waits for that core's
+    time slice, and every kernel of the frame waits for its slowest band: measured on
+    the 2-core development machine under a competing busy loop, a second thread made
+    a frame slower, not faster (docs/stereo.md).
+    """
+    wanted = int(numba.get_num_threads())
+    if wanted <= 1:
+        return 1
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            running = int(fh.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return wanted
+    free = (os.cpu_count() or wanted) - (running - 1)
+    return max(1, min(wanted, free))
 
 
 def run_row_bands(fn: Callable[[int, int], object], height: int,
@@ -370,18 +389,31 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
     """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
 
     The compiled kernels release the GIL, so the threads of ``pool`` run them in
-    parallel. There are twice as many bands as ``threads``, handed out one at a time,
-    so a core that is busy with something else does not hold up the whole image; idle
-    threads sleep (no spinning). Bands are at least ``min_rows`` rows (a band re-reads
-    the window's rows above it). Without a pool the bands run here, in order.
+    parallel with this one. There are twice as many bands as ``threads``, taken one
+    at a time by whichever thread is free (this one included), so a core that is busy
+    with something else does not hold up the whole image; idle threads sleep (no
+    spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's rows
+    above it). Without a pool the whole image is one band, run here.
     """
     bands = max(1, min(2 * threads, height // max(1, min_rows)))
-    edges = [b * height // bands for b in range(bands + 1)]
     if pool is None or bands == 1:
-        for y0, y1 in itertools.pairwise(edges):
-            fn(y0, y1)
+        fn(0, height)
         return
-    for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
+    edges = [b * height // bands for b in range(bands + 1)]
+    todo = itertools.pairwise(edges)
+    lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with lock:
+                band = next(todo, None)
+            if band is None:
+                return
+            fn(*band)
+
+    helpers = [pool.submit(work) for _ in range(threads - 1)]
+    work()
+    for f in helpers:
         f.result()
 
 
