@@ -4,7 +4,10 @@ Rows:
 - matcher speed at 320x240 / 64 disparities / 9x9 and 640x480 / 128 disparities:
   StereoBM (defaults), the Eq. 10 matcher with its default filters and with all
   filters off, StereoSGBM; ``ratio`` = median time / StereoBM's median time, all
-  measured in alternation (21 rounds) so that they share the machine's load;
+  measured in alternation (21 rounds) so that they share the machine's load; the
+  1-minute load average before and after is in the note;
+- the same 320x240 comparison while a competing busy loop (a second Python process)
+  holds a core, as on a machine shared with another job;
 - end to end: ``slitcli stereo`` (through click, in process) over a 60-frame sequence
   against a plain read -> StereoBM -> write-PNG loop over the same frames;
 - first call: the numba kernel's compile on an empty cache, and loading it from the
@@ -70,11 +73,18 @@ def _bad2(disp: np.ndarray, gt: np.ndarray) -> tuple[float, float, float]:
             (bad.sum() + (has & ~valid).sum()) / has.sum())
 
 
-def _speed_rows(timer, size, num) -> list[dict]:
-    from slitcli.stereo.matcher import MatcherParams, compute_disparity
+def _load() -> str:
+    """1-minute load average and the number of runnable tasks right now."""
+    with open("/proc/loadavg", encoding="ascii") as fh:
+        fields = fh.read().split()
+    return f"load {fields[0]}, {fields[3].split('/')[0]} running"
+
+
+def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
+    from slitcli.stereo.matcher import MatcherParams, _kernel_threads, compute_disparity
 
     lg, rg, _, _ = _motorcycle(size)
-    tag = f"{size[0]}x{size[1]}/{num}d/9x9"
+    tag = f"{size[0]}x{size[1]}/{num}d/9x9{label}"
     bm = cv2.StereoBM_create(numDisparities=num, blockSize=9)
     sgbm = cv2.StereoSGBM_create(0, num, 9, P1=8 * 81, P2=32 * 81,
                                  mode=cv2.STEREO_SGBM_MODE_SGBM)
@@ -82,12 +92,20 @@ def _speed_rows(timer, size, num) -> list[dict]:
     plain = MatcherParams(num_disparities=num, prefilter="none", texture_min_dn=0.0,
                           uniqueness_ratio=0.0, lr_max_diff_px=-1, support_min_zncc=0.0,
                           boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
+    threads = []
+
+    def nssd_default() -> None:
+        threads.append(_kernel_threads())
+        compute_disparity(lg, rg, nssd)
+
+    before = _load()
     t = interleaved({
         "bm": lambda: bm.compute(lg, rg),
-        "nssd default filters": lambda: compute_disparity(lg, rg, nssd),
+        "nssd default filters": nssd_default,
         "nssd plain WTA": lambda: compute_disparity(lg, rg, plain),
         "sgbm": lambda: sgbm.compute(lg, rg),
     })
+    load = f"{before} before, {_load()} after; matcher threads {min(threads)}-{max(threads)}"
     notes = {
         "nssd default filters": "Eq. 10 + prefilter, texture, uniqueness, left-right, "
                                 "support (centred and one-sided), depth edges, speckle; "
@@ -95,12 +113,23 @@ def _speed_rows(timer, size, num) -> list[dict]:
         "nssd plain WTA": "Eq. 10, no filters",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
-    rows = [{"name": f"stereo bm defaults {tag}", **t["bm"], "ratio": 1.0}]
+    rows = [{"name": f"stereo bm defaults {tag}", **t["bm"], "ratio": 1.0, "note": load}]
     for name, note in notes.items():
         ratio = t[name]["median_s"] / t["bm"]["median_s"]
         rows.append({"name": f"stereo {name} {tag}", **t[name], "ratio": ratio,
                      "note": f"{ratio:.2f}x bm; {note}"})
     return rows
+
+
+def _loaded_rows(timer) -> list[dict]:
+    """The 320x240 comparison while another process keeps one core busy."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(1.0)
+        return _speed_rows(timer, (320, 240), 64, label=", competing busy loop")
+    finally:
+        busy.terminate()
+        busy.wait()
 
 
 def _e2e_rows(timer) -> list[dict]:
@@ -242,6 +271,7 @@ def _rendered_row() -> dict:
 
 def bench(timer) -> list[dict]:
     rows = _speed_rows(timer, (320, 240), 64)
+    rows += _loaded_rows(timer)
     rows += _speed_rows(timer, (640, 480), 128)
     rows += _e2e_rows(timer)
     rows += _first_call_rows()

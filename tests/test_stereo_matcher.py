@@ -270,3 +270,46 @@ def test_sizes_checked_against_the_images():
         compute_disparity(left, right, MatcherParams(num_disparities=80))
     with pytest.raises(SlitcliError, match="differ in size"):
         compute_disparity(left, right[:, :60], MatcherParams(num_disparities=8))
+
+
+# ------------------------------------------------------------------ compiled helpers
+def test_speckle_regions_are_those_of_opencv_filter_speckles():
+    # the compiled one-pass union-find must find exactly cv2.filterSpeckles' regions
+    # (4-connected valid pixels whose 1/16 px disparities differ by <= max_diff)
+    from slitcli.stereo._kernel import speckle_finish
+
+    rng = np.random.default_rng(11)
+    for trial in range(6):
+        h, w = 37 + trial, 53 + 3 * trial
+        # piecewise-constant patches of random size, a ramp, noise, random holes
+        disp = cv2.resize(rng.uniform(0, 40, (h // 4 + 1, w // 5 + 1)), (w, h),
+                          interpolation=cv2.INTER_NEAREST).astype(np.float32)
+        disp += np.linspace(0, 3, w, dtype=np.float32)[None, :] * (trial % 2)
+        disp += rng.normal(0, 0.05 * trial, (h, w)).astype(np.float32)
+        reason = np.where(rng.random((h, w)) < 0.15, 1, 0).astype(np.uint8)
+        max_size, max_diff = [5, 20, 60, 100, 200, 8][trial], [1, 4, 16, 32, 8, 2][trial]
+        valid = reason == 0
+        fixed = np.where(valid, disp * np.float32(16.0), -32768.0).astype(np.int16)
+        cv2.filterSpeckles(fixed, -32768, max_size, max_diff)
+        expected = valid & (fixed == -32768)
+        got_disp, got_reason = disp.copy(), reason.copy()
+        speckle_finish(got_disp, got_reason, max_size, max_diff, 5)
+        assert expected.sum() > 0
+        np.testing.assert_array_equal(got_reason == 5, expected)
+        assert np.isnan(got_disp[got_reason != 0]).all()
+        np.testing.assert_array_equal(got_disp[got_reason == 0], disp[got_reason == 0])
+
+
+def test_row_window_minimum_is_an_erosion():
+    from slitcli.stereo._boundary import _window_min
+
+    rng = np.random.default_rng(2)
+    for radius in (1, 2, 5, 7):
+        v = rng.uniform(0, 100, 41).astype(np.float32)
+        v[rng.random(41) < 0.3] = np.float32(3e38)
+        out = np.empty_like(v)
+        pad = np.empty(41 + 2 * radius, np.float32)
+        _window_min(v, radius, out, pad, np.empty_like(pad))
+        ref = cv2.erode(v[None, :], np.ones((1, 2 * radius + 1), np.uint8),
+                        borderType=cv2.BORDER_CONSTANT, borderValue=3e38)[0]
+        np.testing.assert_array_equal(out, ref)

@@ -47,8 +47,9 @@ def matcher_options(f: Any) -> Any:
               help="Uniqueness ratio: other disparities must cost (1 + ratio) x more (0 = off)."),
         click.option("--lr-max-diff", type=int, default=1, show_default=True,
               help="Left-right check tolerance, px (negative = off)."),
-        click.option("--support-min", type=float, default=0.45, show_default=True,
-              help="Minimum 3x3 zero-mean correlation at the chosen disparity (0 = off)."),
+        click.option("--support-min", type=float, default=0.4, show_default=True,
+              help="Minimum 3x3 zero-mean correlation at the chosen disparity, in [-1, 1] "
+              "(0 = off)."),
         click.option("--speckle-window", type=int, default=100, show_default=True,
               help="Remove disparity blobs up to this many pixels (0 = off)."),
         click.option("--speckle-range", type=float, default=2.0, show_default=True,

@@ -3,16 +3,17 @@
 A (2m+1) x (2n+1) correlation window that straddles a depth edge is matched by
 whichever surface carries the stronger texture, so that surface's disparity is
 carried up to half a window past its silhouette ("foreground fattening"): the
-pixels just beside an object get the object's range. These kernels re-examine the
-matches with evidence that does not straddle the edge:
+pixels just beside an object get the object's range. :func:`post_rows` re-examines
+the matches, row by row, with evidence that does not straddle the edge:
 
-:func:`support_rows` applies the local-support threshold and then
-
+- local support: the zero-mean normalised correlation of the (2r+1)^2 grey windows of
+  the left image and of the right image warped by the winning disparities must reach
+  ``support_min_zncc``;
 - one-sided support: a pixel next to a weakly supported pixel (a textureless or
   wrongly matched neighbour) must also be supported by the (2r+1)-wide, window-tall
   block centred one column towards that neighbour. A textureless pixel that borrowed
   its disparity from texture on its other side has nothing there to correlate.
-- :func:`depth_edge_rows`, a two-hypothesis test on the pixel's own column. Where a
+- depth edges, a two-hypothesis test on the pixel's own column. Where a
   valid neighbour within ``radius`` columns lies at a smaller disparity (a depth
   step), the grey-level column of the pixel (window-tall, one pixel wide, so it
   cannot straddle a vertical edge) is compared with the right image at the pixel's
@@ -24,14 +25,20 @@ matches with evidence that does not straddle the edge:
   takes the object's disparity when its window reaches the object, and its partner
   in the right image is then better explained by the farther surface.
 
-Both kernels release the GIL and work on a band of rows (``y0 .. y1 - 1``) so bands can
-run on plain threads; each row's result depends only on read-only inputs.
+All three run in one pass over a band of rows (``y0 .. y1 - 1``; the warped right
+image is kept for the 2r+1 rows around the current one only), O(pixels): the
+per-pixel work is a fixed-size window, and the residual columns are computed only
+next to depth steps (a row-wise running minimum of the candidates says where). The
+kernel releases the GIL; each row's result depends only on read-only inputs, so bands
+can run on plain threads.
 """
 
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
+
+from slitcli.stereo._simd import offset, ptr
 
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}
 REASON_SUPPORT = 7
@@ -160,9 +167,10 @@ def _right_candidates(gl, gr, cand, y, xr, lim, radius, hh, bound):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
-def _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes):
-    """One-sided support of row y (module notes): failing valid pixels of ``codes``
-    get REASON_SUPPORT. A pixel's test reads its own code only."""
+def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes):
+    """One-sided support of row y (module notes; its centred correlations are
+    ``zncc[zy]``): failing valid pixels of ``codes`` get REASON_SUPPORT. A pixel's test
+    reads its own code only."""
     width = gl.shape[1]
     for x in range(width):
         if codes[x] != 0:
@@ -170,7 +178,7 @@ def _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes):
         d = disp[y, x]
         for side in (-1, 1):
             xx = x + side
-            if xx < 0 or xx >= width or zncc[y, xx] >= side_min:
+            if xx < 0 or xx >= width or zncc[zy, xx] >= side_min:
                 continue
             if _zncc_block(gl, gr, y, xx, d, rx, ry) < side_min:
                 codes[x] = REASON_SUPPORT
@@ -179,10 +187,10 @@ def _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes):
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
 def _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand, right_cand,
-                    left_min, right_min, codes, out):
+                    left_min, right_min, codes):
     """Depth-edge test of row y (the row arrays are one row each): valid pixels of
-    ``codes`` that fail get REASON_BOUNDARY in ``out``; ``codes`` may be ``out[y]``,
-    since a pixel's test reads the candidates, not the codes, of its neighbours."""
+    ``codes`` that fail get REASON_BOUNDARY, in place (a pixel's test reads the
+    candidates, not the codes, of its neighbours)."""
     width = gl.shape[1]
     for x in range(width):
         if codes[x] != 0:
@@ -205,90 +213,179 @@ def _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand,
                 kill = _right_candidates(gl, gr, right_cand, y, xr, lim, radius, hh,
                                          ratio * own)
         if kill:
-            out[y, x] = REASON_BOUNDARY
+            codes[x] = REASON_BOUNDARY
+
+
+# ---- the fused pass: local support, one-sided support, depth edges (rows y0 .. y1-1)
+
+_BIG = np.float32(3e38)   # "no candidate"
+_U = nb.uint64
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _acc(s, a, n):
+    """``s += a`` over n elements (a vectorised row helper; pointer arguments)."""
+    for i in range(n):
+        s[i] += a[i]
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _acc_prod(s, a, b, n):
+    """``s += a b`` over n elements (a vectorised row helper; pointer arguments)."""
+    for i in range(n):
+        s[i] += a[i] * b[i]
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _warp_row(gr, disp, y, out):
+    """``out(x) = gr(x - disp(x, y), y)`` (linear in x, clamped to the image; no shift
+    where ``disp`` is NaN)."""
+    width = gr.shape[1]
+    for x in range(width):
+        d = disp[y, x]
+        xr = np.float32(x) - (d if d == d else np.float32(0.0))
+        xr = min(max(xr, np.float32(0.0)), np.float32(width - 1))
+        x0 = min(int(xr), width - 2)
+        t = xr - np.float32(x0)
+        out[x] = (np.float32(1.0) - t) * gr[y, x0] + t * gr[y, x0 + 1]
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _zncc_row(gl, ring, y, r, s, h, out):
+    """Zero-mean normalised correlation of the (2r+1)^2 windows (clipped to the image)
+    of ``gl`` and the warped right image around row y (``ring[yy % (2r+1)]`` holds
+    warped row yy): ``out`` in [-1, 1], 0 where a window is flat."""
+    height, width = gl.shape
+    k2 = 2 * r + 1
+    s[:] = 0.0
+    h[:] = 0.0
+    y0 = max(0, y - r)
+    y1 = min(height, y + r + 1)
+    for yy in range(y0, y1):
+        a = offset(ptr(gl), yy * width)
+        b = ptr(ring[yy % k2])
+        _acc(offset(ptr(s[0]), r), a, width)
+        _acc(offset(ptr(s[1]), r), b, width)
+        _acc_prod(offset(ptr(s[2]), r), a, a, width)
+        _acc_prod(offset(ptr(s[3]), r), b, b, width)
+        _acc_prod(offset(ptr(s[4]), r), a, b, width)
+    # window sums along x: 2r+1 shifted adds of the zero-padded column sums
+    for q in range(5):
+        for k in range(k2):
+            _acc(ptr(h[q]), offset(ptr(s[q]), k), width)
+    rows = np.float32(y1 - y0)
+    for x in range(width):
+        cnt = rows * np.float32(min(width, x + r + 1) - max(0, x - r))
+        a = h[0, x]
+        b = h[1, x]
+        var_a = h[2, x] - a * a / cnt
+        var_b = h[3, x] - b * b / cnt
+        cov = h[4, x] - a * b / cnt
+        den = np.sqrt(max(var_a, np.float32(0.0)) * max(var_b, np.float32(0.0)))
+        out[x] = cov / den if den > 1e-3 else np.float32(0.0)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _min_shift(out, a, shift, n):
+    """``out[i] = min(a[i], a[i + shift])`` over n elements (pointer arguments)."""
+    for i in range(n):
+        out[i] = min(a[i], a[i + shift])
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _window_min(v, radius, out, pad, tmp):
+    """``out(x)`` = min of ``v`` over columns x - radius .. x + radius (outside the
+    image: 3e38, as cv2.erode with that border value), by doubling: minima over 1, 2, 4
+    ... columns, then two overlapping runs cover the window. ``pad`` and ``tmp`` hold
+    width + 2 radius floats."""
+    width = v.shape[0]
+    total = width + 2 * radius
+    pad[:] = _BIG
+    pad[radius:radius + width] = v
+    length = 1
+    cur = pad
+    nxt = tmp
+    while 2 * length <= 2 * radius + 1:
+        _min_shift(ptr(nxt), ptr(cur), length, total - length)
+        cur, nxt = nxt, cur
+        length *= 2
+    _min_shift(ptr(out), ptr(cur), 2 * radius + 1 - length, width)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def support_rows(gl, gr, disp, rdisp, zncc, smin, side_min, rx, ry, tol, y0, y1, reason,
-                 left_cand, right_cand):
-    """Local support (centred and one-sided) and the depth-edge candidates, rows y0..y1-1.
-
-    Valid pixels (``reason`` 0) whose centred support ``zncc`` is below ``smin`` get
-    REASON_SUPPORT, and so do those failing the one-sided support (``side_min`` > 0;
-    module notes); ``reason`` is updated in place (each test of a row reads that row).
-    Then the disparities the depth-edge test may offer as the farther surface:
-    ``left_cand`` holds those of the valid left pixels, ``right_cand`` at right column
-    xx the disparity of the left pixel xq = xx + v that the right view's winner v
-    points to, where that pixel agrees with v within ``tol`` (a left-right consistent
-    pair; subpixel, from the left image); 3e38 elsewhere.
+def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radius, floor2,
+              y0, y1, reason):
+    """Local support (centred, one-sided) and the depth-edge test, rows y0 .. y1 - 1, in
+    place on ``reason``, in one pass (module notes).
 
     Parameters
     ----------
     gl, gr : (H, W) float32
         Grey left and right images.
     disp : (H, W) float32
-        Left winner-take-all disparities (px; kept for invalid pixels too).
+        Left winner-take-all disparities (px; kept for invalid pixels too); read for
+        rows y0 - r .. y1 - 1 + r (the warped right image).
     rdisp : (H, W) float32
         The right view's winner-take-all disparities (whole px, NaN where none).
-    zncc : (H, W) float32
-        Centred local-support correlation (ignored when ``smin`` is 0).
     smin, side_min : float
-        ``support_min_zncc`` and ``support_side_min_zncc`` (0 = off).
-    rx, ry : int
-        Half width and half height of the one-sided block.
+        ``support_min_zncc`` (0 = no support test) and ``support_side_min_zncc``
+        (0 = no one-sided test).
+    r, ry : int
+        Half size of the (2r+1)^2 support window; half height of the one-sided block
+        (2r+1 columns by 2ry+1 rows) and of the depth-edge columns.
+    tol : float
+        A right pixel's candidate needs a left partner within ``tol`` px.
+    ratio, step, radius, floor2 : float, float, int, float
+        The depth-edge test (module notes; ``ratio`` 0 = off): the farther surface wins
+        below ``ratio`` x the pixel's own residual; a neighbour is another surface when
+        its disparity is below d - ``step``; ``radius`` columns are searched on each
+        side; own residuals at or below ``floor2`` (DN^2, the noise of a correct match)
+        carry no evidence.
+    reason : (H, W) uint8
+        Valid pixels (0) that fail get REASON_SUPPORT or REASON_BOUNDARY. Each row's
+        result depends only on read-only inputs, so bands of rows can run in parallel.
     """
-    width = gl.shape[1]
-    big = np.float32(3e38)
+    height, width = gl.shape
+    k2 = 2 * r + 1
+    ring = np.empty((k2, width), np.float32)
+    s = np.zeros((5, width + 2 * r), np.float32)
+    h = np.zeros((5, width), np.float32)
+    zncc = np.zeros((1, width), np.float32)
     codes = np.empty(width, np.uint8)
+    left_cand = np.empty(width, np.float32)
+    right_cand = np.empty(width, np.float32)
+    left_min = np.empty(width, np.float32)
+    right_min = np.empty(width, np.float32)
+    pad = np.empty(width + 2 * radius, np.float32)
+    tmp = np.empty(width + 2 * radius, np.float32)
+    support = smin != 0
+    if support:
+        for yy in range(max(0, y0 - r), min(height, y0 + r)):
+            _warp_row(gr, disp, yy, ring[yy % k2])
     for y in range(y0, y1):
+        if support:
+            if y + r < height:
+                _warp_row(gr, disp, y + r, ring[(y + r) % k2])
+            _zncc_row(gl, ring, y, r, s, h, zncc[0])
         for x in range(width):
             c = reason[y, x]
-            if c == 0 and smin != 0 and not zncc[y, x] >= smin:
+            if c == 0 and support and not zncc[0, x] >= smin:
                 c = REASON_SUPPORT
             codes[x] = c
-        if smin != 0 and side_min != 0:
-            _one_sided_row(gl, gr, disp, zncc, y, side_min, rx, ry, codes)
+        if support and side_min != 0:
+            _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
+        if ratio > 0:
+            for x in range(width):
+                left_cand[x] = disp[y, x] if codes[x] == 0 else _BIG
+                right_cand[x] = _BIG
+                v = rdisp[y, x]
+                if v == v:
+                    xq = int(np.rint(np.float32(x) + v))
+                    if 0 <= xq < width and abs(disp[y, xq] - v) <= tol:
+                        right_cand[x] = disp[y, xq]
+            _window_min(left_cand, radius, left_min, pad, tmp)
+            _window_min(right_cand, radius, right_min, pad, tmp)
+            _depth_edge_row(gl, gr, disp, y, step, radius, ry, ratio, floor2, left_cand,
+                            right_cand, left_min, right_min, codes)
         for x in range(width):
             reason[y, x] = codes[x]
-            left_cand[y, x] = disp[y, x] if codes[x] == 0 else big
-            right_cand[y, x] = big
-            v = rdisp[y, x]
-            if v == v:
-                xq = int(np.rint(np.float32(x) + v))
-                if 0 <= xq < width and abs(disp[y, xq] - v) <= tol:
-                    right_cand[y, x] = disp[y, xq]
-
-
-@nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def depth_edge_rows(gl, gr, disp, left_cand, right_cand, left_min, right_min, step, radius,
-                    hh, ratio, floor2, y0, y1, reason):
-    """The depth-edge test (module notes), rows y0..y1-1, in place on ``reason``.
-
-    Parameters
-    ----------
-    gl, gr : (H, W) float32
-        Grey left and right images.
-    disp : (H, W) float32
-        Left winner-take-all disparities (px).
-    left_cand, right_cand : (H, W) float32
-        From :func:`support_rows`; ``left_min``, ``right_min``: their minima over
-        +-``radius`` columns, so a pixel (or its right partner) without a candidate
-        below ``d - step`` skips the test at once.
-    step : float
-        A neighbour is another surface when its disparity is below d - step.
-    radius : int
-        Columns searched on each side for such neighbours.
-    hh : int
-        The column residuals run over rows y-hh..y+hh.
-    ratio : float
-        The farther surface wins when its residual is below ratio x the pixel's own.
-    floor2 : float
-        Own residuals at or below this (DN^2, the noise of a correct match) carry no
-        evidence: the pixel is kept.
-    reason : (H, W) uint8
-        Valid pixels (0) that fail get REASON_BOUNDARY. The candidates were taken
-        before this test, so the result does not depend on the order of the pixels.
-    """
-    for y in range(y0, y1):
-        _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand[y],
-                        right_cand[y], left_min[y], right_min[y], reason[y], reason)

@@ -60,9 +60,10 @@ filled in.
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
+import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -302,11 +303,10 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     cost = np.empty((h, w), np.float32)
-    energy = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = _kernel_threads()
-    with ThreadPoolExecutor(max_workers=threads) if threads > 1 else nullcontext() as pool:
+    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
         if pool is not None:
             right_job = pool.submit(prefilter_image, right_grey, params)
             pl = prefilter_image(left_grey, params)
@@ -315,91 +315,73 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
             pl = prefilter_image(left_grey, params)
             pr = prefilter_image(right_grey, params)
         _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
-                     energy, reason, rdisp)
-    disp, reason = _apply_speckle(disp, reason, params)
-    disp[reason != REASON_VALID] = np.nan
+                     reason, rdisp)
+    from slitcli.stereo import _kernel
+
+    # speckle regions as cv2.filterSpeckles finds them on 1/16 px, then NaN = invalid
+    _kernel.speckle_finish(disp, reason, int(params.speckle_window_px),
+                           max(1, math.ceil(params.speckle_range_px * 16.0)), REASON_SPECKLE)
     return DisparityResult(disp, reason, cost)
-
-
-@functools.lru_cache(maxsize=8)
-def _window_count(h: int, w: int, m: int, n: int) -> np.ndarray:
-    """Pixels of each (2m+1) x (2n+1) window clipped to an h x w image, float32 (h, w),
-    read-only (a small memo: it depends on the sizes only)."""
-    rows = np.minimum(np.arange(h) + n, h - 1) - np.maximum(np.arange(h) - n, 0) + 1
-    cols = np.minimum(np.arange(w) + m, w - 1) - np.maximum(np.arange(w) - m, 0) + 1
-    out = (rows[:, None] * cols[None, :]).astype(np.float32)
-    out.setflags(write=False)
-    return out
 
 
 def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
                  right_grey: np.ndarray, params: MatcherParams,
                  pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
-                 cost: np.ndarray, energy: np.ndarray, reason: np.ndarray,
-                 rdisp: np.ndarray) -> None:
+                 cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
     """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
     the outputs (``rdisp``: the right view's disparities, a scratch output)."""
-    from slitcli.stereo import _boundary, _kernel
+    from slitcli.stereo import _boundary, _nssd
 
-    h, w = pl.shape
+    h = pl.shape[0]
     m = params.window_w_px // 2
     n = params.window_h_px // 2
     prr = np.ascontiguousarray(pr[:, ::-1])
+    # the prefiltered image is zero-mean: its window RMS is its texture, tested in the
+    # kernel on the window energy: RMS / 4 < t  <=>  energy < (4 t)^2 x pixel count
+    energy_min = (params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none" else 0.0
     args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
             float(params.uniqueness_ratio), float(params.lr_max_diff_px),
-            params.subpixel == "parabola", disp, cost, energy, reason, rdisp)
-    run_row_bands(lambda y0, y1: _kernel.nssd_rows(pl, pr, prr, y0, y1, *args), h,
+            params.subpixel == "parabola", np.float32(energy_min), disp, cost, reason, rdisp)
+    run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), h,
                   pool, threads, min_rows=2 * n + 1)
-    if params.texture_min_dn > 0:
-        if params.prefilter == "none":
-            texture_ok = window_std_dn(pl, params.window_w_px,
-                                       params.window_h_px) >= params.texture_min_dn
-        else:
-            # the prefiltered image is zero-mean: its window RMS is its texture
-            # compare energies: RMS / 4 < t  <=>  energy < (4 t)^2 count
-            t = np.float32((params.texture_min_dn * _QUANT) ** 2)
-            texture_ok = energy >= t * _window_count(h, w, int(m), int(n))
-        weak = (reason == REASON_VALID) & ~texture_ok
-        reason[weak] = REASON_TEXTURE
-    gl = np.asarray(left_grey, np.float32)
-    gr = np.asarray(right_grey, np.float32)
+    if params.texture_min_dn > 0 and params.prefilter == "none":
+        texture_ok = window_std_dn(pl, params.window_w_px,
+                                   params.window_h_px) >= params.texture_min_dn
+        reason[(reason == REASON_VALID) & ~texture_ok] = REASON_TEXTURE
     smin = float(params.support_min_zncc)
-    zncc = disp  # not read when the support test is off
-    if smin != 0:
-        warped = np.empty((h, w), np.float32)
-        run_row_bands(lambda y0, y1: _kernel.warp_rows(gr, disp, warped, y0, y1), h, pool,
-                      threads)
-        zncc = np.empty((h, w), np.float32)
-        r = int(params.support_radius_px)
-        run_row_bands(lambda y0, y1: _kernel.support_rows(gl, warped, r, y0, y1, zncc), h,
-                      pool, threads)
     if smin == 0 and params.boundary_ratio <= 0:
         return
+    gl = np.asarray(left_grey, np.float32)
+    gr = np.asarray(right_grey, np.float32)
     tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
-    left_cand = np.empty((h, w), np.float32)
-    right_cand = np.empty((h, w), np.float32)
     args = (smin, float(params.support_side_min_zncc), int(params.support_radius_px), int(n),
-            tol)
-    run_row_bands(lambda y0, y1: _boundary.support_rows(
-        gl, gr, disp, rdisp, zncc, *args, y0, y1, reason, left_cand, right_cand), h, pool,
-        threads)
-    if params.boundary_ratio <= 0:
-        return
-    # smallest candidate within +-radius columns: most pixels have no step and skip
-    k = np.ones((1, 2 * int(params.boundary_radius_px) + 1), np.uint8)
-    left_min = cv2.erode(left_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
-    right_min = cv2.erode(right_cand, k, borderType=cv2.BORDER_CONSTANT, borderValue=3e38)
-    args = (float(params.boundary_step_px), int(params.boundary_radius_px), int(n),
-            float(params.boundary_ratio), float(params.boundary_noise_dn) ** 2)
-    run_row_bands(lambda y0, y1: _boundary.depth_edge_rows(
-        gl, gr, disp, left_cand, right_cand, left_min, right_min, *args, y0, y1, reason), h,
-        pool, threads)
+            tol, float(params.boundary_ratio), float(params.boundary_step_px),
+            int(params.boundary_radius_px), float(params.boundary_noise_dn) ** 2)
+    run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, disp, rdisp, *args, y0, y1,
+                                                     reason), h, pool, threads)
 
 
 def _kernel_threads() -> int:
-    """Threads for the compiled kernels: numba's setting (``NUMBA_NUM_THREADS``; 1 in
-    the workers of a process pool)."""
-    return int(numba.get_num_threads())
+    """Threads for the compiled kernels of one frame.
+
+    At most numba's setting (``NUMBA_NUM_THREADS``, default the number of cores; 1 in
+    the workers of a process pool), and only cores that no other runnable task holds
+    right now (Linux ``/proc/loadavg``; this thread is one of the runnable tasks). A
+    band of rows handed to a core that another process holds waits for that core's
+    time slice, and every kernel of the frame waits for its slowest band: measured on
+    the 2-core development machine under a competing busy loop, a second thread made
+    a frame slower, not faster (docs/stereo.md).
+    """
+    wanted = int(numba.get_num_threads())
+    if wanted <= 1:
+        return 1
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            running = int(fh.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return wanted
+    free = (os.cpu_count() or wanted) - (running - 1)
+    return max(1, min(wanted, free))
 
 
 def run_row_bands(fn: Callable[[int, int], object], height: int,
@@ -407,36 +389,32 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
     """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
 
     The compiled kernels release the GIL, so the threads of ``pool`` run them in
-    parallel. There are twice as many bands as ``threads``, handed out one at a time,
-    so a core that is busy with something else does not hold up the whole image; idle
-    threads sleep (no spinning). Bands are at least ``min_rows`` rows (a band re-reads
-    the window's rows above it). Without a pool the bands run here, in order.
+    parallel with this one. There are twice as many bands as ``threads``, taken one
+    at a time by whichever thread is free (this one included), so a core that is busy
+    with something else does not hold up the whole image; idle threads sleep (no
+    spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's rows
+    above it). Without a pool the whole image is one band, run here.
     """
     bands = max(1, min(2 * threads, height // max(1, min_rows)))
-    edges = [b * height // bands for b in range(bands + 1)]
     if pool is None or bands == 1:
-        for y0, y1 in itertools.pairwise(edges):
-            fn(y0, y1)
+        fn(0, height)
         return
-    for f in [pool.submit(fn, y0, y1) for y0, y1 in itertools.pairwise(edges)]:
+    edges = [b * height // bands for b in range(bands + 1)]
+    todo = itertools.pairwise(edges)
+    lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with lock:
+                band = next(todo, None)
+            if band is None:
+                return
+            fn(*band)
+
+    helpers = [pool.submit(work) for _ in range(threads - 1)]
+    work()
+    for f in helpers:
         f.result()
-
-
-def _apply_speckle(disp: np.ndarray, reason: np.ndarray,
-                   params: MatcherParams) -> tuple[np.ndarray, np.ndarray]:
-    """Mark small connected disparity blobs invalid (cv2.filterSpeckles on 1/16 px)."""
-    if params.speckle_window_px <= 0:
-        return disp, reason
-    valid = reason == REASON_VALID
-    bad = np.int16(-32768)
-    # 1/16 px units (disparities are < 2048 px, so they fit in int16)
-    fixed = np.where(valid, disp * np.float32(16.0), np.float32(bad)).astype(np.int16)
-    cv2.filterSpeckles(fixed, int(bad), int(params.speckle_window_px),
-                       max(1, math.ceil(params.speckle_range_px * 16.0)))
-    removed = valid & (fixed == bad)
-    reason = reason.copy()
-    reason[removed] = REASON_SPECKLE
-    return disp, reason
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
