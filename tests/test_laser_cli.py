@@ -106,3 +106,17 @@ def test_laser_cli_bad_option(seq, tmp_path):
                                                   "--alpha", "2"]))
     assert "alpha" in msg
     assert not out.exists()
+
+
+def test_every_laser_parameter_is_an_option_with_units_and_default():
+    from dataclasses import fields
+
+    from slitcli.laser import LaserParams
+
+    cmd = cli.commands["laser"]
+    options = {p.name: p for p in cmd.params}
+    for f in fields(LaserParams):
+        assert f.name in options, f"LaserParams.{f.name} has no `slitcli laser` option"
+        opt = options[f.name]
+        assert opt.default == f.default and opt.show_default
+        assert opt.help and len(opt.help) > 20
