@@ -1,5 +1,5 @@
 """The compiled Eq. 10 matcher (numba): cost, winner-take-all, subpixel, uniqueness,
-left-right, for a band of rows (:func:`nssd_rows`).
+left-right and texture tests, for a band of rows (:func:`nssd_rows`).
 
 The matcher walks the image one row at a time and keeps, per column, the running
 vertical window sums of squared differences of all disparities (``width x
@@ -14,7 +14,9 @@ slower general path (clipped windows, masked Eq. 10).
 
 All sums are of integers below 2**24 (the prefiltered images are quantised), so they are
 exact in float32 and the result does not depend on the order of the additions or on
-how the rows are split into bands. Compiled on first use and cached on disk
+how the rows are split into bands. No fastmath: under it LLVM turns a vectorised
+``1 / sqrt`` into a CPU-dependent approximation; without it every quotient and root is
+IEEE float32, vectorised or not. Compiled on first use and cached on disk
 (``cache=True``).
 """
 
@@ -30,11 +32,10 @@ from slitcli.stereo._simd import bits, from_bits, offset, ptr
 BIG_INV = np.float32(1e30)
 # Added to the SSD so that 0 * BIG_INV**2 (two empty windows) becomes +inf, not 0.
 SSD_EPS = np.float32(1e-3)
-_FASTMATH = {"nsz", "arcp", "contract", "afn"}  # no nnan/ninf: +inf marks impossible costs
 _INF_BITS = np.int32(0x7F800000)
 
-# invalid_reason codes (docs/stereo.md); texture (2), speckle (5) and support (7) are
-# set by slitcli.stereo.matcher
+# invalid_reason codes (docs/stereo.md); speckle (5) is set by slitcli.stereo._kernel,
+# support (7) and depth edge (8) by slitcli.stereo._boundary
 REASON_VALID = 0
 REASON_NO_CANDIDATE = 1
 REASON_TEXTURE = 2
