@@ -313,3 +313,29 @@ def test_row_window_minimum_is_an_erosion():
         ref = cv2.erode(v[None, :], np.ones((1, 2 * radius + 1), np.uint8),
                         borderType=cv2.BORDER_CONSTANT, borderValue=3e38)[0]
         np.testing.assert_array_equal(out, ref)
+
+
+def test_second_thread_only_when_another_core_is_free(monkeypatch):
+    # the matcher's thread count: numba's setting, less the cores other runnable tasks
+    # hold right now (/proc/loadavg's running count includes the calling thread)
+    import io
+
+    import slitcli.stereo.matcher as matcher
+
+    real_open = open
+
+    def fake_loadavg(running: int):
+        def fake_open(path, *args, **kwargs):
+            if path == "/proc/loadavg":
+                return io.StringIO(f"0.50 0.40 0.30 {running}/123 4567\n")
+            return real_open(path, *args, **kwargs)
+        return fake_open
+
+    monkeypatch.setattr(matcher.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 2)
+    for running, expected in ((1, 2), (2, 1), (5, 1)):
+        monkeypatch.setattr("builtins.open", fake_loadavg(running))
+        assert matcher._kernel_threads() == expected
+    monkeypatch.setattr("builtins.open", fake_loadavg(1))
+    monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 1)
+    assert matcher._kernel_threads() == 1

@@ -312,6 +312,32 @@ def _window_min(v, radius, out, pad, tmp):
     _min_shift(ptr(out), ptr(cur), 2 * radius + 1 - length, width)
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _support_codes(reason, zncc, smin, support, codes, n):
+    """``codes = reason``, and REASON_SUPPORT for valid pixels whose centred support
+    ``zncc`` is below ``smin`` (pointer arguments; branch-free, vectorised)."""
+    for x in range(n):
+        c = reason[x]
+        weak = (c == 0) & support & ~(zncc[x] >= smin)
+        codes[x] = np.uint8(REASON_SUPPORT) if weak else c
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _candidates(codes, disp, rdisp, tol, left_cand, right_cand, width):
+    """The depth-edge candidates of one row (pointer arguments): ``left_cand`` the
+    disparity of every valid left pixel; ``right_cand`` at right column x the disparity
+    of the left pixel xq = rint(x + v) that the right view's winner v points to, where
+    that pixel agrees with v within ``tol``; 3e38 elsewhere. Branch-free."""
+    for x in range(width):
+        left_cand[x] = disp[x] if codes[x] == 0 else _BIG
+    for x in range(width):
+        v = rdisp[x]
+        xq = int(np.rint(np.float32(x) + v)) if v == v else -1
+        dq = disp[min(max(xq, 0), width - 1)]
+        ok = (xq >= 0) & (xq < width) & (abs(dq - v) <= tol)
+        right_cand[x] = dq if ok else _BIG
+
+
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radius, floor2,
               y0, y1, reason):
@@ -367,25 +393,15 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radi
             if y + r < height:
                 _warp_row(gr, disp, y + r, ring[(y + r) % k2])
             _zncc_row(gl, ring, y, r, s, h, zncc[0])
-        for x in range(width):
-            c = reason[y, x]
-            if c == 0 and support and not zncc[0, x] >= smin:
-                c = REASON_SUPPORT
-            codes[x] = c
+        _support_codes(offset(ptr(reason), y * width), ptr(zncc), smin, support, ptr(codes),
+                       width)
         if support and side_min != 0:
             _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
         if ratio > 0:
-            for x in range(width):
-                left_cand[x] = disp[y, x] if codes[x] == 0 else _BIG
-                right_cand[x] = _BIG
-                v = rdisp[y, x]
-                if v == v:
-                    xq = int(np.rint(np.float32(x) + v))
-                    if 0 <= xq < width and abs(disp[y, xq] - v) <= tol:
-                        right_cand[x] = disp[y, xq]
+            _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
+                        tol, ptr(left_cand), ptr(right_cand), width)
             _window_min(left_cand, radius, left_min, pad, tmp)
             _window_min(right_cand, radius, right_min, pad, tmp)
             _depth_edge_row(gl, gr, disp, y, step, radius, ry, ratio, floor2, left_cand,
                             right_cand, left_min, right_min, codes)
-        for x in range(width):
-            reason[y, x] = codes[x]
+        reason[y] = codes

@@ -1,5 +1,5 @@
 """The compiled Eq. 10 matcher (numba): cost, winner-take-all, subpixel, uniqueness,
-left-right, for a band of rows (:func:`nssd_rows`).
+left-right and texture tests, for a band of rows (:func:`nssd_rows`).
 
 The matcher walks the image one row at a time and keeps, per column, the running
 vertical window sums of squared differences of all disparities (``width x
@@ -14,7 +14,9 @@ slower general path (clipped windows, masked Eq. 10).
 
 All sums are of integers below 2**24 (the prefiltered images are quantised), so they are
 exact in float32 and the result does not depend on the order of the additions or on
-how the rows are split into bands. Compiled on first use and cached on disk
+how the rows are split into bands. No fastmath: under it LLVM turns a vectorised
+``1 / sqrt`` into a CPU-dependent approximation; without it every quotient and root is
+IEEE float32, vectorised or not. Compiled on first use and cached on disk
 (``cache=True``).
 """
 
@@ -30,11 +32,10 @@ from slitcli.stereo._simd import bits, from_bits, offset, ptr
 BIG_INV = np.float32(1e30)
 # Added to the SSD so that 0 * BIG_INV**2 (two empty windows) becomes +inf, not 0.
 SSD_EPS = np.float32(1e-3)
-_FASTMATH = {"nsz", "arcp", "contract", "afn"}  # no nnan/ninf: +inf marks impossible costs
 _INF_BITS = np.int32(0x7F800000)
 
-# invalid_reason codes (docs/stereo.md); texture (2), speckle (5) and support (7) are
-# set by slitcli.stereo.matcher
+# invalid_reason codes (docs/stereo.md); speckle (5) is set by slitcli.stereo._kernel,
+# support (7) and depth edge (8) by slitcli.stereo._boundary
 REASON_VALID = 0
 REASON_NO_CANDIDATE = 1
 REASON_TEXTURE = 2
@@ -244,6 +245,45 @@ def _finish_row(best_i, c_0, c_m, c_p, second, rbest_i, el, disp_o, cost_o, reas
         reason_o[x] = reason if found else REASON_NO_CANDIDATE
 
 
+@nb.njit(cache=True, error_model="numpy")
+def _fast_run(x0, x1, width, m, dmin, num, p_col, p_ssum, p_cb, ra_row, rs_row, pla, pls,
+              p_rkey, p_irr, il, key_mask, index_mask, inf_key, wa, ws, uniq_on, idx, best_i,
+              c_0, c_m, c_p, second):
+    """Pixels x0 .. x1 - 1 of a row of :func:`nssd_rows`, whose disparities and windows
+    all lie inside both images: :func:`_fast_px`, then the winner's index and cost and
+    its neighbours' costs (``best_i``, ``c_0``, ``c_m``, ``c_p``) and, with
+    ``uniq_on``, the best cost more than 1 px from the winner (``second``). A function
+    of its own (pointer arguments), so the pixel loop's few variables stay in registers.
+    ``ra_row``, ``rs_row``: the mirrored right rows entering and leaving the window;
+    ``pla``, ``pls``: the left ones."""
+    m2 = 2 * m + 1
+    inf = np.float32(np.inf)
+    for x in range(x0, x1):
+        c = x + m
+        j0 = width - 1 - x + dmin
+        jc = width - 1 - c + dmin
+        lk = _fast_px(offset(p_col, (x + m2) * num), offset(p_col, x * num), p_ssum, p_cb,
+                      offset(ra_row, jc), offset(rs_row, jc), offset(p_rkey, j0),
+                      offset(p_irr, j0), pla[c], pls[c], wa, ws, il[x], key_mask, _U(num))
+        if lk >= inf_key:
+            best_i[x] = -1
+            c_0[x] = inf
+            continue
+        bi = np.int32(lk & index_mask)
+        best_i[x] = bi
+        c_0[x] = from_bits(p_cb[bi])
+        c_m[x] = from_bits(p_cb[bi - 1]) if bi >= 1 else inf
+        c_p[x] = from_bits(p_cb[bi + 1]) if bi + 1 < num else inf
+        if uniq_on:
+            sb = _INF_BITS
+            s32 = np.int32(bi - 1)
+            for i in range(num):
+                v = p_cb[i]
+                v = _INF_BITS if np.uint32(np.int32(idx[i] - s32)) <= np.uint32(2) else v
+                sb = v if v < sb else sb
+            second[x] = from_bits(sb)
+
+
 @nb.njit(cache=True, error_model="numpy", nogil=True)
 def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, texture_min,
               disp_out, cost_out, reason_out, rdisp_out):
@@ -393,60 +433,60 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
         for p in range(m2):
             _slide_sums(p_ssum, offset(p_col, p * num), p_zero, un)
         for x in range(width):
+            if x0 <= x < x1:
+                if x == x0:
+                    _fast_run(x0, x1, width, m, dmin, num, p_col, p_ssum, p_cb,
+                              offset(p_prr, ra * width), offset(p_prr, rs * width),
+                              offset(p_pl, ra * width), offset(p_pl, rs * width), p_rkey,
+                              p_irr, ptr(il), key_mask, index_mask, inf_key, wa, ws,
+                              uniq > 0.0, ptr(idx), ptr(best_i), ptr(c_0), ptr(c_m),
+                              ptr(c_p), ptr(second))
+                continue
             c = x + m
             col_in = offset(p_col, (x + m2) * num)
             col_out = offset(p_col, x * num)
             j0 = width - 1 - x + dmin   # reversed right column of disparity index 0
-            vlo = 0
-            vhi = num
-            if x0 <= x < x1:
-                jc = width - 1 - c + dmin
-                lk = _fast_px(col_in, col_out, p_ssum, p_cb,
-                              offset(p_prr, ra * width + jc), offset(p_prr, rs * width + jc),
-                              offset(p_rkey, j0), offset(p_irr, j0), pl[ra, c], pl[rs, c],
-                              wa, ws, il[x], key_mask, un)
+            if c < width:
+                lo = max(0, c - width + 1 - dmin)
+                hi = min(num, c - dmin + 1)
+                if lo < hi:
+                    jc = width - 1 - c + dmin + lo
+                    _column_sums(offset(col_in, lo), offset(p_prr, ra * width + jc),
+                                 offset(p_prr, rs * width + jc), pl[ra, c], pl[rs, c],
+                                 wa, ws, _U(hi - lo))
+            _slide_sums(p_ssum, col_in, col_out, un)
+            vlo = max(0, x - width + 1 - dmin)
+            vhi = min(num, x - dmin + 1)
+            if vlo >= vhi:
+                best_i[x] = -1
+                c_0[x] = inf
+                continue
+            if m <= x <= width - 1 - m:
+                ilo = max(vlo, x + m + 1 - width - dmin)
+                ihi = min(vhi, x - m - dmin + 1)
             else:
-                if c < width:
-                    lo = max(0, c - width + 1 - dmin)
-                    hi = min(num, c - dmin + 1)
-                    if lo < hi:
-                        jc = width - 1 - c + dmin + lo
-                        _column_sums(offset(col_in, lo), offset(p_prr, ra * width + jc),
-                                     offset(p_prr, rs * width + jc), pl[ra, c], pl[rs, c],
-                                     wa, ws, _U(hi - lo))
-                _slide_sums(p_ssum, col_in, col_out, un)
-                vlo = max(0, x - width + 1 - dmin)
-                vhi = min(num, x - dmin + 1)
-                if vlo >= vhi:
-                    best_i[x] = -1
-                    c_0[x] = inf
-                    continue
-                if m <= x <= width - 1 - m:
-                    ilo = max(vlo, x + m + 1 - width - dmin)
-                    ihi = min(vhi, x - m - dmin + 1)
-                else:
-                    ilo = vlo
-                    ihi = vlo
-                if ilo >= ihi:
-                    ilo = vlo
-                    ihi = vlo
-                if ilo < ihi:
-                    _interior_costs(offset(p_cb, ilo), offset(p_ssum, ilo),
-                                    offset(p_irr, j0 + ilo), il[x], _U(ihi - ilo))
-                if fast_border and x <= width - 1 - m:
-                    # left border: every disparity of [ihi, vhi) has x - d < m
-                    for i in range(ihi, vhi):
-                        cb[i] = bits((ssum[i] + SSD_EPS) * diag[x - dmin - i, i])
-                elif fast_border and dmin + vhi - 1 <= x - m:
-                    _right_edge_costs(offset(p_cb, vlo), offset(p_ssum, vlo),
-                                      np.float32(cly[width] - cly[x - m]),
-                                      offset(p_cry, width - dmin - vlo),
-                                      offset(p_cry, x - m - dmin - vlo), vhi - vlo)
-                else:
-                    _border_x(cb, ssum, cly, cry, vlo, ilo, x, dmin, m, width)
-                    _border_x(cb, ssum, cly, cry, ihi, vhi, x, dmin, m, width)
-                lk = _keys(offset(p_cb, vlo), offset(p_rkey, j0 + vlo), vlo, key_mask,
-                           _U(vhi - vlo))
+                ilo = vlo
+                ihi = vlo
+            if ilo >= ihi:
+                ilo = vlo
+                ihi = vlo
+            if ilo < ihi:
+                _interior_costs(offset(p_cb, ilo), offset(p_ssum, ilo),
+                                offset(p_irr, j0 + ilo), il[x], _U(ihi - ilo))
+            if fast_border and x <= width - 1 - m:
+                # left border: every disparity of [ihi, vhi) has x - d < m
+                for i in range(ihi, vhi):
+                    cb[i] = bits((ssum[i] + SSD_EPS) * diag[x - dmin - i, i])
+            elif fast_border and dmin + vhi - 1 <= x - m:
+                _right_edge_costs(offset(p_cb, vlo), offset(p_ssum, vlo),
+                                  np.float32(cly[width] - cly[x - m]),
+                                  offset(p_cry, width - dmin - vlo),
+                                  offset(p_cry, x - m - dmin - vlo), vhi - vlo)
+            else:
+                _border_x(cb, ssum, cly, cry, vlo, ilo, x, dmin, m, width)
+                _border_x(cb, ssum, cly, cry, ihi, vhi, x, dmin, m, width)
+            lk = _keys(offset(p_cb, vlo), offset(p_rkey, j0 + vlo), vlo, key_mask,
+                       _U(vhi - vlo))
             if lk >= inf_key:
                 best_i[x] = -1
                 c_0[x] = inf
@@ -474,5 +514,4 @@ def nssd_rows(pl, pr, prr, y0, y1, dmin, num, m, n, uniq, lr_tol, subpixel, text
         _finish_row(ptr(best_i), ptr(c_0), ptr(c_m), ptr(c_p), ptr(second), ptr(rbest_i), p_el,
                     offset(ptr(disp_out), y * width), offset(ptr(cost_out), y * width),
                     offset(ptr(reason_out), y * width), ptr(lr_fail), width, dmin, num, m,
-                    uniq, lr_tol,
-                    subpixel, texture_min, rows_y)
+                    uniq, lr_tol, subpixel, texture_min, rows_y)
