@@ -19,10 +19,10 @@ from slitcli.laser import (
     LaserParams,
     bearing_bin_centres_deg,
     candidate_mask,
+    candidates,
     chromaticity,
     detect_laser,
     extract_stripe,
-    kernels,
     nearest_range_per_bin,
     select,
     triangulate_stripe,
@@ -82,9 +82,9 @@ def test_candidate_mask_eq2_eq3():
     score = np.empty(60)
     sat_col = np.empty(60, bool)
     for i in range(40):
-        kernels.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2), np.ones((40, 60), bool),
-                         i, PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
-                         PARAMS.saturation_dn, score, sat_col)
+        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2),
+                            np.ones((40, 60), bool), i, PARAMS.min_th, PARAMS.min_delta_th,
+                            PARAMS.alpha, PARAMS.saturation_dn, score, sat_col)
         np.testing.assert_array_equal((score > -1.0) & ~sat_col, red[:, i])
         np.testing.assert_array_equal(sat_col, sat[:, i])
 
@@ -94,7 +94,7 @@ def test_noise_sigma_estimate_ignores_texture():
     for noise_dn in (2.0, 6.0):
         s = make_frame(RIG, stripe_cols=(0, 0), noise_dn=noise_dn, texture_contrast=0.3)
         bg = cv2.morphologyEx(s.bgr, cv2.MORPH_OPEN, np.ones((21, 1), np.uint8))
-        est = kernels.noise_sigma(s.bgr.transpose(1, 0, 2), bg.transpose(1, 0, 2), 4)
+        est = candidates.noise_sigma(s.bgr.transpose(1, 0, 2), bg.transpose(1, 0, 2), 4)
         assert est == pytest.approx(noise_dn, rel=0.15)
 
 

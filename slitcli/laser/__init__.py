@@ -5,7 +5,7 @@ stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points -
 nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
 """
 
-from slitcli.laser import kernels, select
+from slitcli.laser import candidates, fit, select, track
 from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
 from slitcli.laser.extract import StripeColumns, candidate_mask, chromaticity, extract_stripe
 from slitcli.laser.frame import (
@@ -29,14 +29,16 @@ __all__ = [
     "StripeColumns",
     "bearing_bin_centres_deg",
     "candidate_mask",
+    "candidates",
     "chromaticity",
     "detect_laser",
     "draw_overlay",
     "extract_stripe",
-    "kernels",
+    "fit",
     "laser_table",
     "nearest_range_per_bin",
     "run_laser",
     "select",
+    "track",
     "triangulate_stripe",
 ]

@@ -1,7 +1,8 @@
 """Laser slit extraction from one colour image (paper §2.1.1, Eqs. 1-4).
 
 Pipeline (docs/laser.md, "How the stripe is found"); every loop over pixels or
-columns is compiled (:mod:`slitcli.laser.kernels`, :mod:`slitcli.laser.select`):
+columns is compiled (:mod:`slitcli.laser.candidates`, :mod:`slitcli.laser.fit`,
+:mod:`slitcli.laser.track`, :mod:`slitcli.laser.select`):
 
 1. Background: a vertical morphological opening per channel (OpenCV); the contrast
    ``x - opening`` is the light a pixel adds above its surroundings. Noise sigma
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slitcli.laser import kernels, select
+from slitcli.laser import candidates, fit, select, track
 from slitcli.laser.params import LaserParams
 
 #: candidates fitted per column
@@ -100,7 +101,7 @@ def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
     """Paper Eqs. 1-3 per pixel, on the light it adds above its background (numpy form).
 
     The compiled extractor applies exactly these tests
-    (:func:`slitcli.laser.kernels.evidence`); this form documents them and serves
+    (:func:`slitcli.laser.candidates.evidence`); this form documents them and serves
     tests and users who want the mask.
 
     Parameters
@@ -119,7 +120,7 @@ def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
         ``R > min_th`` and ``R - max(G, B) > min_delta_th`` (false where ``sum(t) <=
         0``), and Eq. 3, white rejection, ``y > alpha max(t_g, t_b)`` with ``y`` the
         laser estimate: the contrast's red less the part its green and blue explain
-        along the background's colour (:data:`slitcli.laser.kernels.LAM_DETECT` of it),
+        along the background's colour (:data:`slitcli.laser.candidates.LAM_DETECT` of it),
         scaled so that laser light ``(1, XT, XT)`` gives its red.
     saturated : ndarray of bool, shape (...)
         Red at or above ``saturation_dn``: exempt from Eqs. 2-3 (a clipped core turns
@@ -133,11 +134,11 @@ def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
     eq2 = (red_c > params.min_th) & (red_c - wht_c > params.min_delta_th)
     k = b[..., ::-1] + 0.5  # background colour, RGB
     nk = np.linalg.norm(k, axis=-1)
-    proj = (k[..., 0] + kernels.XT * (k[..., 1] + k[..., 2])) / nk
-    den = kernels.A_LASER - kernels.LAM_DETECT * proj * proj
-    f = kernels.LAM_DETECT * proj / nk
-    y = ((1.0 - f * k[..., 0]) * t[..., 2] + (kernels.XT - f * k[..., 1]) * t[..., 1]
-         + (kernels.XT - f * k[..., 2]) * t[..., 0]) / den
+    proj = (k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])) / nk
+    den = fit.A_LASER - candidates.LAM_DETECT * proj * proj
+    f = candidates.LAM_DETECT * proj / nk
+    y = ((1.0 - f * k[..., 0]) * t[..., 2] + (fit.XT - f * k[..., 1]) * t[..., 1]
+         + (fit.XT - f * k[..., 2]) * t[..., 0]) / den
     eq3 = y > params.alpha * np.maximum(t[..., 1], t[..., 0])
     saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
     return eq2 & eq3 & ~saturated, saturated
@@ -182,7 +183,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     img_t = img.transpose(1, 0, 2)
     bg_t = bg.transpose(1, 0, 2)
     mask_t = mask.T
-    sigma = kernels.noise_sigma(img_t, bg_t, NOISE_STEP)
+    sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
     max_run = math.ceil(3.0 * params.max_width_px)
@@ -194,12 +195,12 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
     g_map = np.asarray(px_per_m, dtype=np.float64) if use_sheet else np.full((1, 1), np.nan)
     g_map_t = g_map.T
-    cand = np.empty((w, K_BEST, kernels.N_FIELDS))
+    cand = np.empty((w, K_BEST, fit.N_FIELDS))
     cand_avg = np.empty_like(cand)
     args = (img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th, params.min_delta_th,
             params.alpha, params.saturation_dn, max_run, params.max_width_px / select.EQ_WIDTH,
             select.SUPPORT_Z, z_strong, g_map_t)
-    kernels.column_candidates(*args, sheet_m, cand, cand_avg)
+    candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     if use_sheet:
         # the sheet's thickness is the rig's; where the frame shows it clearly (many
         # clean, strong columns agreeing) that value replaces the parameter
@@ -207,7 +208,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         if support >= select.MODE_SUPPORT and 2 * support >= voters and \
                 abs(math.log(mode_m / sheet_m)) > math.log(1.0 + select.MODE_WINDOW):
             sheet_m = mode_m
-            kernels.column_candidates(*args, sheet_m, cand, cand_avg)
+            candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
         np.ascontiguousarray(previous_v_px, dtype=np.float64)
@@ -222,10 +223,10 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     found = chosen >= 0
     pick = merged[np.arange(w), np.maximum(chosen, 0)]
     pick[~found] = np.nan
-    v = pick[:, kernels.C_POS]
+    v = pick[:, fit.C_POS]
     keep = np.empty(w, bool)
-    select.keep_segments(v, pick[:, kernels.C_WIDTH], pick[:, kernels.C_AMP],
-                         pick[:, kernels.C_Z], pick[:, kernels.C_SAT] > 0, extended,
+    select.keep_segments(v, pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
+                         pick[:, fit.C_Z], pick[:, fit.C_SAT] > 0, extended,
                          params.max_jump_px,
                          params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
@@ -237,26 +238,26 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     gap_slopes = np.empty(w)
     n_gap = select.gap_rows(v, keep, params.max_jump_px, gap_cols, gap_rows, gap_slopes)
     if n_gap:
-        fits = np.empty((n_gap, kernels.N_FIELDS))
-        kernels.fit_at(img_t, gap_cols[:n_gap], gap_rows[:n_gap], gap_slopes[:n_gap], sigma,
+        fits = np.empty((n_gap, fit.N_FIELDS))
+        track.fit_at(img_t, gap_cols[:n_gap], gap_rows[:n_gap], gap_slopes[:n_gap], sigma,
                        sigma_avg,
                        params.saturation_dn, params.max_width_px / select.EQ_WIDTH,
                        g_map_t, sheet_m, fits)
-        ok = (np.abs(fits[:, kernels.C_POS] - gap_rows[:n_gap]) <= select.GAP_PX) & \
-            (fits[:, kernels.C_Z] >= select.SUPPORT_Z) & \
-            (fits[:, kernels.C_WIDTH] <= params.max_width_px / select.EQ_WIDTH)
+        ok = (np.abs(fits[:, fit.C_POS] - gap_rows[:n_gap]) <= select.GAP_PX) & \
+            (fits[:, fit.C_Z] >= select.SUPPORT_Z) & \
+            (fits[:, fit.C_WIDTH] <= params.max_width_px / select.EQ_WIDTH)
         cols_ok = gap_cols[:n_gap][ok]
         pick[cols_ok] = fits[ok]
         keep[cols_ok] = True
     # where a stripe fades (far or grazing surfaces) the segment is carried on while
     # fits at the extrapolated row still find it bright enough
-    kernels.extend_ends(img_t, pick, keep, sigma, sigma_avg, params.saturation_dn,
+    track.extend_ends(img_t, pick, keep, sigma, sigma_avg, params.saturation_dn,
                         params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
                         params.max_jump_px, WEAK_SHARE * z_strong, params.min_peak_dn,
                         select.END_SHARE, EXTEND_COLS, select.GAP_PX)
     v_px = np.empty(w)
-    select.smooth_rows(pick[:, kernels.C_POS], pick[:, kernels.C_SE_POS],
-                       pick[:, kernels.C_WIDTH], keep, params.max_jump_px, v_px)
-    strength = np.where(keep, pick[:, kernels.C_AMP], np.nan)
-    saturated = keep & (pick[:, kernels.C_SAT] > 0)
+    select.smooth_rows(pick[:, fit.C_POS], pick[:, fit.C_SE_POS],
+                       pick[:, fit.C_WIDTH], keep, params.max_jump_px, v_px)
+    strength = np.where(keep, pick[:, fit.C_AMP], np.nan)
+    saturated = keep & (pick[:, fit.C_SAT] > 0)
     return StripeColumns(v_px, strength, saturated, float(sigma), float(thr))

@@ -1,6 +1,6 @@
 """Compiled (numba) choice of one stripe crossing per column (paper Eq. 4) and segments.
 
-Input: the fitted candidates of every column (:func:`slitcli.laser.kernels.
+Input: the fitted candidates of every column (:func:`slitcli.laser.candidates.
 column_candidates`), an array ``(W, K, N_FIELDS)``; output per column the chosen
 row, amplitude, significance and saturation, NaN where the column has no stripe.
 """
@@ -12,7 +12,8 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.kernels import (
+from slitcli.laser.candidates import CLUTTER_SHARE
+from slitcli.laser.fit import (
     AVG_VAR,
     C_AMP,
     C_CHI2,
@@ -23,7 +24,6 @@ from slitcli.laser.kernels import (
     C_SAT,
     C_WIDTH,
     C_Z,
-    CLUTTER_SHARE,
     PIXEL_VAR,
 )
 

@@ -1,0 +1,309 @@
+"""Compiled (numba) candidate crossings per image column (paper Eqs. 1-3 and the seeds of Eq. 4).
+
+Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row;
+views of the ``(H, W, 3)`` images); all loops over pixels live here and in
+:mod:`slitcli.laser.fit`, compiled. The signal model is :mod:`slitcli.laser.fit`'s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from slitcli.laser.fit import (
+    A_LASER,
+    C_AMP,
+    C_CHI2,
+    C_CLUT,
+    C_Z,
+    N_FIELDS,
+    N_WORK,
+    XT,
+    fit_profile,
+)
+
+#: share of the surface-colour direction the per-pixel evidence removes: 1 would
+#: remove all texture but amplify noise without bound on surfaces of the laser's colour
+LAM_DETECT = 0.99
+NOISE_BLOCK = 16  # rows sharing one surface colour in the noise estimate
+CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
+#: a candidate whose evidence is below this share of a strong first candidate's is not
+#: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
+#: paper weights 0.25) cannot beat the first's
+SECONDARY_SHARE = 0.5
+NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
+CLUTTER_HALF = 24  # half-window of the clutter level, px
+CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
+#: a candidate must stand MIN_CLUTTER_RATIO times (in quadrature with the noise)
+#: above all but CLUTTER_SHARE of the evidence around it
+MIN_CLUTTER_RATIO = 1.5
+CLUTTER_SHARE = 0.2
+
+
+@njit(cache=True, nogil=True)
+def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma: no cover
+    """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
+
+    Texture and shading scale all channels of a surface alike, so the part of a pixel
+    orthogonal to its surface's colour (the mean colour of its block of
+    ``NOISE_BLOCK`` rows) is noise (two dimensions) plus rare edges, highlights and
+    the laser. Its second difference along the column has ``E|d2|^2 = 12 sigma^2``, a
+    scaled chi-square with 2 degrees of freedom whose median is ``2 ln 2`` times its
+    mean over 2. Every ``step``-th column is used; ``bg`` is not needed (kept for the
+    callers' symmetry).
+    """
+    n_lines, n = img.shape[0], img.shape[1]
+    vals = np.empty(((n_lines + step - 1) // step) * n)
+    m = 0
+    p = np.empty((NOISE_BLOCK, 3))
+    for i in range(0, n_lines, step):
+        for j0 in range(0, n - NOISE_BLOCK + 1, NOISE_BLOCK):
+            cr = cg = cb = 0.5
+            for j in range(j0, j0 + NOISE_BLOCK):
+                cr += img[i, j, 2]
+                cg += img[i, j, 1]
+                cb += img[i, j, 0]
+            nn = math.sqrt(cr * cr + cg * cg + cb * cb)
+            cr /= nn
+            cg /= nn
+            cb /= nn
+            for jj in range(NOISE_BLOCK):
+                xr = float(img[i, j0 + jj, 2])
+                xg = float(img[i, j0 + jj, 1])
+                xb = float(img[i, j0 + jj, 0])
+                q = xr * cr + xg * cg + xb * cb
+                p[jj, 0] = xr - q * cr
+                p[jj, 1] = xg - q * cg
+                p[jj, 2] = xb - q * cb
+            for jj in range(1, NOISE_BLOCK - 1):
+                acc = 0.0
+                for c in range(3):
+                    d = 2.0 * p[jj, c] - p[jj - 1, c] - p[jj + 1, c]
+                    acc += d * d
+                vals[m] = acc
+                m += 1
+    if m == 0:
+        return 0.0
+    med = np.median(vals[:m])
+    return math.sqrt(med / (6.0 * 2.0 * math.log(2.0)))
+
+
+@njit(cache=True, nogil=True)
+def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: float,
+             min_delta_th: float, alpha: float, sat_dn: int, score: np.ndarray,
+             sat: np.ndarray) -> None:  # pragma: no cover
+    """Per-pixel laser evidence of column ``i`` (paper Eqs. 1-3), into ``score``.
+
+    On the contrast ``t = x - bg`` (light above the local background, ``bg`` a
+    vertical opening): Eq. 1/2 on the chromaticity of ``t``, ``t_r > min_th sum(t)``
+    and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3, white rejection,
+    ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
+    the background's colour removed to the share ``LAM_DETECT``, so texture, shading
+    and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
+    elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
+    red contrast and ``sat`` True.
+    """
+    n = img.shape[1]
+    # the weights depend on the background colour alone, and an opening is flat over
+    # long stretches: they are recomputed only where it changes
+    pr = pg = pb = -1
+    wr = wg = wb = 0.0
+    for j in range(n):
+        score[j] = -1.0
+        sat[j] = False
+        if not mask[i, j]:
+            continue
+        xr = img[i, j, 2]
+        br = bg[i, j, 2]
+        tr = float(xr) - br
+        if xr >= sat_dn:
+            sat[j] = True
+            score[j] = tr
+            continue
+        bgg = bg[i, j, 1]
+        bb = bg[i, j, 0]
+        tg = float(img[i, j, 1]) - bgg
+        tb = float(img[i, j, 0]) - bb
+        if br != pr or bgg != pg or bb != pb:
+            pr, pg, pb = br, bgg, bb
+            kr = br + 0.5
+            kg = bgg + 0.5
+            kb = bb + 0.5
+            nk = math.sqrt(kr * kr + kg * kg + kb * kb)
+            proj = (kr + XT * (kg + kb)) / nk
+            den = A_LASER - LAM_DETECT * proj * proj
+            f = LAM_DETECT * proj / nk
+            wr = (1.0 - f * kr) / den
+            wg = (XT - f * kg) / den
+            wb = (XT - f * kb) / den
+        # the tests combined without branches (their outcome is noise on most pixels)
+        ssum = tr + tg + tb
+        wht = max(tg, tb)
+        y = wr * tr + wg * tg + wb * tb
+        ok = (tr > 0.0) & (tr > min_th * ssum) & (tr - wht > min_delta_th * ssum) & \
+            (y > alpha * wht)
+        score[j] = y if ok else -1.0
+
+
+@njit(cache=True, nogil=True)
+def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centre: float,
+             run_n: int, amp: float, sigma: float) -> float:  # pragma: no cover
+    """Share of the positive evidence within ``CLUTTER_HALF`` rows (the candidate's
+    core left out) that comes within ``MIN_CLUTTER_RATIO`` of the amplitude ``amp``
+    (in quadrature with the noise): texture of a red surface, which colour cannot
+    tell from the laser, makes it large."""
+    n = score.shape[0]
+    c = int(centre + 0.5)
+    hw = max(CLUTTER_CORE, run_n // 2 + 2)
+    lim = amp / MIN_CLUTTER_RATIO
+    lim = math.sqrt(max(lim * lim - sigma * sigma, 0.0))
+    nn = 0
+    above = 0
+    for jj in range(max(c - CLUTTER_HALF, 0), min(c + CLUTTER_HALF + 1, n)):
+        if abs(jj - c) > hw and mask[i, jj] and not sat[jj]:
+            nn += 1
+            if score[jj] > lim:
+                above += 1
+    return above / nn if nn > 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      out: np.ndarray, out_avg: np.ndarray) -> None:  # pragma: no cover
+    """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
+
+    Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
+    least ``seed_dn``, and saturated red plateaus next to a red pixel (one alone is
+    a white highlight). A candidate's extent is the stretch around it where the
+    evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
+    surface is cut out of the surface's texture); longer than ``max_run_px``, it is
+    a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
+    are not refined), with ``C_CLUT`` from
+    :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
+    faint stripe, or noise) is fitted again on the column averaged with its
+    neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
+    width of the sheet there (``g_map`` (W, H), rows per metre, times ``sheet_m``)
+    is the fits' prior. ``out`` and ``out_avg`` have shape (W, K, N_FIELDS); NaN
+    where none.
+    """
+    n_lines = img.shape[0]
+    out[:] = np.nan
+    out_avg[:] = np.nan
+    _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th, alpha,
+                      sat_dn, max_run_px, s_max, support_z, z_strong, g_map, sheet_m, 0,
+                      n_lines, out, out_avg)
+
+
+@njit(cache=True, nogil=True)
+def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
+                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
+                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
+                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
+                      i0: int, i1: int, out: np.ndarray,
+                      out_avg: np.ndarray) -> None:  # pragma: no cover
+    """:func:`column_candidates` for columns ``i0 .. i1 - 1`` (own workspace)."""
+    n = img.shape[1]
+    k_best = out.shape[1]
+    res = np.empty(N_FIELDS)
+    ws = np.empty((8, N_WORK))
+    rs = np.empty(k_best)
+    rc = np.empty(k_best)
+    rn = np.empty(k_best, np.int64)
+    score = np.empty(n)
+    sat = np.empty(n, np.bool_)
+    for i in range(i0, i1):
+        evidence(img, bg, mask, i, min_th, min_delta_th, alpha, sat_dn, score, sat)
+        nk = 0
+        j = 0
+        while j < n:
+            if score[j] < seed_dn:
+                j += 1
+                continue
+            if sat[j]:
+                j0 = j
+                peak = score[j]
+                while j < n and sat[j] and score[j] >= seed_dn:
+                    peak = max(peak, score[j])
+                    j += 1
+                red = (j0 > 0 and score[j0 - 1] >= seed_dn) or (j < n and score[j] >= seed_dn)
+                if not red:
+                    continue
+                centre = 0.5 * (j0 + j - 1)
+                lim = max(seed_dn, CORE_SHARE * peak)
+                a = j0
+                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                    a -= 1
+                b = j
+                while b < n and score[b] >= lim and not sat[b]:
+                    b += 1
+            else:
+                is_max = True
+                for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
+                    if q != j and (score[q] > score[j] or (score[q] == score[j] and q < j)
+                                   or sat[q]):
+                        is_max = False
+                        break
+                if not is_max:
+                    j += 1
+                    continue
+                peak = score[j]
+                centre = float(j)
+                lim = max(seed_dn, CORE_SHARE * peak)
+                a = j
+                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                    a -= 1
+                b = j + 1
+                while b < n and score[b] >= lim and not sat[b]:
+                    b += 1
+                j += 1
+            run_n = b - a
+            if run_n > max_run_px:
+                continue
+            if nk < k_best:
+                slot = nk
+                nk += 1
+            elif peak > rs[nk - 1]:
+                slot = nk - 1
+            else:
+                continue
+            while slot > 0 and rs[slot - 1] < peak:
+                rs[slot] = rs[slot - 1]
+                rc[slot] = rc[slot - 1]
+                rn[slot] = rn[slot - 1]
+                slot -= 1
+            rs[slot] = peak
+            rc[slot] = centre
+            rn[slot] = run_n
+        for q in range(nk):
+            if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
+                break  # Eq. 4 cannot prefer it to a strong first candidate
+            s_core = 0.0
+            if sheet_m > 0.0:
+                gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
+                if np.isfinite(gpx):
+                    s_core = gpx * sheet_m
+            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
+                               ws, res):
+                continue
+            for f in range(N_FIELDS):
+                out[i, q, f] = res[f]
+            if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
+                out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
+                                             sigma)
+            # a faint candidate, in a column without a strong one, is fitted again on
+            # the column averaged with its neighbours
+            strong = q > 0 and out[i, 0, C_Z] >= z_strong
+            if not strong and support_z <= res[C_Z] < z_strong and \
+                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
+                                ws, res):
+                for f in range(N_FIELDS):
+                    out_avg[i, q, f] = res[f]
+                out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
+                                                 res[C_AMP], sigma)
+
+
