@@ -288,7 +288,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 if np.isfinite(gpx):
                     s_core = gpx * sheet_m
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
-                               ws, res):
+                               False, ws, res):
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
@@ -300,7 +300,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             strong = q > 0 and out[i, 0, C_Z] >= z_strong
             if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                ws, res):
+                                False, ws, res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],

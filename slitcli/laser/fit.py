@@ -143,7 +143,7 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
                 sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
-                ws: np.ndarray,
+                fixed: bool, ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -169,14 +169,25 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ``S_PRIOR_SPREAD``, which keeps a faint stripe's fit from collapsing onto a
     noise spike and leaves a bright one to its data. ``averaged``: fit column ``i``
     averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
-    one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
+    one counts as saturated), sheared along the stripe: the neighbours' rows are
+    shifted by ``round(slope)``, so a sloping stripe is averaged with itself and only
+    the remainder widens it. ``ws`` is an (8, N_WORK) workspace. A clipped core
+    that reaches the image's first or last row gives no fit (its centre may lie
+    outside the image; neither its plateau nor one flank pins it down).
+
+    ``fixed``: only the offset and amplitude, by linear least squares, at the centre
+    ``centre`` and the prior width (1.2 px without one): the matched filter of the
+    expected profile there, unbiased in noise (the amplitude may be negative); the
+    row's standard error is reported as infinite, the reduced chi-square as NaN.
     """
     n = img.shape[1]
     c = math.floor(centre + 0.5)
+    shift = round(slope) if averaged else 0
     s_prior = 0.0
     if s_core > 0.0:
-        hvar = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
-        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR + slope * slope * hvar)
+        rest = slope - shift
+        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR * (1.0 + slope * slope)
+                            + (rest * rest * AVG_VAR if averaged else 0.0))
     flank = max(4, run_n // 2 + 2)
     half = min(max(FIT_HALF, flank + 3), (N_WORK - 1) // 2)
     j0 = max(c - half, 0)
@@ -191,8 +202,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         for ch in range(3):
             x1 = img[i, j, 2 - ch]
             if averaged:
-                x0 = img[ia, j, 2 - ch]
-                x2 = img[ib, j, 2 - ch]
+                x0 = img[ia, min(max(j - shift, 0), n - 1), 2 - ch]
+                x2 = img[ib, min(max(j + shift, 0), n - 1), 2 - ch]
                 if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
                     win[ch, jj] = 255.0
                 else:
@@ -370,13 +381,24 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if wt[jj] > 0.0 and abs(j0 + jj - centre) <= 1.5:
             if kpk < 0 or y[jj] > y[kpk]:
                 kpk = jj
-    if kpk < 0 or y[kpk] <= 0.0:
-        return False
-    v0 = float(j0 + kpk)
     s = s_prior if s_prior > 0.0 else 1.2
-    amp = y[kpk]
-    if 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 and y[kpk - 1] > 0 \
-            and y[kpk + 1] > 0:
+    if fixed:
+        v0 = centre
+        amp = 0.0
+    elif kpk < 0 or y[kpk] <= 0.0:
+        cc = min(max(c - j0, 0), m - 1)
+        if win[0, cc] < sat_dn:
+            return False
+        # a clipped core whose other channels carry no information either (a strongly
+        # textured surface): start at its centre, the flanks decide
+        kpk = cc
+        v0 = float(c)
+        amp = 2.0 * max(sat_dn - ar, 1.0)
+    else:
+        v0 = float(j0 + kpk)
+        amp = y[kpk]
+    if not fixed and wt[kpk] > 0.0 and 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 \
+            and y[kpk - 1] > 0 and y[kpk + 1] > 0:
         l0, lm_, lp = math.log(y[kpk]), math.log(y[kpk - 1]), math.log(y[kpk + 1])
         curv = lm_ - 2.0 * l0 + lp
         if curv < -1e-6:
@@ -412,6 +434,22 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     off = (s11 * b0 - s01 * b1) / det2
     amp = (s00 * b1 - s01 * b0) / det2
     z_quick = amp / math.sqrt(s00 / det2)
+    if fixed:
+        if nsat > 0:
+            z_quick = max(z_quick, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
+        out[C_HVAR] = np.nan
+        out[C_CLUT] = np.nan
+        out[C_POS] = v0
+        out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
+        out[C_WIDTH] = s
+        out[C_Z] = z_quick
+        out[C_SE_POS] = np.inf
+        out[C_CHI2] = np.nan
+        out[C_SAT] = 1.0 if nsat > 0 else 0.0
+        out[C_TEX] = math.sqrt(t2_max)
+        out[C_EDGE] = 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
+            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb))
+        return True
     if z_quick < QUICK_Z and nsat == 0:
         if amp <= 0.0:
             return False
@@ -490,6 +528,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         return False
     z = amp / math.sqrt(var_a)
     if nsat > 0:
+        if (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn):
+            return False  # clipped up to the image border: the centre may lie beyond
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
         # its flanks alone leave amplitude and width ill-determined: a fit whose
