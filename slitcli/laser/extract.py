@@ -226,10 +226,22 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     v = pick[:, fit.C_POS]
     keep = np.empty(w, bool)
     select.keep_segments(v, pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
-                         pick[:, fit.C_Z], pick[:, fit.C_SAT] > 0, extended,
+                         pick[:, fit.C_Z], pick[:, fit.C_CHI2], pick[:, fit.C_SAT] > 0,
+                         extended,
                          params.max_jump_px,
                          params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
+    # where a stripe fades (far or grazing surfaces) each segment is followed on along
+    # its predicted row while fits there find it; the faint ones are then judged by
+    # their running median brightness like the segments' own columns
+    tracked = np.zeros(w, bool)
+    track.track_ends(img_t, pick, keep, tracked, sigma, sigma_avg, params.saturation_dn,
+                     params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
+                     params.max_jump_px, select.END_SHARE, params.min_peak_dn,
+                     select.GAP_PX)
+    track.drop_faint_tracked(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
+                             pick[:, fit.C_SAT] > 0, keep, tracked, params.max_jump_px,
+                             params.min_peak_dn)
     # a faint stripe on a textured surface loses single columns to noise (the stripe
     # not among a column's strongest candidates): the segment around such a gap
     # vouches for the stripe, a fit at the row interpolated across it must confirm it
@@ -249,16 +261,6 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         cols_ok = gap_cols[:n_gap][ok]
         pick[cols_ok] = fits[ok]
         keep[cols_ok] = True
-    # where a stripe fades (far or grazing surfaces) each segment is followed on along
-    # its predicted row while fits there find it; the faint ones are then judged by
-    # their running median brightness like the segments' own columns
-    tracked = np.zeros(w, bool)
-    track.track_ends(img_t, pick, keep, tracked, sigma, sigma_avg, params.saturation_dn,
-                     params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
-                     params.max_jump_px, select.END_SHARE, select.GAP_PX)
-    track.drop_faint_tracked(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
-                             pick[:, fit.C_SAT] > 0, keep, tracked, params.max_jump_px,
-                             params.min_peak_dn)
     v_px = np.empty(w)
     select.smooth_rows(pick[:, fit.C_POS], pick[:, fit.C_SE_POS],
                        pick[:, fit.C_WIDTH], keep, params.max_jump_px, v_px)

@@ -40,6 +40,8 @@ CONVERGED_PX = 2e-3  # a fit has converged when its centre moves less (px)
 CONVERGED_REL_S = 0.02  # and its width less than this share of itself
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
+#: largest standard error (px) of a clipped core's centre fitted where it runs off the image
+BORDER_SE = 0.2
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
@@ -49,8 +51,8 @@ PIXEL_VAR = 2.0 / 27.0
 
 #: fields of a candidate row (last axis of the candidate table)
 (C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
- C_HVAR) = range(11)
-N_FIELDS = 11
+ C_HVAR, C_SE_AMP) = range(12)
+N_FIELDS = 12
 N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
 
 
@@ -155,9 +157,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     saturated channels left out) with its information as weight; then a weighted
     Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
 
-    Writes ``out[:10] = (v0, A (red DN; with ``s_prior`` the peak before the pixels'
-    blur), s (px), significance, standard error of v0,
-    reduced chi-square, saturated 0/1, texture sigma (DN), -, edge)``; significance
+    Writes the ``C_*`` fields of ``out``: v0, A (red DN; with ``s_core`` the peak
+    before the pixels' blur), s (px), significance, standard error of v0, reduced
+    chi-square, saturated 0/1, texture sigma (DN), edge, standard error of A (``C_CLUT``
+    and ``C_HVAR`` are the caller's: NaN here); significance
     is ``A`` over its standard error or, for a clipped core, the margin of saturation
     over the surface's red level in units of noise and texture; ``edge`` is one minus
     the cosine between the surface colours just above and just below. Returns whether
@@ -172,8 +175,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     one counts as saturated), sheared along the stripe: the neighbours' rows are
     shifted by ``round(slope)``, so a sloping stripe is averaged with itself and only
     the remainder widens it. ``ws`` is an (8, N_WORK) workspace. A clipped core
-    that reaches the image's first or last row gives no fit (its centre may lie
-    outside the image; neither its plateau nor one flank pins it down).
+    that reaches the image's first or last row has no far edge: only a fit whose
+    centre the unclipped channels place within ``BORDER_SE`` (standard error) and
+    inside the image counts.
 
     ``fixed``: only the offset and amplitude, by linear least squares, at the centre
     ``centre`` and the prior width (1.2 px without one): the matched filter of the
@@ -443,6 +447,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
         out[C_WIDTH] = s
         out[C_Z] = z_quick
+        out[C_SE_AMP] = math.sqrt(s00 / det2) * (s_prior / s_core if s_core > 0.0 else 1.0)
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.nan
         out[C_SAT] = 1.0 if nsat > 0 else 0.0
@@ -459,6 +464,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_AMP] = amp
         out[C_WIDTH] = s
         out[C_Z] = z_quick
+        out[C_SE_AMP] = math.sqrt(s00 / det2)
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.inf
         out[C_SAT] = 0.0
@@ -528,8 +534,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         return False
     z = amp / math.sqrt(var_a)
     if nsat > 0:
-        if (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn):
-            return False  # clipped up to the image border: the centre may lie beyond
+        # clipped up to the image border: the plateau's far edge is not seen
+        border = (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn)
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
         # its flanks alone leave amplitude and width ill-determined: a fit whose
@@ -544,16 +550,26 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             while jb < m - 1 and win[0, jb + 1] >= sat_dn:
                 jb += 1
             if s < MIN_SAT_SIGMA or not (j0 + ja - 0.5 <= v0 <= j0 + jb + 0.5):
+                if border:
+                    return False
                 v0 = j0 + _plateau_centre(win, ja, jb, m, 0.5 * (ar + sat_dn))
                 var_v = 0.25
+        # at the border only the other channels inside the plateau (the laser's
+        # crosstalk) can place the centre: where texture swamps them, or the centre
+        # lies beyond the last row, there is no fit
+        if border and (var_v > BORDER_SE * BORDER_SE or not 0.0 <= v0 <= n - 1.0):
+            return False
     dot = nur * nlr + nug * nlg + nub * nlb
     out[C_HVAR] = np.nan
     out[C_POS] = v0
-    # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
-    # is known, report the peak before it (the stripe's own brightness)
-    out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
+    # the pixels' extent (and along a steep stripe the column's own width) spread the
+    # stripe and lower its peak, keeping its area: where the sheet's width here is
+    # known, report the peak before it (the stripe's own brightness) from the fitted
+    # area; a clipped core's width is too loosely determined, the expected one serves
+    out[C_AMP] = amp * (s_prior if nsat > 0 else s) / s_core if s_core > 0.0 else amp
     out[C_WIDTH] = s
     out[C_Z] = z
+    out[C_SE_AMP] = out[C_AMP] / z
     out[C_SE_POS] = math.sqrt(var_v)
     out[C_CHI2] = chi / max(nuse - 4, 1)
     out[C_SAT] = 1.0 if nsat > 0 else 0.0

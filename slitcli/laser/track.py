@@ -18,6 +18,7 @@ from slitcli.laser.fit import (
     C_HVAR,
     C_POS,
     C_SAT,
+    C_SE_AMP,
     C_SE_POS,
     C_WIDTH,
     C_Z,
@@ -26,17 +27,22 @@ from slitcli.laser.fit import (
     PIXEL_VAR,
     fit_profile,
 )
-from slitcli.laser.select import AMP_HALF, MAX_CHI2, MAX_EDGE, MAX_GAP, MIN_SIGMA_PX, links
+from slitcli.laser.select import (
+    AMP_HALF,
+    MAX_CHI2,
+    MAX_EDGE,
+    MAX_GAP,
+    MIN_SIGMA_PX,
+    links,
+)
 
 #: columns of a segment's end whose straight line predicts a track's next row
 TRACK_LINE = 12
 #: a track goes on while its last TRACK_WINDOW columns together are TRACK_Z
-#: significant; single fits join it from TRACK_SINGLE_Z; TRACK_MISS failed columns in a
-#: row end it
+#: significant; a full fit replaces the matched filter's row from TRACK_SINGLE_Z
 TRACK_WINDOW = 5
 TRACK_Z = 4.5
 TRACK_SINGLE_Z = 2.0
-TRACK_MISS = 3
 #: standard error of a tracked row taken from the prediction (px), and the floor of
 #: the rows' standard errors in the line's weights
 TRACK_ROW_SE = 0.5
@@ -90,7 +96,7 @@ def _fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndar
 @njit(cache=True, nogil=True)
 def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.ndarray,
                sigma: float, sigma_avg: float, sat_dn: int, s_max: float, g_map: np.ndarray,
-               sheet_m: float, max_jump_px: float, share: float,
+               sheet_m: float, max_jump_px: float, share: float, min_peak_dn: float,
                row_px: float) -> None:  # pragma: no cover
     """Follow kept segments past their ends, column by column, while the stripe is there.
 
@@ -166,17 +172,16 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
                 amps[n_amp] = pick[x, C_AMP]
                 n_amp += 1
             if n_win < TRACK_WINDOW:
-                _window_put(wa, wi, n_win, pick[x, C_AMP], pick[x, C_Z])
+                _window_put(wa, wi, n_win, pick[x, C_AMP], pick[x, C_SE_AMP])
                 n_win += 1
             x -= d
         for k in range(n_win, TRACK_WINDOW):
             wa[k] = 0.0
             wi[k] = 0.0
         slot = 0  # next window slot to overwrite (the oldest)
-        miss = 0
         n_taken = 0
         x = u + d
-        while 0 <= x < w and not keep[x] and miss < TRACK_MISS:
+        while 0 <= x < w and not keep[x]:
             pred, slope = _line_at(xs, vs, vw, n, float(x))
             if not (0.0 <= pred <= h - 1.0):
                 break
@@ -197,16 +202,17 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
             elif not fit_profile(img, x, pred, 3, sigma_avg, sat_dn, s_max, s_core, slope,
                                  True, True, ws, mf):
                 break
-            _window_put(wa, wi, slot, mf[C_AMP], mf[C_Z])
+            _window_put(wa, wi, slot, mf[C_AMP], mf[C_SE_AMP])
             slot = (slot + 1) % TRACK_WINDOW
             if _window_z(wa, wi) < TRACK_Z:
                 break
-            if mf[C_SAT] == 0.0 and \
-                    mf[C_AMP] + 2.0 * mf[C_AMP] / mf[C_Z] < share * _median(amps, n_amp):
-                miss += 1
-                x += d
-                continue
-            miss = 0
+            # the column alone (an average reaches into the neighbours, and at an
+            # object's end into the stripe beside it) must show the stripe over at
+            # least ``share`` of its width
+            if not clipped and mf[C_SAT] == 0.0 and fit_profile(
+                    img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, ws,
+                    one) and one[C_AMP] < share * max(_median(amps, n_amp), min_peak_dn):
+                break
             r = mf
             if not clipped:
                 cols[0] = x
@@ -254,12 +260,12 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
 
 @njit(cache=True, nogil=True)
 def _window_put(wa: np.ndarray, wi: np.ndarray, k: int, amp: float,
-                z: float) -> None:  # pragma: no cover
-    """Put an amplitude of significance ``z`` into slot ``k`` of the track's window:
-    the inverse variance of the amplitude and that times the amplitude."""
-    se = abs(amp / z) if z != 0.0 else np.inf
-    wi[k] = 1.0 / max(se * se, 1e-12) if np.isfinite(se) else 0.0
-    wa[k] = wi[k] * amp
+                se: float) -> None:  # pragma: no cover
+    """Put an amplitude of standard error ``se`` into slot ``k`` of the track's
+    window: its inverse variance and that times the amplitude."""
+    ok = np.isfinite(se) and se > 0.0 and np.isfinite(amp)
+    wi[k] = 1.0 / (se * se) if ok else 0.0
+    wa[k] = wi[k] * amp if ok else 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -318,7 +324,7 @@ def _line_at(xs: np.ndarray, vs: np.ndarray, ws: np.ndarray, n: int,
 
 @njit(cache=True, nogil=True)
 def _median(a: np.ndarray, n: int) -> float:  # pragma: no cover
-    """Median of ``a[:n]`` for n <= 3 (0 for n = 0)."""
+    """Median of ``a[:n]``, ``n <= 3`` (0 for none)."""
     if n == 0:
         return 0.0
     if n == 1:
