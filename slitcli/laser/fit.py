@@ -562,11 +562,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     dot = nur * nlr + nug * nlg + nub * nlb
     out[C_HVAR] = np.nan
     out[C_POS] = v0
-    # the pixels' extent (and along a steep stripe the column's own width) spread the
-    # stripe and lower its peak, keeping its area: where the sheet's width here is
-    # known, report the peak before it (the stripe's own brightness) from the fitted
-    # area; a clipped core's width is too loosely determined, the expected one serves
-    out[C_AMP] = amp * (s_prior if nsat > 0 else s) / s_core if s_core > 0.0 else amp
+    # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
+    # is known, report the peak before it (the stripe's own brightness)
+    out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
     out[C_WIDTH] = s
     out[C_Z] = z
     out[C_SE_AMP] = out[C_AMP] / z

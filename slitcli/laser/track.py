@@ -43,6 +43,9 @@ TRACK_LINE = 12
 TRACK_WINDOW = 5
 TRACK_Z = 4.5
 TRACK_SINGLE_Z = 2.0
+#: columns in a row that may fall short of the track's brightness (an abrupt end:
+#: a partly covered column, then none)
+TRACK_PENDING = 2
 #: standard error of a tracked row taken from the prediction (px), and the floor of
 #: the rows' standard errors in the line's weights
 TRACK_ROW_SE = 0.5
@@ -136,10 +139,11 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
     xs = np.empty(TRACK_LINE)  # the track's last columns, rows and row weights,
     vs = np.empty(TRACK_LINE)  # newest first
     vw = np.empty(TRACK_LINE)
-    amps = np.empty(3)  # the last unsaturated amplitudes, newest first
     wa = np.zeros(TRACK_WINDOW)  # per column of the window: weight x amplitude, weight
     wi = np.zeros(TRACK_WINDOW)
     taken = np.empty(w, np.int64)
+    pend = np.empty((TRACK_PENDING + 1, N_FIELDS))  # columns awaiting a passing one
+    pend_x = np.empty(TRACK_PENDING + 1, np.int64)
     ends = np.empty((w, 2), np.int64)
     n_ends = 0
     for u in range(w):
@@ -155,31 +159,36 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
         d = ends[e, 1]
         if 0 <= u + d < w and keep[u + d]:
             continue  # reached by another track
-        # the segment's last columns, inward from its end
+        # the segment's last columns, inward from its end (across its short gaps)
         n = 0
-        n_amp = 0
         n_win = 0
         x = u
-        while n < TRACK_LINE and 0 <= x < w and keep[x]:
-            if n > 0 and not links(pick[x, C_POS] - pick[x + d, C_POS], pick[x, C_WIDTH],
-                                   pick[x + d, C_WIDTH], max_jump_px):
+        last = u
+        while n < TRACK_LINE and 0 <= x < w and abs(x - last) <= MAX_GAP + 1:
+            if not keep[x]:
+                x -= d
+                continue
+            dv = pick[x, C_POS] - pick[last, C_POS]
+            if n > 0 and not (links(dv, pick[x, C_WIDTH], pick[last, C_WIDTH], max_jump_px)
+                              if abs(x - last) == 1 else abs(dv) <= max_jump_px * abs(x - last)):
                 break
+            last = x
             xs[n] = x
             vs[n] = pick[x, C_POS]
             vw[n] = _row_weight(pick[x, C_SE_POS])
             n += 1
-            if pick[x, C_SAT] == 0.0 and n_amp < 3:
-                amps[n_amp] = pick[x, C_AMP]
-                n_amp += 1
             if n_win < TRACK_WINDOW:
-                _window_put(wa, wi, n_win, pick[x, C_AMP], pick[x, C_SE_AMP])
+                # newest last: the ring below overwrites the oldest first
+                _window_put(wa, wi, TRACK_WINDOW - 1 - n_win, pick[x, C_AMP],
+                            pick[x, C_SE_AMP])
                 n_win += 1
             x -= d
-        for k in range(n_win, TRACK_WINDOW):
+        for k in range(TRACK_WINDOW - n_win):
             wa[k] = 0.0
             wi[k] = 0.0
         slot = 0  # next window slot to overwrite (the oldest)
         n_taken = 0
+        n_pend = 0
         x = u + d
         while 0 <= x < w and not keep[x]:
             pred, slope = _line_at(xs, vs, vw, n, float(x))
@@ -208,12 +217,15 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
                 break
             # the column alone (an average reaches into the neighbours, and at an
             # object's end into the stripe beside it) must show the stripe over at
-            # least ``share`` of its width
-            if not clipped and mf[C_SAT] == 0.0 and fit_profile(
-                    img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, ws,
-                    one) and one[C_AMP] < share * max(_median(amps, n_amp), min_peak_dn):
-                break
-            r = mf
+            # least ``share`` of its width (of the window's mean brightness); up to
+            # TRACK_PENDING columns in a row may fall short (noise), the next one that
+            # does not vouches for them
+            passed = clipped or mf[C_SAT] > 0.0 or not fit_profile(
+                img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, ws,
+                one) or one[C_AMP] >= share * max(_window_mean(wa, wi), min_peak_dn)
+            r = pend[n_pend]
+            for f in range(N_FIELDS):
+                r[f] = mf[f]
             if not clipped:
                 cols[0] = x
                 rows[0] = pred
@@ -224,30 +236,36 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
                 if abs(q[C_POS] - pred) <= row_px and 0.0 <= q[C_POS] <= h - 1.0 and \
                         q[C_Z] >= TRACK_SINGLE_Z and MIN_SIGMA_PX <= q[C_WIDTH] <= s_max and \
                         q[C_EDGE] <= MAX_EDGE and (q[C_SAT] > 0.0 or q[C_CHI2] <= MAX_CHI2):
-                    r = q
+                    for f in range(N_FIELDS):
+                        r[f] = q[f]
                 else:
-                    mf[C_SE_POS] = TRACK_ROW_SE
-                    mf[C_HVAR] = PIXEL_VAR
-            for f in range(N_FIELDS):
-                pick[x, f] = r[f]
-            keep[x] = True
-            tracked[x] = True
-            taken[n_taken] = x
-            n_taken += 1
-            for k in range(min(n, TRACK_LINE - 1), 0, -1):
-                xs[k] = xs[k - 1]
-                vs[k] = vs[k - 1]
-                vw[k] = vw[k - 1]
-            xs[0] = x
-            vs[0] = r[C_POS]
-            vw[0] = _row_weight(r[C_SE_POS])
-            n = min(n + 1, TRACK_LINE)
-            if r[C_SAT] == 0.0:
-                for k in range(min(n_amp, 2), 0, -1):
-                    amps[k] = amps[k - 1]
-                amps[0] = r[C_AMP]
-                n_amp = min(n_amp + 1, 3)
+                    r[C_SE_POS] = TRACK_ROW_SE
+                    r[C_HVAR] = PIXEL_VAR
+            pend_x[n_pend] = x
+            n_pend += 1
             x += d
+            if not passed:
+                if n_pend > TRACK_PENDING:
+                    break
+                continue
+            for p in range(n_pend):
+                xp = pend_x[p]
+                r = pend[p]
+                for f in range(N_FIELDS):
+                    pick[xp, f] = r[f]
+                keep[xp] = True
+                tracked[xp] = True
+                taken[n_taken] = xp
+                n_taken += 1
+                for k in range(min(n, TRACK_LINE - 1), 0, -1):
+                    xs[k] = xs[k - 1]
+                    vs[k] = vs[k - 1]
+                    vw[k] = vw[k - 1]
+                xs[0] = xp
+                vs[0] = r[C_POS]
+                vw[0] = _row_weight(r[C_SE_POS])
+                n = min(n + 1, TRACK_LINE)
+            n_pend = 0
         # the track's trailing samples that are not significant on their own are
         # as likely noise next to the stripe's end
         for k in range(n_taken - 1, -1, -1):
@@ -266,6 +284,17 @@ def _window_put(wa: np.ndarray, wi: np.ndarray, k: int, amp: float,
     ok = np.isfinite(se) and se > 0.0 and np.isfinite(amp)
     wi[k] = 1.0 / (se * se) if ok else 0.0
     wa[k] = wi[k] * amp if ok else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _window_mean(wa: np.ndarray, wi: np.ndarray) -> float:  # pragma: no cover
+    """The window's inverse-variance weighted mean amplitude."""
+    sa = 0.0
+    si = 0.0
+    for k in range(wa.shape[0]):
+        sa += wa[k]
+        si += wi[k]
+    return sa / si if si > 0.0 else 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -320,18 +349,6 @@ def _line_at(xs: np.ndarray, vs: np.ndarray, ws: np.ndarray, n: int,
         sxv += ws[k] * (xs[k] - mx) * (vs[k] - mv)
     slope = sxv / sxx if sxx > 0.0 else 0.0
     return mv + slope * (x - mx), slope
-
-
-@njit(cache=True, nogil=True)
-def _median(a: np.ndarray, n: int) -> float:  # pragma: no cover
-    """Median of ``a[:n]``, ``n <= 3`` (0 for none)."""
-    if n == 0:
-        return 0.0
-    if n == 1:
-        return a[0]
-    if n == 2:
-        return 0.5 * (a[0] + a[1])
-    return max(min(a[0], a[1]), min(max(a[0], a[1]), a[2]))
 
 
 @njit(cache=True, nogil=True)
