@@ -41,7 +41,7 @@ TRACK_LINE = 12
 #: a track goes on while its last TRACK_WINDOW columns together are TRACK_Z
 #: significant; a full fit replaces the matched filter's row from TRACK_SINGLE_Z
 TRACK_WINDOW = 5
-TRACK_Z = 4.5
+TRACK_Z = 4.0
 TRACK_SINGLE_Z = 2.0
 #: columns in a row that may fall short of the track's brightness (an abrupt end:
 #: a partly covered column, then none)
@@ -358,8 +358,8 @@ def drop_faint_tracked(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: n
     """The visibility test of :func:`slitcli.laser.select.keep_segments` for tracked
     columns: the running median of the amplitude over ``AMP_HALF`` found columns either
     side along the segment (clipped cores count as bright) must reach ``min_peak_dn``.
-    A track is cut at its first failing column, counted from the segment's core
-    outwards (a fading stripe stays faint beyond it). ``keep`` and ``tracked`` are
+    A track at a segment's end is cut after its outermost passing column; tracked
+    columns inside a segment go where they fail. ``keep`` and ``tracked`` are
     updated."""
     n = v.shape[0]
     idx = np.empty(n, np.int64)
@@ -395,26 +395,27 @@ def drop_faint_tracked(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: n
                 win[m] = 255.0 if sat[idx[y]] else amp[idx[y]]
                 m += 1
             ok[k] = np.median(win[:m]) >= min_peak_dn
-        # the untracked core: cut each track at its first failure, outwards
+        # a track's tail ends at its outermost passing column (a fading stripe
+        # stays faint beyond it; noise dips inside it do not end it); a track
+        # between two stretches of the segment loses its failing columns
         a = 0
         while a < cnt and tracked[idx[a]]:
             a += 1
         b = cnt
         while b > a and tracked[idx[b - 1]]:
             b -= 1
-        cut = -1
-        for k in range(a - 1, -1, -1):
-            if not ok[k]:
-                cut = k
+        lo = a
+        for k in range(a):
+            if ok[k]:
+                lo = k
+                break
+        hi = b
+        for k in range(cnt - 1, b - 1, -1):
+            if ok[k]:
+                hi = k + 1
                 break
         for k in range(cnt):
-            drop = (k <= cut) or not ok[k]
-            if k >= b and not ok[k]:
-                for y in range(k, cnt):
-                    keep[idx[y]] = False
-                    tracked[idx[y]] = False
-                break
-            if drop:
+            if k < lo or k >= hi or (a <= k < b and tracked[idx[k]] and not ok[k]):
                 keep[idx[k]] = False
                 tracked[idx[k]] = False
         u = last + 1
