@@ -220,9 +220,10 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
             # least ``share`` of its width (of the window's mean brightness); up to
             # TRACK_PENDING columns in a row may fall short (noise), the next one that
             # does not vouches for them
-            passed = clipped or mf[C_SAT] > 0.0 or not fit_profile(
+            passed = clipped or (fit_profile(
                 img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, ws,
-                one) or one[C_AMP] >= share * max(_window_mean(wa, wi), min_peak_dn)
+                one) and (one[C_SAT] > 0.0 or
+                          one[C_AMP] >= share * max(_window_mean(wa, wi), min_peak_dn)))
             r = pend[n_pend]
             for f in range(N_FIELDS):
                 r[f] = mf[f]
