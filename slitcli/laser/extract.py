@@ -242,6 +242,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     track.drop_faint_tracked(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
                              pick[:, fit.C_SAT] > 0, keep, tracked, params.max_jump_px,
                              params.min_peak_dn)
+    # tracks end where their stripe dims, or at an object's edge: the same end test
+    select.prune_ends(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
+                      pick[:, fit.C_SAT] > 0, keep, params.max_jump_px, params.min_peak_dn)
     # a faint stripe on a textured surface loses single columns to noise (the stripe
     # not among a column's strongest candidates): the segment around such a gap
     # vouches for the stripe, a fit at the row interpolated across it must confirm it

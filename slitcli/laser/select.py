@@ -314,6 +314,72 @@ def dim_end(a0: float, a1: float, a2: float, a3: float,
 
 
 @njit(cache=True, nogil=True)
+def segment(v: np.ndarray, width: np.ndarray, present: np.ndarray, u: int,
+            max_jump_px: float, idx: np.ndarray) -> int:  # pragma: no cover
+    """The segment starting at column ``u`` (``present[u]``): following columns join
+    when ``present`` and their rows link (:func:`links`) with the segment's last one,
+    or across a gap of up to ``MAX_GAP`` columns differ by at most ``max_jump_px`` per
+    column. Its columns go to ``idx``; returns how many."""
+    n = v.shape[0]
+    cnt = 1
+    idx[0] = u
+    last = u
+    x = u + 1
+    while x < n and x - last <= MAX_GAP + 1:
+        if present[x]:
+            dv = v[x] - v[last]
+            if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
+                    abs(dv) <= max_jump_px * (x - last):
+                idx[cnt] = x
+                cnt += 1
+                last = x
+            else:
+                break
+        x += 1
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def trim_ends(amp: np.ndarray, sat: np.ndarray, idx: np.ndarray, cnt: int,
+              min_peak_dn: float) -> tuple[int, int]:  # pragma: no cover
+    """The range ``[a, b)`` of a segment's columns (``idx[:cnt]``) without its dim
+    ends (:func:`dim_end`, unsaturated ones, up to ``END_DROP`` a side: a partly
+    covered column at an object's edge and the one an average smeared into)."""
+    a = 0
+    b = cnt
+    for _ in range(END_DROP):
+        if b - a >= 4 and not sat[idx[a]] and dim_end(
+                amp[idx[a]], amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]],
+                min_peak_dn):
+            a += 1
+        if b - a >= 4 and not sat[idx[b - 1]] and dim_end(
+                amp[idx[b - 1]], amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]],
+                min_peak_dn):
+            b -= 1
+    return a, b
+
+
+@njit(cache=True, nogil=True)
+def prune_ends(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: np.ndarray,
+               keep: np.ndarray, max_jump_px: float,
+               min_peak_dn: float) -> None:  # pragma: no cover
+    """:func:`trim_ends` on every segment of the kept columns (``keep`` updated)."""
+    n = v.shape[0]
+    idx = np.empty(n, np.int64)
+    u = 0
+    while u < n:
+        if not keep[u]:
+            u += 1
+            continue
+        cnt = segment(v, width, keep, u, max_jump_px, idx)
+        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn)
+        for k in range(cnt):
+            if k < a or k >= b:
+                keep[idx[k]] = False
+        u = idx[cnt - 1] + 1
+
+
+@njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
                   chi2: np.ndarray, sat: np.ndarray, extended: np.ndarray, max_jump_px: float,
                   min_segment_cols: int, min_peak_dn: float, z_strong: float,
@@ -345,22 +411,8 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         if not np.isfinite(v[u]):
             u += 1
             continue
-        cnt = 0
-        idx[cnt] = u
-        cnt += 1
-        last = u
-        x = u + 1
-        while x < n and x - last <= MAX_GAP + 1:
-            if np.isfinite(v[x]):
-                dv = v[x] - v[last]
-                if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
-                        abs(dv) <= max_jump_px * (x - last):
-                    idx[cnt] = x
-                    cnt += 1
-                    last = x
-                else:
-                    break
-            x += 1
+        cnt = segment(v, width, np.isfinite(v), u, max_jump_px, idx)
+        last = idx[cnt - 1]
         z2 = 0.0
         n_own = 0
         clean = True
@@ -374,21 +426,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         # together as significant as two columns of SHORT_Z_SHARE x z_strong
         good = n_own >= min_segment_cols or \
             (n_own >= 2 and clean and z2 >= 2.0 * (SHORT_Z_SHARE * z_strong) ** 2)
-        a = 0
-        b = cnt
-        # an end column at an object's edge is partly covered; the truth of a column is
-        # its centre ray, which meets the surface when enough of the column sees it:
-        # dim end columns go (up to END_DROP of them: a mixed column and the one the
-        # averaging or an extension smeared into)
-        for _ in range(END_DROP):
-            if good and b - a >= 4 and not sat[idx[a]] and dim_end(
-                    amp[idx[a]], amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]],
-                    min_peak_dn):
-                a += 1
-            if good and b - a >= 4 and not sat[idx[b - 1]] and dim_end(
-                    amp[idx[b - 1]], amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]],
-                    min_peak_dn):
-                b -= 1
+        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn) if good else (0, cnt)
         if good:
             for k in range(a, b):
                 # running median: the amplitudes in the window at or above the

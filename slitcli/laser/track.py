@@ -34,6 +34,7 @@ from slitcli.laser.select import (
     MAX_GAP,
     MIN_SIGMA_PX,
     links,
+    segment,
 )
 
 #: columns of a segment's end whose straight line predicts a track's next row
@@ -242,6 +243,9 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
                 else:
                     r[C_SE_POS] = TRACK_ROW_SE
                     r[C_HVAR] = PIXEL_VAR
+                    # only a column whose own fit finds the stripe vouches for
+                    # columns that fell short before it
+                    passed = passed and n_pend == 0
             pend_x[n_pend] = x
             n_pend += 1
             x += d
@@ -371,22 +375,8 @@ def drop_faint_tracked(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: n
         if not keep[u]:
             u += 1
             continue
-        cnt = 0
-        idx[cnt] = u
-        cnt += 1
-        last = u
-        x = u + 1
-        while x < n and x - last <= MAX_GAP + 1:
-            if keep[x]:
-                dv = v[x] - v[last]
-                if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
-                        abs(dv) <= max_jump_px * (x - last):
-                    idx[cnt] = x
-                    cnt += 1
-                    last = x
-                else:
-                    break
-            x += 1
+        cnt = segment(v, width, keep, u, max_jump_px, idx)
+        last = idx[cnt - 1]
         for k in range(cnt):
             ok[k] = True
             if not tracked[idx[k]]:
