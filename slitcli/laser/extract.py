@@ -177,12 +177,12 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         np.asarray(search_mask, dtype=bool)
     if mask.shape != (h, w):
         raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
-    bg = cv2.morphologyEx(img, cv2.MORPH_OPEN,
-                          np.ones((params.background_window_px, 1), np.uint8))
-    # the kernels walk columns: transposed views, (W, H, 3), no copies
-    img_t = img.transpose(1, 0, 2)
-    bg_t = bg.transpose(1, 0, 2)
-    mask_t = mask.T
+    # the kernels walk image columns: transposed, contiguous (W, H, 3) copies (one
+    # column is one contiguous run of memory); the opening runs along the columns
+    img_t = cv2.transpose(img)
+    bg_t = cv2.morphologyEx(img_t, cv2.MORPH_OPEN,
+                            np.ones((1, params.background_window_px), np.uint8))
+    mask_t = np.ascontiguousarray(mask.T)  # free for LaserGeometry's (Fortran-order) masks
     sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
@@ -194,7 +194,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
     g_map = np.asarray(px_per_m, dtype=np.float64) if use_sheet else np.full((1, 1), np.nan)
-    g_map_t = g_map.T
+    g_map_t = np.ascontiguousarray(g_map.T)
     cand = np.empty((w, K_BEST, fit.N_FIELDS))
     cand_avg = np.empty_like(cand)
     args = (img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th, params.min_delta_th,

@@ -36,8 +36,8 @@ FIT_HALF = 8  # half-length of the fit window, px
 NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
 MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
-CONVERGED_PX = 2e-3  # a fit has converged when its centre moves less (px)
-CONVERGED_REL_S = 0.02  # and its width less than this share of itself
+CONVERGED_PX = 0.02  # a fit has converged when its centre moves less (px)
+CONVERGED_REL_S = 0.05  # and its width less than this share of itself
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
 #: largest standard error (px) of a clipped core's centre fitted where it runs off the image

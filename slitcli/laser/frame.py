@@ -50,7 +50,10 @@ class LaserGeometry:
         _, v_dn = rig.project_cam(rig.sensor_to_cam(pts - step))
         with np.errstate(invalid="ignore"):
             px_per_m = np.abs(v_dn - v_up) / 2e-3
-        return cls(search_mask=mask, px_per_m=np.where(mask, px_per_m, np.nan))
+        # Fortran order: the extractor walks image columns, and the transposes of
+        # these are contiguous
+        return cls(search_mask=np.asfortranarray(mask),
+                   px_per_m=np.asfortranarray(np.where(mask, px_per_m, np.nan)))
 
 
 @dataclass(frozen=True)
