@@ -177,12 +177,20 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         np.asarray(search_mask, dtype=bool)
     if mask.shape != (h, w):
         raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
+    # rows above the search region (and the reach of the opening and of a fit window
+    # beyond it) are left out
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        nan = np.full(w, np.nan)
+        return StripeColumns(nan, nan.copy(), np.zeros(w, bool), 0.0, params.min_peak_dn)
+    r0 = max(int(rows[0]) - params.background_window_px - fit.FIT_HALF, 0)
+    h = h - r0
     # the kernels walk image columns: transposed, contiguous (W, H, 3) copies (one
     # column is one contiguous run of memory); the opening runs along the columns
-    img_t = cv2.transpose(img)
+    img_t = cv2.transpose(img[r0:])
     bg_t = cv2.morphologyEx(img_t, cv2.MORPH_OPEN,
                             np.ones((1, params.background_window_px), np.uint8))
-    mask_t = np.ascontiguousarray(mask.T)  # free for LaserGeometry's (Fortran-order) masks
+    mask_t = mask.T[:, r0:]  # contiguous rows for LaserGeometry's (Fortran-order) masks
     sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
@@ -193,8 +201,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma_avg = math.sqrt(0.375) * sigma
     use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
-    g_map = np.asarray(px_per_m, dtype=np.float64) if use_sheet else np.full((1, 1), np.nan)
-    g_map_t = np.ascontiguousarray(g_map.T)
+    g_map = np.asarray(px_per_m, dtype=np.float64)[r0:] if use_sheet else \
+        np.full((1, 1), np.nan)
+    g_map_t = g_map.T
     cand = np.empty((w, K_BEST, fit.N_FIELDS))
     cand_avg = np.empty_like(cand)
     args = (img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th, params.min_delta_th,
@@ -211,7 +220,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
             candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
-        np.ascontiguousarray(previous_v_px, dtype=np.float64)
+        np.asarray(previous_v_px, dtype=np.float64) - r0
     if prev.size not in (0, w):
         raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
     chosen = np.empty(w, np.int64)
@@ -267,6 +276,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     v_px = np.empty(w)
     select.smooth_rows(pick[:, fit.C_POS], pick[:, fit.C_SE_POS],
                        pick[:, fit.C_WIDTH], keep, params.max_jump_px, v_px)
+    v_px += r0
     strength = np.where(keep, pick[:, fit.C_AMP], np.nan)
     saturated = keep & (pick[:, fit.C_SAT] > 0)
     return StripeColumns(v_px, strength, saturated, float(sigma), float(thr))
