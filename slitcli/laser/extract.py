@@ -133,12 +133,12 @@ def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
     red_c, wht_c = c[..., 0], np.maximum(c[..., 1], c[..., 2])
     eq2 = (red_c > params.min_th) & (red_c - wht_c > params.min_delta_th)
     k = b[..., ::-1] + 0.5  # background colour, RGB
-    nk = np.linalg.norm(k, axis=-1)
-    proj = (k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])) / nk
-    den = fit.A_LASER - candidates.LAM_DETECT * proj * proj
-    f = candidates.LAM_DETECT * proj / nk
-    y = ((1.0 - f * k[..., 0]) * t[..., 2] + (fit.XT - f * k[..., 1]) * t[..., 1]
-         + (fit.XT - f * k[..., 2]) * t[..., 0]) / den
+    k2 = (k * k).sum(axis=-1)
+    kl = k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])
+    lq = candidates.LAM_DETECT * kl
+    inv = 1.0 / (fit.A_LASER * k2 - lq * kl)
+    y = ((k2 - lq * k[..., 0]) * inv * t[..., 2] + (fit.XT * k2 - lq * k[..., 1]) * inv * t[..., 1]
+         + (fit.XT * k2 - lq * k[..., 2]) * inv * t[..., 0])
     eq3 = y > params.alpha * np.maximum(t[..., 1], t[..., 0])
     saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
     return eq2 & eq3 & ~saturated, saturated
