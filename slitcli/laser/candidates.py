@@ -128,16 +128,17 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
         tb = float(img[i, j, 0]) - bb
         if br != pr or bgg != pg or bb != pb:
             pr, pg, pb = br, bgg, bb
+            # w = (l - LAM k (k . l) / |k|^2) / (|l|^2 - LAM (k . l)^2 / |k|^2), with
+            # |k|^2 multiplied through: one division, no square root
             kr = br + 0.5
             kg = bgg + 0.5
             kb = bb + 0.5
-            nk = math.sqrt(kr * kr + kg * kg + kb * kb)
-            proj = (kr + XT * (kg + kb)) / nk
-            den = A_LASER - LAM_DETECT * proj * proj
-            f = LAM_DETECT * proj / nk
-            wr = (1.0 - f * kr) / den
-            wg = (XT - f * kg) / den
-            wb = (XT - f * kb) / den
+            k2 = kr * kr + kg * kg + kb * kb
+            lq = LAM_DETECT * (kr + XT * (kg + kb))
+            inv = 1.0 / (A_LASER * k2 - lq * (kr + XT * (kg + kb)))
+            wr = (k2 - lq * kr) * inv
+            wg = (XT * k2 - lq * kg) * inv
+            wb = (XT * k2 - lq * kb) * inv
         # the tests combined without branches (their outcome is noise on most pixels)
         ssum = tr + tg + tb
         wht = max(tg, tb)
@@ -288,7 +289,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 if np.isfinite(gpx):
                     s_core = gpx * sheet_m
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
-                               ws, res):
+                               False, ws, res):
                 continue
             for f in range(N_FIELDS):
                 out[i, q, f] = res[f]
@@ -300,7 +301,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             strong = q > 0 and out[i, 0, C_Z] >= z_strong
             if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                ws, res):
+                                False, ws, res):
                 for f in range(N_FIELDS):
                     out_avg[i, q, f] = res[f]
                 out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],

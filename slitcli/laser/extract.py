@@ -133,12 +133,12 @@ def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
     red_c, wht_c = c[..., 0], np.maximum(c[..., 1], c[..., 2])
     eq2 = (red_c > params.min_th) & (red_c - wht_c > params.min_delta_th)
     k = b[..., ::-1] + 0.5  # background colour, RGB
-    nk = np.linalg.norm(k, axis=-1)
-    proj = (k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])) / nk
-    den = fit.A_LASER - candidates.LAM_DETECT * proj * proj
-    f = candidates.LAM_DETECT * proj / nk
-    y = ((1.0 - f * k[..., 0]) * t[..., 2] + (fit.XT - f * k[..., 1]) * t[..., 1]
-         + (fit.XT - f * k[..., 2]) * t[..., 0]) / den
+    k2 = (k * k).sum(axis=-1)
+    kl = k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])
+    lq = candidates.LAM_DETECT * kl
+    inv = 1.0 / (fit.A_LASER * k2 - lq * kl)
+    y = ((k2 - lq * k[..., 0]) * inv * t[..., 2] + (fit.XT * k2 - lq * k[..., 1]) * inv * t[..., 1]
+         + (fit.XT * k2 - lq * k[..., 2]) * inv * t[..., 0])
     eq3 = y > params.alpha * np.maximum(t[..., 1], t[..., 0])
     saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
     return eq2 & eq3 & ~saturated, saturated
@@ -177,12 +177,20 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         np.asarray(search_mask, dtype=bool)
     if mask.shape != (h, w):
         raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
-    bg = cv2.morphologyEx(img, cv2.MORPH_OPEN,
-                          np.ones((params.background_window_px, 1), np.uint8))
-    # the kernels walk columns: transposed views, (W, H, 3), no copies
-    img_t = img.transpose(1, 0, 2)
-    bg_t = bg.transpose(1, 0, 2)
-    mask_t = mask.T
+    # rows above the search region (and the reach of the opening and of a fit window
+    # beyond it) are left out
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        nan = np.full(w, np.nan)
+        return StripeColumns(nan, nan.copy(), np.zeros(w, bool), 0.0, params.min_peak_dn)
+    r0 = max(int(rows[0]) - params.background_window_px - fit.FIT_HALF, 0)
+    h = h - r0
+    # the kernels walk image columns: transposed, contiguous (W, H, 3) copies (one
+    # column is one contiguous run of memory); the opening runs along the columns
+    img_t = cv2.transpose(img[r0:])
+    bg_t = cv2.morphologyEx(img_t, cv2.MORPH_OPEN,
+                            np.ones((1, params.background_window_px), np.uint8))
+    mask_t = mask.T[:, r0:]  # contiguous rows for LaserGeometry's (Fortran-order) masks
     sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
     seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
@@ -193,7 +201,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma_avg = math.sqrt(0.375) * sigma
     use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
     sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
-    g_map = np.asarray(px_per_m, dtype=np.float64) if use_sheet else np.full((1, 1), np.nan)
+    g_map = np.asarray(px_per_m, dtype=np.float64)[r0:] if use_sheet else \
+        np.full((1, 1), np.nan)
     g_map_t = g_map.T
     cand = np.empty((w, K_BEST, fit.N_FIELDS))
     cand_avg = np.empty_like(cand)
@@ -211,7 +220,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
             candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)
     prev = np.empty(0) if previous_v_px is None else \
-        np.ascontiguousarray(previous_v_px, dtype=np.float64)
+        np.asarray(previous_v_px, dtype=np.float64) - r0
     if prev.size not in (0, w):
         raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
     chosen = np.empty(w, np.int64)
@@ -226,10 +235,25 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     v = pick[:, fit.C_POS]
     keep = np.empty(w, bool)
     select.keep_segments(v, pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
-                         pick[:, fit.C_Z], pick[:, fit.C_SAT] > 0, extended,
+                         pick[:, fit.C_Z], pick[:, fit.C_CHI2], pick[:, fit.C_SAT] > 0,
+                         extended,
                          params.max_jump_px,
                          params.min_segment_cols,
                          params.min_peak_dn, z_strong, keep)
+    # where a stripe fades (far or grazing surfaces) each segment is followed on along
+    # its predicted row while fits there find it; the faint ones are then judged by
+    # their running median brightness like the segments' own columns
+    tracked = np.zeros(w, bool)
+    track.track_ends(img_t, pick, keep, tracked, sigma, sigma_avg, params.saturation_dn,
+                     params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
+                     params.max_jump_px, select.END_SHARE, params.min_peak_dn,
+                     select.GAP_PX)
+    track.drop_faint_tracked(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
+                             pick[:, fit.C_SAT] > 0, keep, tracked, params.max_jump_px,
+                             params.min_peak_dn)
+    # tracks end where their stripe dims, or at an object's edge: the same end test
+    select.prune_ends(pick[:, fit.C_POS], pick[:, fit.C_WIDTH], pick[:, fit.C_AMP],
+                      pick[:, fit.C_SAT] > 0, keep, params.max_jump_px, params.min_peak_dn)
     # a faint stripe on a textured surface loses single columns to noise (the stripe
     # not among a column's strongest candidates): the segment around such a gap
     # vouches for the stripe, a fit at the row interpolated across it must confirm it
@@ -249,15 +273,10 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         cols_ok = gap_cols[:n_gap][ok]
         pick[cols_ok] = fits[ok]
         keep[cols_ok] = True
-    # where a stripe fades (far or grazing surfaces) the segment is carried on while
-    # fits at the extrapolated row still find it bright enough
-    track.extend_ends(img_t, pick, keep, sigma, sigma_avg, params.saturation_dn,
-                        params.max_width_px / select.EQ_WIDTH, g_map_t, sheet_m,
-                        params.max_jump_px, WEAK_SHARE * z_strong, params.min_peak_dn,
-                        select.END_SHARE, EXTEND_COLS, select.GAP_PX)
     v_px = np.empty(w)
     select.smooth_rows(pick[:, fit.C_POS], pick[:, fit.C_SE_POS],
                        pick[:, fit.C_WIDTH], keep, params.max_jump_px, v_px)
+    v_px += r0
     strength = np.where(keep, pick[:, fit.C_AMP], np.nan)
     saturated = keep & (pick[:, fit.C_SAT] > 0)
     return StripeColumns(v_px, strength, saturated, float(sigma), float(thr))

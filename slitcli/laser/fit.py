@@ -36,10 +36,12 @@ FIT_HALF = 8  # half-length of the fit window, px
 NEAR_ROWS = 3  # flank rows either side whose colours tell an edge between two surfaces
 MIN_ROWS = 5  # fewest usable rows for a fit
 MAX_ITER = 6  # Gauss-Newton iterations of the profile fit
-CONVERGED_PX = 2e-3  # a fit has converged when its centre moves less (px)
-CONVERGED_REL_S = 0.02  # and its width less than this share of itself
+CONVERGED_PX = 0.02  # a fit has converged when its centre moves less (px)
+CONVERGED_REL_S = 0.05  # and its width less than this share of itself
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
+#: largest standard error (px) of a clipped core's centre fitted where it runs off the image
+BORDER_SE = 0.2
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
@@ -49,8 +51,8 @@ PIXEL_VAR = 2.0 / 27.0
 
 #: fields of a candidate row (last axis of the candidate table)
 (C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
- C_HVAR) = range(11)
-N_FIELDS = 11
+ C_HVAR, C_SE_AMP) = range(12)
+N_FIELDS = 12
 N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
 
 
@@ -143,7 +145,7 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
                 sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
-                ws: np.ndarray,
+                fixed: bool, ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -155,9 +157,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     saturated channels left out) with its information as weight; then a weighted
     Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
 
-    Writes ``out[:10] = (v0, A (red DN; with ``s_prior`` the peak before the pixels'
-    blur), s (px), significance, standard error of v0,
-    reduced chi-square, saturated 0/1, texture sigma (DN), -, edge)``; significance
+    Writes the ``C_*`` fields of ``out``: v0, A (red DN; with ``s_core`` the peak
+    before the pixels' blur), s (px), significance, standard error of v0, reduced
+    chi-square, saturated 0/1, texture sigma (DN), edge, standard error of A (``C_CLUT``
+    and ``C_HVAR`` are the caller's: NaN here); significance
     is ``A`` over its standard error or, for a clipped core, the margin of saturation
     over the surface's red level in units of noise and texture; ``edge`` is one minus
     the cosine between the surface colours just above and just below. Returns whether
@@ -169,14 +172,26 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ``S_PRIOR_SPREAD``, which keeps a faint stripe's fit from collapsing onto a
     noise spike and leaves a bright one to its data. ``averaged``: fit column ``i``
     averaged with its neighbours, weights (1, 2, 1) / 4 (a value next to a saturated
-    one counts as saturated). ``ws`` is an (8, N_WORK) workspace.
+    one counts as saturated), sheared along the stripe: the neighbours' rows are
+    shifted by ``round(slope)``, so a sloping stripe is averaged with itself and only
+    the remainder widens it. ``ws`` is an (8, N_WORK) workspace. A clipped core
+    that reaches the image's first or last row has no far edge: only a fit whose
+    centre the unclipped channels place within ``BORDER_SE`` (standard error) and
+    inside the image counts.
+
+    ``fixed``: only the offset and amplitude, by linear least squares, at the centre
+    ``centre`` and the prior width (1.2 px without one): the matched filter of the
+    expected profile there, unbiased in noise (the amplitude may be negative); the
+    row's standard error is reported as infinite, the reduced chi-square as NaN.
     """
     n = img.shape[1]
     c = math.floor(centre + 0.5)
+    shift = round(slope) if averaged else 0
     s_prior = 0.0
     if s_core > 0.0:
-        hvar = PIXEL_VAR + (AVG_VAR if averaged else 0.0)
-        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR + slope * slope * hvar)
+        rest = slope - shift
+        s_prior = math.sqrt(s_core * s_core + PIXEL_VAR * (1.0 + slope * slope)
+                            + (rest * rest * AVG_VAR if averaged else 0.0))
     flank = max(4, run_n // 2 + 2)
     half = min(max(FIT_HALF, flank + 3), (N_WORK - 1) // 2)
     j0 = max(c - half, 0)
@@ -191,8 +206,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         for ch in range(3):
             x1 = img[i, j, 2 - ch]
             if averaged:
-                x0 = img[ia, j, 2 - ch]
-                x2 = img[ib, j, 2 - ch]
+                x0 = img[ia, min(max(j - shift, 0), n - 1), 2 - ch]
+                x2 = img[ib, min(max(j + shift, 0), n - 1), 2 - ch]
                 if x0 >= sat_dn or x1 >= sat_dn or x2 >= sat_dn:
                     win[ch, jj] = 255.0
                 else:
@@ -370,13 +385,24 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if wt[jj] > 0.0 and abs(j0 + jj - centre) <= 1.5:
             if kpk < 0 or y[jj] > y[kpk]:
                 kpk = jj
-    if kpk < 0 or y[kpk] <= 0.0:
-        return False
-    v0 = float(j0 + kpk)
     s = s_prior if s_prior > 0.0 else 1.2
-    amp = y[kpk]
-    if 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 and y[kpk - 1] > 0 \
-            and y[kpk + 1] > 0:
+    if fixed:
+        v0 = centre
+        amp = 0.0
+    elif kpk < 0 or y[kpk] <= 0.0:
+        cc = min(max(c - j0, 0), m - 1)
+        if win[0, cc] < sat_dn:
+            return False
+        # a clipped core whose other channels carry no information either (a strongly
+        # textured surface): start at its centre, the flanks decide
+        kpk = cc
+        v0 = float(c)
+        amp = 2.0 * max(sat_dn - ar, 1.0)
+    else:
+        v0 = float(j0 + kpk)
+        amp = y[kpk]
+    if not fixed and wt[kpk] > 0.0 and 0 < kpk < m - 1 and wt[kpk - 1] > 0 and wt[kpk + 1] > 0 \
+            and y[kpk - 1] > 0 and y[kpk + 1] > 0:
         l0, lm_, lp = math.log(y[kpk]), math.log(y[kpk - 1]), math.log(y[kpk + 1])
         curv = lm_ - 2.0 * l0 + lp
         if curv < -1e-6:
@@ -412,6 +438,23 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     off = (s11 * b0 - s01 * b1) / det2
     amp = (s00 * b1 - s01 * b0) / det2
     z_quick = amp / math.sqrt(s00 / det2)
+    if fixed:
+        if nsat > 0:
+            z_quick = max(z_quick, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
+        out[C_HVAR] = np.nan
+        out[C_CLUT] = np.nan
+        out[C_POS] = v0
+        out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
+        out[C_WIDTH] = s
+        out[C_Z] = z_quick
+        out[C_SE_AMP] = math.sqrt(s00 / det2) * (s_prior / s_core if s_core > 0.0 else 1.0)
+        out[C_SE_POS] = np.inf
+        out[C_CHI2] = np.nan
+        out[C_SAT] = 1.0 if nsat > 0 else 0.0
+        out[C_TEX] = math.sqrt(t2_max)
+        out[C_EDGE] = 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
+            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb))
+        return True
     if z_quick < QUICK_Z and nsat == 0:
         if amp <= 0.0:
             return False
@@ -421,6 +464,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_AMP] = amp
         out[C_WIDTH] = s
         out[C_Z] = z_quick
+        out[C_SE_AMP] = math.sqrt(s00 / det2)
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.inf
         out[C_SAT] = 0.0
@@ -490,6 +534,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         return False
     z = amp / math.sqrt(var_a)
     if nsat > 0:
+        # clipped up to the image border: the plateau's far edge is not seen
+        border = (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn)
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
         # its flanks alone leave amplitude and width ill-determined: a fit whose
@@ -504,8 +550,15 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             while jb < m - 1 and win[0, jb + 1] >= sat_dn:
                 jb += 1
             if s < MIN_SAT_SIGMA or not (j0 + ja - 0.5 <= v0 <= j0 + jb + 0.5):
+                if border:
+                    return False
                 v0 = j0 + _plateau_centre(win, ja, jb, m, 0.5 * (ar + sat_dn))
                 var_v = 0.25
+        # at the border only the other channels inside the plateau (the laser's
+        # crosstalk) can place the centre: where texture swamps them, or the centre
+        # lies beyond the last row, there is no fit
+        if border and (var_v > BORDER_SE * BORDER_SE or not 0.0 <= v0 <= n - 1.0):
+            return False
     dot = nur * nlr + nug * nlg + nub * nlb
     out[C_HVAR] = np.nan
     out[C_POS] = v0
@@ -514,6 +567,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     out[C_AMP] = amp * s_prior / s_core if s_core > 0.0 else amp
     out[C_WIDTH] = s
     out[C_Z] = z
+    out[C_SE_AMP] = out[C_AMP] / z
     out[C_SE_POS] = math.sqrt(var_v)
     out[C_CHI2] = chi / max(nuse - 4, 1)
     out[C_SAT] = 1.0 if nsat > 0 else 0.0

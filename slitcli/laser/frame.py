@@ -7,9 +7,11 @@ per-bearing range table of DESIGN §6.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from slitcli.laser.extract import extract_stripe
 from slitcli.laser.params import LaserParams
@@ -29,10 +31,25 @@ class LaserGeometry:
         Image rows per metre of height on an upright surface at the point where each
         pixel's ray meets the laser plane (the scale of the sheet's thickness in the
         image); NaN where the ray misses the plane.
+    ray_x : ndarray, shape (W,)
+        ``(u - cx) / fx`` of every column: the x of its rays ``K^-1 (u, v, 1)``.
+    ray_y_coeffs : ndarray, shape (2,)
+        ``(1 / fy, -cy / fy)``: the ray's y is ``v / fy - cy / fy``.
+    plane_cam : ndarray, shape (4,)
+        The laser plane in the camera frame: unit normal and offset (m).
+    sensor_from_cam : ndarray, shape (3, 4)
+        Rotation and translation (m) from the camera to the sensor frame.
+
+    The last four make :func:`triangulate_stripe`'s ray/plane intersection one
+    compiled pass over the found columns (:func:`_triangulate`), the same arithmetic.
     """
 
     search_mask: np.ndarray
     px_per_m: np.ndarray
+    ray_x: np.ndarray
+    ray_y_coeffs: np.ndarray
+    plane_cam: np.ndarray
+    sensor_from_cam: np.ndarray
 
     @classmethod
     def from_rig(cls, rig: Rig, params: LaserParams) -> LaserGeometry:
@@ -49,7 +66,16 @@ class LaserGeometry:
         _, v_dn = rig.project_cam(rig.sensor_to_cam(pts - step))
         with np.errstate(invalid="ignore"):
             px_per_m = np.abs(v_dn - v_up) / 2e-3
-        return cls(search_mask=mask, px_per_m=np.where(mask, px_per_m, np.nan))
+        # Fortran order: the extractor walks image columns, and the transposes of
+        # these are contiguous
+        cam = rig.left
+        return cls(search_mask=np.asfortranarray(mask),
+                   px_per_m=np.asfortranarray(np.where(mask, px_per_m, np.nan)),
+                   ray_x=(np.arange(w, dtype=np.float64) - cam.cx_px) / cam.fx_px,
+                   ray_y_coeffs=np.array([1.0 / cam.fy_px, -cam.cy_px / cam.fy_px]),
+                   plane_cam=np.append(rig.laser.unit_normal, rig.laser.unit_offset_m),
+                   sensor_from_cam=np.column_stack([rig.R_sensor_from_cam,
+                                                    rig.cam_origin_sensor_xyz]))
 
 
 @dataclass(frozen=True)
@@ -118,6 +144,40 @@ def triangulate_stripe(rig: Rig, u_px: np.ndarray, v_px: np.ndarray) -> tuple[np
     return x, y, np.hypot(x, y), np.degrees(np.arctan2(y, x))
 
 
+@njit(cache=True, nogil=True)
+def _triangulate(v_px: np.ndarray, ray_x: np.ndarray, ray_y: np.ndarray, plane: np.ndarray,
+                 sensor_from_cam: np.ndarray, min_range_m: float, max_range_m: float,
+                 out: np.ndarray, in_band: np.ndarray) -> None:  # pragma: no cover
+    """:func:`triangulate_stripe` for one frame's rows ``v_px`` (W,), column by column:
+    ``out`` (4, W) gets x_m, y_m, range_m, bearing_deg (NaN where the row is NaN or the
+    ray misses the plane), ``in_band`` whether the range lies in ``[min_range_m,
+    max_range_m]``. Geometry as :class:`LaserGeometry`."""
+    for u in range(v_px.shape[0]):
+        out[:, u] = np.nan
+        in_band[u] = False
+        v = v_px[u]
+        if not np.isfinite(v):
+            continue
+        rx = ray_x[u]
+        ry = v * ray_y[0] + ray_y[1]
+        den = plane[0] * rx + plane[1] * ry + plane[2]
+        if abs(den) <= 1e-12:
+            continue
+        s = plane[3] / den
+        if not s > 0.0:
+            continue
+        cx, cy, cz = s * rx, s * ry, s
+        m = sensor_from_cam
+        x = m[0, 0] * cx + m[0, 1] * cy + m[0, 2] * cz + m[0, 3]
+        y = m[1, 0] * cx + m[1, 1] * cy + m[1, 2] * cz + m[1, 3]
+        r = math.hypot(x, y)
+        out[0, u] = x
+        out[1, u] = y
+        out[2, u] = r
+        out[3, u] = math.degrees(math.atan2(y, x))
+        in_band[u] = min_range_m <= r <= max_range_m
+
+
 def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = None, *,
                  previous: LaserFrame | np.ndarray | None = None,
                  geometry: LaserGeometry | None = None) -> LaserFrame:
@@ -150,12 +210,12 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     stripe = extract_stripe(img, params, search_mask=geometry.search_mask, previous_v_px=prev,
                             px_per_m=geometry.px_per_m)
     u = np.arange(rig.width_px, dtype=np.float64)
-    found = np.isfinite(stripe.v_px)
-    x, y, rng, bearing = (np.full(rig.width_px, np.nan) for _ in range(4))
-    x[found], y[found], rng[found], bearing[found] = triangulate_stripe(
-        rig, u[found], stripe.v_px[found])
-    with np.errstate(invalid="ignore"):
-        in_band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
+    pts = np.empty((4, rig.width_px))
+    in_band = np.empty(rig.width_px, bool)
+    _triangulate(stripe.v_px, geometry.ray_x, geometry.ray_y_coeffs, geometry.plane_cam,
+                 geometry.sensor_from_cam, rig.laser.min_range_m, rig.laser.max_range_m,
+                 pts, in_band)
+    x, y, rng, bearing = pts
     return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,
                       saturated=stripe.saturated, x_m=x, y_m=y, range_m=rng,
                       bearing_deg=bearing, in_band=in_band,

@@ -62,6 +62,8 @@ END_DROP = 2
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
 SHORT_Z_SHARE = 1.6
+#: largest reduced chi-square of an unsaturated column of a short segment
+SHORT_CHI2 = 3.0
 #: found columns of one segment may be this many columns apart (faint stretches)
 MAX_GAP = 2
 #: a gap column's candidate may lie this far from the row interpolated across it, px
@@ -291,8 +293,95 @@ def _median3(x: float, y: float, z: float) -> float:  # pragma: no cover
 
 
 @njit(cache=True, nogil=True)
+def end_level(a1: float, a2: float, a3: float) -> float:  # pragma: no cover
+    """Brightness a segment's end column would have if all of it saw the surface,
+    from the next three columns' amplitudes ``a1, a2, a3`` (nearest first): their
+    median, or less where they fall towards the end (a grazing or curving surface
+    dims fast): the straight line through them extrapolated one column."""
+    return min(_median3(a1, a2, a3), (4.0 * a1 + a2 - 2.0 * a3) / 3.0)
+
+
+@njit(cache=True, nogil=True)
+def dim_end(a0: float, a1: float, a2: float, a3: float,
+            min_peak_dn: float) -> bool:  # pragma: no cover
+    """Whether a segment's end column of amplitude ``a0`` (the next ones ``a1, a2,
+    a3``) goes. The truth of a column is its centre ray, which meets the surface when
+    more than half of the column sees it: the end column must keep ``END_SHARE`` of
+    the brightness the whole column would have (:func:`end_level`, or its own if
+    more), and that brightness must be visible (``min_peak_dn``)."""
+    full = max(a0, end_level(a1, a2, a3))
+    return a0 < END_SHARE * full or full < min_peak_dn
+
+
+@njit(cache=True, nogil=True)
+def segment(v: np.ndarray, width: np.ndarray, present: np.ndarray, u: int,
+            max_jump_px: float, idx: np.ndarray) -> int:  # pragma: no cover
+    """The segment starting at column ``u`` (``present[u]``): following columns join
+    when ``present`` and their rows link (:func:`links`) with the segment's last one,
+    or across a gap of up to ``MAX_GAP`` columns differ by at most ``max_jump_px`` per
+    column. Its columns go to ``idx``; returns how many."""
+    n = v.shape[0]
+    cnt = 1
+    idx[0] = u
+    last = u
+    x = u + 1
+    while x < n and x - last <= MAX_GAP + 1:
+        if present[x]:
+            dv = v[x] - v[last]
+            if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
+                    abs(dv) <= max_jump_px * (x - last):
+                idx[cnt] = x
+                cnt += 1
+                last = x
+            else:
+                break
+        x += 1
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def trim_ends(amp: np.ndarray, sat: np.ndarray, idx: np.ndarray, cnt: int,
+              min_peak_dn: float) -> tuple[int, int]:  # pragma: no cover
+    """The range ``[a, b)`` of a segment's columns (``idx[:cnt]``) without its dim
+    ends (:func:`dim_end`, unsaturated ones, up to ``END_DROP`` a side: a partly
+    covered column at an object's edge and the one an average smeared into)."""
+    a = 0
+    b = cnt
+    for _ in range(END_DROP):
+        if b - a >= 4 and not sat[idx[a]] and dim_end(
+                amp[idx[a]], amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]],
+                min_peak_dn):
+            a += 1
+        if b - a >= 4 and not sat[idx[b - 1]] and dim_end(
+                amp[idx[b - 1]], amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]],
+                min_peak_dn):
+            b -= 1
+    return a, b
+
+
+@njit(cache=True, nogil=True)
+def prune_ends(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: np.ndarray,
+               keep: np.ndarray, max_jump_px: float,
+               min_peak_dn: float) -> None:  # pragma: no cover
+    """:func:`trim_ends` on every segment of the kept columns (``keep`` updated)."""
+    n = v.shape[0]
+    idx = np.empty(n, np.int64)
+    u = 0
+    while u < n:
+        if not keep[u]:
+            u += 1
+            continue
+        cnt = segment(v, width, keep, u, max_jump_px, idx)
+        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn)
+        for k in range(cnt):
+            if k < a or k >= b:
+                keep[idx[k]] = False
+        u = idx[cnt - 1] + 1
+
+
+@njit(cache=True, nogil=True)
 def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarray,
-                  sat: np.ndarray, extended: np.ndarray, max_jump_px: float,
+                  chi2: np.ndarray, sat: np.ndarray, extended: np.ndarray, max_jump_px: float,
                   min_segment_cols: int, min_peak_dn: float, z_strong: float,
                   keep: np.ndarray) -> None:  # pragma: no cover
     """Join found columns into segments and keep the stripe's.
@@ -322,42 +411,22 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         if not np.isfinite(v[u]):
             u += 1
             continue
-        cnt = 0
-        idx[cnt] = u
-        cnt += 1
-        last = u
-        x = u + 1
-        while x < n and x - last <= MAX_GAP + 1:
-            if np.isfinite(v[x]):
-                dv = v[x] - v[last]
-                if (x == last + 1 and links(dv, width[x], width[last], max_jump_px)) or \
-                        abs(dv) <= max_jump_px * (x - last):
-                    idx[cnt] = x
-                    cnt += 1
-                    last = x
-                else:
-                    break
-            x += 1
-        all_strong = True
+        cnt = segment(v, width, np.isfinite(v), u, max_jump_px, idx)
+        last = idx[cnt - 1]
+        z2 = 0.0
         n_own = 0
+        clean = True
         for k in range(cnt):
-            all_strong = all_strong and z[idx[k]] >= SHORT_Z_SHARE * z_strong
-            n_own += 0 if extended[idx[k]] else 1
-        good = n_own >= min_segment_cols or (n_own >= 2 and all_strong)
-        a = 0
-        b = cnt
-        # an end column at an object's edge is partly covered; the truth of a column is
-        # its centre ray, which meets the surface when enough of the column sees it:
-        # dim end columns go (up to END_DROP of them: a mixed column and the one the
-        # averaging or an extension smeared into)
-        for _ in range(END_DROP):
-            if good and b - a >= 4 and not sat[idx[a]] and amp[idx[a]] < END_SHARE * _median3(
-                    amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]]):
-                a += 1
-            if good and b - a >= 4 and not sat[idx[b - 1]] and \
-                    amp[idx[b - 1]] < END_SHARE * _median3(amp[idx[b - 2]], amp[idx[b - 3]],
-                                                           amp[idx[b - 4]]):
-                b -= 1
+            if not extended[idx[k]]:
+                n_own += 1
+                z2 += z[idx[k]] ** 2
+                clean = clean and z[idx[k]] >= z_strong and (sat[idx[k]] or
+                                                              chi2[idx[k]] <= SHORT_CHI2)
+        # a short segment (a thin leg, a steep face) must be strong, Gaussian columns,
+        # together as significant as two columns of SHORT_Z_SHARE x z_strong
+        good = n_own >= min_segment_cols or \
+            (n_own >= 2 and clean and z2 >= 2.0 * (SHORT_Z_SHARE * z_strong) ** 2)
+        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn) if good else (0, cnt)
         if good:
             for k in range(a, b):
                 # running median: the amplitudes in the window at or above the
