@@ -42,6 +42,24 @@ def test_stripe_on_wall_at_1m_truth_and_rendered_centre():
         assert centre == pytest.approx(167.93, abs=0.05)
 
 
+def test_plain_wall_is_textured_only_where_the_stripe_lights_it():
+    # A plain wall at 1 m, 2 DN noise: the stripe (about 0.75 px sigma, peak >> 6 DN) is
+    # image texture in a band a few rows tall around its centre row; every other pixel of
+    # the wall is plain, and with the laser off the whole wall is.
+    rig = paper_rig()
+    noisy = {"image": {"noise_sigma_dn": 2.0}}
+    lit = frame_truth(scene_from_dict(wall_scene(1.0, **noisy)), rig, Pose2D(0, 0, 0))
+    dark = frame_truth(scene_from_dict(wall_scene(1.0, laser={"enabled": False}, **noisy)),
+                       rig, Pose2D(0, 0, 0))
+    wall = lit.object_id == 1  # the floor keeps its default noise texture
+    assert not dark.textured[wall].any()
+    rows = np.nonzero(lit.textured[:, 160] & wall[:, 160])[0]
+    assert rows.size >= 3 and rows.size <= 8
+    assert np.all(np.abs(rows - lit.stripe_v_px[160]) <= 4)
+    assert rows.min() < lit.stripe_v_px[160] < rows.max()
+    assert lit.textured[wall].mean() < 0.05
+
+
 def test_stripe_truth_matches_closed_form_across_columns():
     rig = paper_rig()
     t = frame_truth(scene_from_dict(wall_scene(0.8)), rig, Pose2D(0, 0, 0))

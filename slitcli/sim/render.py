@@ -56,7 +56,9 @@ class FrameTruth:
     obstacle_mask : (H, W) bool
         The pixel sees an obstacle point above the floor margin and below the robot height.
     textured : (H, W) bool
-        The pixel sees a surface with a noise texture (stereo can match it).
+        The image carries texture at the pixel, so stereo can match it: the pixel sees a
+        surface with a noise texture, or the laser stripe lights it by at least
+        :data:`LIT_MIN_SIGMAS` noise sigmas (a plain surface is plain only off the stripe).
     object_id : (H, W) int
         -1 nothing, 0 floor, k + 1 for scene object k.
     stripe_v_px : (W,) float
@@ -289,6 +291,7 @@ def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
 
 
 # ------------------------------------------------------------------ truth
+LIT_MIN_SIGMAS = 3.0  # laser light (DN) above this many noise sigmas is image texture
 def _stripe_truth(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose, hits: Hits,
                   depth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact stripe row per column: sign changes of the hit point's signed distance to
@@ -397,6 +400,12 @@ def frame_truth(scene: Scene, rig: Rig, pose: Pose2D, *, bin_deg: float = 1.0) -
     textured_ids = np.array([s.texture == "noise" and s.contrast >= 0.05
                              for s in _surfaces(scene)])
     textured = (obj >= 0) & textured_ids[np.where(obj >= 0, obj, 0)]
+    if scene.laser.enabled:
+        centres_xyz = left.origin_xyz + np.where(np.isfinite(hits.t), hits.t, 0.0)[:, None] \
+            * dirs.reshape(-1, 3)
+        light = _add_laser(scene, rig, pose, hits, centres_xyz,
+                           np.zeros((h * w, 3)))[:, 0].reshape(h, w)
+        textured |= light >= LIT_MIN_SIGMAS * max(scene.image.noise_sigma_dn, 1.0)
     stripe_v, stripe_peak, stripe_xyz = _stripe_truth(scene, rig, pose, left, hits, depth)
     centres, lo, hi = rig.bearing_bins(bin_deg)
     ranges = true_ranges(scene, pose, lo, hi, forward_m=rig.mount.forward_m,
