@@ -323,7 +323,7 @@ def dim_end(a0: float, a1: float, a2: float, a3: float, min_peak_dn: float,
     more), and that brightness must be visible (``min_peak_dn``)."""
     lin = (4.0 * a1 + a2 - 2.0 * a3) / 3.0
     med = _median3(a1, a2, a3)
-    if smooth and lin < FALL_RATIO * med:
+    if smooth and a1 <= a2 <= a3 and lin < FALL_RATIO * med:
         full = max(a0, lin)
         return a0 < FALL_SHARE * full or max(full, FALL_VIS * med) < min_peak_dn
     full = max(a0, min(med, lin))
