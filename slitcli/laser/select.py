@@ -63,6 +63,7 @@ FALL_RATIO = 0.8
 FALL_SHARE = 0.4
 FALL_VIS = 0.5
 CURVE_PX = 0.8
+FULL_SHARE = 0.8
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
 SHORT_Z_SHARE = 1.6
@@ -604,3 +605,37 @@ def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarr
             continue
         num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
         out[u] = v[u] + num / det
+
+
+@njit(cache=True, nogil=True)
+def shift_end_rows(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, keep: np.ndarray,
+                   out: np.ndarray) -> None:  # pragma: no cover
+    """Move the row of a partly covered end column to the column's centre.
+
+    The object covers only the inner part of a segment's end column (share ``c``, at
+    least one half: its centre ray meets the object), so the stripe's light there is
+    centred ``(1 - c) / 2`` columns inward of the column's centre; along a steep
+    stripe (slope ``s`` rows per column from the next two columns) the row at the
+    centre lies ``s (1 - c) / 2`` further along. ``c`` is the end column's
+    brightness over what the next three predict (:func:`end_level`), at least 0.5;
+    from ``FULL_SHARE`` on the column counts as whole (amplitude noise).
+    ``out`` (the smoothed rows) is updated at the ends of runs of at least four kept
+    columns (unsaturated)."""
+    n = v.shape[0]
+    for u in range(n):
+        if not keep[u] or sat[u]:
+            continue
+        for d in (-1, 1):
+            x1, x2, x3 = u - d, u - 2 * d, u - 3 * d
+            if not (0 <= x3 < n) or (0 <= u + d < n and keep[u + d]):
+                continue
+            if not (keep[x1] and keep[x2] and keep[x3]):
+                continue
+            level = end_level(amp[x1], amp[x2], amp[x3])
+            if not (level > 0.0):
+                continue
+            c = max(amp[u] / level, 0.5)
+            if c >= FULL_SHARE:
+                continue  # as bright as a whole column, within the amplitudes' noise
+            slope = v[x1] - v[x2]
+            out[u] += slope * 0.5 * (1.0 - c)
