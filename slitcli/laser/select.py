@@ -59,11 +59,14 @@ AMP_HALF = 6
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.6
 END_DROP = 2
+#: a falling end (grazing incidence, :func:`dim_end`): the next three columns' straight
+#: line below FALL_RATIO of their median; the end column needs FALL_SHARE of the line's
+#: brightness, visibility is judged on FALL_VIS of the median at least, and its row must
+#: continue the line of the next two within CURVE_PX
 FALL_RATIO = 0.8
 FALL_SHARE = 0.4
 FALL_VIS = 0.5
 CURVE_PX = 0.8
-FULL_SHARE = 0.8
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
 SHORT_Z_SHARE = 1.6
@@ -189,7 +192,8 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     ``prev_v`` (previous frame, (W,) or empty) where finite. A weak candidate is
     eligible only next to an agreeing first-pass row; rows outside the image (``h_img``
     rows) are not. Where a column has no valid candidate, a strong one within
-    ``CONTINUE_PX`` of a neighbouring chosen row is taken (the end column at an
+    ``CONTINUE_PX`` of a neighbouring chosen row (carried on along the slope of the
+    next two chosen rows where they link) is taken (the end column at an
     object's edge, which mixes two surfaces; ``extended[u]`` True). ``chosen[u]``:
     index or -1.
     """
@@ -321,7 +325,19 @@ def dim_end(a0: float, a1: float, a2: float, a3: float, min_peak_dn: float,
     a3``) goes. The truth of a column is its centre ray, which meets the surface when
     more than half of the column sees it: the end column must keep ``END_SHARE`` of
     the brightness the whole column would have (:func:`end_level`, or its own if
-    more), and that brightness must be visible (``min_peak_dn``)."""
+    more), and that brightness must be visible (``min_peak_dn``).
+
+    Towards a curved surface's grazing edge (a cylinder's side) the brightness falls
+    to nothing within the last column (incidence angle), so a column whose centre
+    still sees the surface shows far less than half of the straight-line prediction
+    (about 0.37 of it for a brightness falling like the root of the distance to the
+    edge), while the stripe's row runs on smoothly. Where the next three columns fall
+    monotonically, their straight line is below ``FALL_RATIO`` of their median and
+    the end row continues the line of the next two (``smooth``, within
+    ``CURVE_PX``), the end column needs ``FALL_SHARE`` of the straight-line
+    brightness, and ``min_peak_dn`` is judged on that or ``FALL_VIS`` of the median,
+    whichever is more (the fits read such steep, partly covered columns low). A sliver
+    beyond the edge breaks the row's line."""
     lin = (4.0 * a1 + a2 - 2.0 * a3) / 3.0
     med = _median3(a1, a2, a3)
     if smooth and a1 <= a2 <= a3 and lin < FALL_RATIO * med:
@@ -606,36 +622,3 @@ def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarr
         num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
         out[u] = v[u] + num / det
 
-
-@njit(cache=True, nogil=True)
-def shift_end_rows(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, keep: np.ndarray,
-                   out: np.ndarray) -> None:  # pragma: no cover
-    """Move the row of a partly covered end column to the column's centre.
-
-    The object covers only the inner part of a segment's end column (share ``c``, at
-    least one half: its centre ray meets the object), so the stripe's light there is
-    centred ``(1 - c) / 2`` columns inward of the column's centre; along a steep
-    stripe (slope ``s`` rows per column from the next two columns) the row at the
-    centre lies ``s (1 - c) / 2`` further along. ``c`` is the end column's
-    brightness over what the next three predict (:func:`end_level`), at least 0.5;
-    from ``FULL_SHARE`` on the column counts as whole (amplitude noise).
-    ``out`` (the smoothed rows) is updated at the ends of runs of at least four kept
-    columns (unsaturated)."""
-    n = v.shape[0]
-    for u in range(n):
-        if not keep[u] or sat[u]:
-            continue
-        for d in (-1, 1):
-            x1, x2, x3 = u - d, u - 2 * d, u - 3 * d
-            if not (0 <= x3 < n) or (0 <= u + d < n and keep[u + d]):
-                continue
-            if not (keep[x1] and keep[x2] and keep[x3]):
-                continue
-            level = end_level(amp[x1], amp[x2], amp[x3])
-            if not (level > 0.0):
-                continue
-            c = max(amp[u] / level, 0.5)
-            if c >= FULL_SHARE:
-                continue  # as bright as a whole column, within the amplitudes' noise
-            slope = v[x1] - v[x2]
-            out[u] += slope * 0.5 * (1.0 - c)
