@@ -160,3 +160,20 @@ def test_rendered_wide_red_wall_with_and_without_the_laser():
                  dict(forward_m=0.7, colour=RED, contrast=0.9, laser=False)):
         _, f, _ = _run(_wall(**wall))
         assert not f.found.any()
+
+
+@pytest.mark.parametrize("frame", [8, 9, 10])
+def test_rendered_grazing_cylinder_end_column(frame):
+    # the corridor's textureless cylinder at 500 DN: towards its right edge the stripe
+    # dims (grazing incidence, truth peaks 55 -> 43 -> 31 DN) and steepens (rows fall
+    # 1-1.5 px a column); the last visible column, partly covered, shows 16-24 DN
+    # (half of its neighbour) 1.2-1.7 px below the previous row. It is found at its
+    # row, and the sliver column beyond it (centre ray off the cylinder) is not
+    r, f, lit = _run(_sample("corridor", 500.0), frame)
+    t = r.truth.stripe_v_px
+    s = _stats(r, f, lit)
+    assert s["found"] == 1.0 and s["false"] == 0 and s["wrong"] == 0
+    assert s["rms"] <= 0.12 and s["fwd_median"] <= 0.005
+    end = int(np.flatnonzero(np.isfinite(t) & (np.arange(t.size) > 200)).max())
+    assert r.truth.stripe_peak_dn[end] < 40.0 and abs(t[end] - t[end - 1]) >= 1.0
+    assert abs(f.v_px[end] - t[end]) < 1.0 and not f.found[end + 1]

@@ -276,6 +276,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     v_px = np.empty(w)
     select.smooth_rows(pick[:, fit.C_POS], pick[:, fit.C_SE_POS],
                        pick[:, fit.C_WIDTH], keep, params.max_jump_px, v_px)
+    track.shift_end_rows(pick[:, fit.C_POS], pick[:, fit.C_AMP], pick[:, fit.C_SAT] > 0, keep,
+                         v_px)
     v_px += r0
     strength = np.where(keep, pick[:, fit.C_AMP], np.nan)
     saturated = keep & (pick[:, fit.C_SAT] > 0)

@@ -59,6 +59,14 @@ AMP_HALF = 6
 #: a segment's end column must be at least this share as bright as the next three
 END_SHARE = 0.6
 END_DROP = 2
+#: a falling end (grazing incidence, :func:`dim_end`): the next three columns' straight
+#: line below FALL_RATIO of their median; the end column needs FALL_SHARE of the line's
+#: brightness, visibility is judged on FALL_VIS of the median at least, and its row must
+#: continue the line of the next two within CURVE_PX
+FALL_RATIO = 0.8
+FALL_SHARE = 0.4
+FALL_VIS = 0.5
+CURVE_PX = 0.8
 #: a segment shorter than min_segment_cols needs this multiple of z_strong in every
 #: column
 SHORT_Z_SHARE = 1.6
@@ -184,7 +192,8 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
     ``prev_v`` (previous frame, (W,) or empty) where finite. A weak candidate is
     eligible only next to an agreeing first-pass row; rows outside the image (``h_img``
     rows) are not. Where a column has no valid candidate, a strong one within
-    ``CONTINUE_PX`` of a neighbouring chosen row is taken (the end column at an
+    ``CONTINUE_PX`` of a neighbouring chosen row (carried on along the slope of the
+    next two chosen rows where they link) is taken (the end column at an
     object's edge, which mixes two surfaces; ``extended[u]`` True). ``chosen[u]``:
     index or -1.
     """
@@ -277,6 +286,14 @@ def choose(cand: np.ndarray, prev_v: np.ndarray, g_map: np.ndarray, sheet_m: flo
             if not (0 <= u + d < w_cols) or strict[u + d] < 0 or chosen[u] >= 0:
                 continue
             ref = cand[u + d, strict[u + d], C_POS]
+            # along a steep or curving stripe (a cylinder's grazing end) the row moves
+            # by more than CONTINUE_PX a column: it is carried on along the slope of
+            # the two neighbouring chosen rows
+            if 0 <= u + 2 * d < w_cols and strict[u + 2 * d] >= 0:
+                ref2 = cand[u + 2 * d, strict[u + 2 * d], C_POS]
+                if links(ref - ref2, cand[u + d, strict[u + d], C_WIDTH],
+                         cand[u + 2 * d, strict[u + 2 * d], C_WIDTH], max_jump_px):
+                    ref = 2.0 * ref - ref2
             for q in range(k):
                 v = cand[u, q, C_POS]
                 if np.isfinite(v) and cand[u, q, C_Z] >= z_strong and \
@@ -302,14 +319,31 @@ def end_level(a1: float, a2: float, a3: float) -> float:  # pragma: no cover
 
 
 @njit(cache=True, nogil=True)
-def dim_end(a0: float, a1: float, a2: float, a3: float,
-            min_peak_dn: float) -> bool:  # pragma: no cover
+def dim_end(a0: float, a1: float, a2: float, a3: float, min_peak_dn: float,
+            smooth: bool) -> bool:  # pragma: no cover
     """Whether a segment's end column of amplitude ``a0`` (the next ones ``a1, a2,
     a3``) goes. The truth of a column is its centre ray, which meets the surface when
     more than half of the column sees it: the end column must keep ``END_SHARE`` of
     the brightness the whole column would have (:func:`end_level`, or its own if
-    more), and that brightness must be visible (``min_peak_dn``)."""
-    full = max(a0, end_level(a1, a2, a3))
+    more), and that brightness must be visible (``min_peak_dn``).
+
+    Towards a curved surface's grazing edge (a cylinder's side) the brightness falls
+    to nothing within the last column (incidence angle), so a column whose centre
+    still sees the surface shows far less than half of the straight-line prediction
+    (about 0.37 of it for a brightness falling like the root of the distance to the
+    edge), while the stripe's row runs on smoothly. Where the next three columns fall
+    monotonically, their straight line is below ``FALL_RATIO`` of their median and
+    the end row continues the line of the next two (``smooth``, within
+    ``CURVE_PX``), the end column needs ``FALL_SHARE`` of the straight-line
+    brightness, and ``min_peak_dn`` is judged on that or ``FALL_VIS`` of the median,
+    whichever is more (the fits read such steep, partly covered columns low). A sliver
+    beyond the edge breaks the row's line."""
+    lin = (4.0 * a1 + a2 - 2.0 * a3) / 3.0
+    med = _median3(a1, a2, a3)
+    if smooth and a1 <= a2 <= a3 and lin < FALL_RATIO * med:
+        full = max(a0, lin)
+        return a0 < FALL_SHARE * full or max(full, FALL_VIS * med) < min_peak_dn
+    full = max(a0, min(med, lin))
     return a0 < END_SHARE * full or full < min_peak_dn
 
 
@@ -340,7 +374,7 @@ def segment(v: np.ndarray, width: np.ndarray, present: np.ndarray, u: int,
 
 
 @njit(cache=True, nogil=True)
-def trim_ends(amp: np.ndarray, sat: np.ndarray, idx: np.ndarray, cnt: int,
+def trim_ends(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, idx: np.ndarray, cnt: int,
               min_peak_dn: float) -> tuple[int, int]:  # pragma: no cover
     """The range ``[a, b)`` of a segment's columns (``idx[:cnt]``) without its dim
     ends (:func:`dim_end`, unsaturated ones, up to ``END_DROP`` a side: a partly
@@ -350,13 +384,21 @@ def trim_ends(amp: np.ndarray, sat: np.ndarray, idx: np.ndarray, cnt: int,
     for _ in range(END_DROP):
         if b - a >= 4 and not sat[idx[a]] and dim_end(
                 amp[idx[a]], amp[idx[a + 1]], amp[idx[a + 2]], amp[idx[a + 3]],
-                min_peak_dn):
+                min_peak_dn, _on_curve(v, idx[a], idx[a + 1], idx[a + 2])):
             a += 1
         if b - a >= 4 and not sat[idx[b - 1]] and dim_end(
                 amp[idx[b - 1]], amp[idx[b - 2]], amp[idx[b - 3]], amp[idx[b - 4]],
-                min_peak_dn):
+                min_peak_dn, _on_curve(v, idx[b - 1], idx[b - 2], idx[b - 3])):
             b -= 1
     return a, b
+
+
+@njit(cache=True, nogil=True)
+def _on_curve(v: np.ndarray, x0: int, x1: int, x2: int) -> bool:  # pragma: no cover
+    """Column ``x0``'s row continues the straight line through columns ``x1, x2``
+    within ``CURVE_PX``."""
+    pred = v[x1] + (v[x1] - v[x2]) * (x0 - x1) / (x1 - x2)
+    return abs(v[x0] - pred) <= CURVE_PX
 
 
 @njit(cache=True, nogil=True)
@@ -372,7 +414,7 @@ def prune_ends(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: np.ndarra
             u += 1
             continue
         cnt = segment(v, width, keep, u, max_jump_px, idx)
-        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn)
+        a, b = trim_ends(v, amp, sat, idx, cnt, min_peak_dn)
         for k in range(cnt):
             if k < a or k >= b:
                 keep[idx[k]] = False
@@ -426,7 +468,7 @@ def keep_segments(v: np.ndarray, width: np.ndarray, amp: np.ndarray, z: np.ndarr
         # together as significant as two columns of SHORT_Z_SHARE x z_strong
         good = n_own >= min_segment_cols or \
             (n_own >= 2 and clean and z2 >= 2.0 * (SHORT_Z_SHARE * z_strong) ** 2)
-        a, b = trim_ends(amp, sat, idx, cnt, min_peak_dn) if good else (0, cnt)
+        a, b = trim_ends(v, amp, sat, idx, cnt, min_peak_dn) if good else (0, cnt)
         if good:
             for k in range(a, b):
                 # running median: the amplitudes in the window at or above the
@@ -579,3 +621,4 @@ def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarr
             continue
         num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
         out[u] = v[u] + num / det
+

@@ -33,6 +33,7 @@ from slitcli.laser.select import (
     MAX_EDGE,
     MAX_GAP,
     MIN_SIGMA_PX,
+    end_level,
     links,
     segment,
 )
@@ -51,6 +52,9 @@ TRACK_PENDING = 2
 #: the rows' standard errors in the line's weights
 TRACK_ROW_SE = 0.5
 TRACK_MIN_SE = 0.05
+#: an end column at least this share as bright as the next three predict counts as
+#: whole (the amplitudes' noise): its row is not moved
+FULL_SHARE = 0.8
 
 
 @njit(cache=True, nogil=True)
@@ -410,3 +414,37 @@ def drop_faint_tracked(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: n
                 keep[idx[k]] = False
                 tracked[idx[k]] = False
         u = last + 1
+
+
+@njit(cache=True, nogil=True)
+def shift_end_rows(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, keep: np.ndarray,
+                   out: np.ndarray) -> None:  # pragma: no cover
+    """Move the row of a partly covered end column to the column's centre.
+
+    The object covers only the inner part of a segment's end column (share ``c``, at
+    least one half: its centre ray meets the object), so the stripe's light there is
+    centred ``(1 - c) / 2`` columns inward of the column's centre; along a steep
+    stripe (slope ``s`` rows per column from the next two columns) the row at the
+    centre lies ``s (1 - c) / 2`` further along. ``c`` is the end column's
+    brightness over what the next three predict (:func:`end_level`), at least 0.5;
+    from ``FULL_SHARE`` on the column counts as whole (amplitude noise).
+    ``out`` (the smoothed rows) is updated at the ends of runs of at least four kept
+    columns (unsaturated)."""
+    n = v.shape[0]
+    for u in range(n):
+        if not keep[u] or sat[u]:
+            continue
+        for d in (-1, 1):
+            x1, x2, x3 = u - d, u - 2 * d, u - 3 * d
+            if not (0 <= x3 < n) or (0 <= u + d < n and keep[u + d]):
+                continue
+            if not (keep[x1] and keep[x2] and keep[x3]):
+                continue
+            level = end_level(amp[x1], amp[x2], amp[x3])
+            if not (level > 0.0):
+                continue
+            c = max(amp[u] / level, 0.5)
+            if c >= FULL_SHARE:
+                continue  # as bright as a whole column, within the amplitudes' noise
+            slope = v[x1] - v[x2]
+            out[u] += slope * 0.5 * (1.0 - c)
