@@ -384,7 +384,7 @@ def edge_reach_px(strength_dn: np.ndarray, saturated: np.ndarray,
         at_end = (q0 + q1 + q2) / 3.0 + slope
         fade_reach = np.minimum(at_end / -slope, p.max_reach_px)
         fading = ((s1 < p.fade_ratio * s3) & (slope < 0)
-                  & ~sat[:, :4].any(axis=1) & np.isfinite(s3))
+                  & ~sat[:, :3].any(axis=1) & np.isfinite(s3))
     reach = np.where(fading, fade_reach, cover)
     reach = np.where(sat[:, 0], 0.0, reach)
     ok = enough & (has_ref | fading)
