@@ -343,7 +343,8 @@ def edge_reach_px(strength_dn: np.ndarray, saturated: np.ndarray,
 
     Two models of the stripe's peak brightness ``s`` along a segment (the sheet light
     is Lambertian, ``s`` proportional to the cosine of incidence at the emitter and to
-    the share of the pixel the surface covers; paper Eq. 1's red peak):
+    the share of the pixel the surface covers; ``s`` is the extractor's red peak above
+    the surface, Eqs. 1-4):
 
     * **partial coverage** (a face that ends inside the end column): the inner columns
       are fully covered, the end column by the share ``c = s_0 / median(s_1, s_2,
@@ -358,8 +359,10 @@ def edge_reach_px(strength_dn: np.ndarray, saturated: np.ndarray,
       there, ``b`` its slope), at most ``max_reach_px``. Chosen when the inner columns
       fade (``s_1 < fade_ratio * s_3``), which a face with constant incidence does not.
 
-    A clipped (saturated) end column carries no coverage information: reach 0. Saturated
-    inner columns are left out of the reference; the fading model needs none.
+    A clipped (saturated) end column carries no coverage information: reach 0. Clipped
+    inner columns are left out of the coverage reference, and the fading model needs
+    the end column and the two next to it unclipped (a clipped third column only takes
+    part in the trend test, where an underestimate makes the test stricter).
 
     Parameters
     ----------
