@@ -79,7 +79,7 @@ def rendered(tmp_path_factory):
 
 @pytest.mark.parametrize("name", [
     pytest.param("corridor", marks=pytest.mark.xfail(
-        strict=True, reason="known miss (issue 6 open): detection 438/442 = 99.1 % passes, "
+        strict=True, reason="known miss (issue 6 open): detection 440/442 = 99.5 % passes, "
         "but 1 of 78 free bins (1.28 %, limit 1 %) gets a stereo return from the yawed box's "
         "edge at 1.46 m, which the matcher fattens by 0.4 px across a bin boundary")),
     "distractors",
