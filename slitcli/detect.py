@@ -33,6 +33,7 @@ from slitcli.laser import (
 )
 from slitcli.laser import bearing_bin_centres_deg as laser_bins_centres
 from slitcli.laser import nearest_range_per_bin as laser_bins
+from slitcli.laser.frame import EdgeParams, segment_edges
 from slitcli.rig import Rig
 from slitcli.sim.sequence import encode_depth_png, encode_disparity_png
 from slitcli.stereo.pipeline import (
@@ -59,6 +60,7 @@ class DetectParams:
     """
 
     laser: LaserParams = field(default_factory=LaserParams)
+    edges: EdgeParams = field(default_factory=EdgeParams)
     stereo: StereoParams = field(default_factory=StereoParams)
     fusion_mode: str = "paper"
     bin_deg: float = 1.0
@@ -141,7 +143,8 @@ class Detector:
             prev = self.laser(prev_left)
         las = self.laser(left, prev)
         st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
-        lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg)
+        edges = segment_edges(las, self.rectified_rig, self.params.edges)
+        lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg, edges=edges)
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
                      laser_sight_m=self._laser_sight_m)
         return FrameDetection(las, st, lb.bearing_deg, lb.range_m, st.range_m,
