@@ -17,6 +17,7 @@ from slitcli.stereo.obstacles import (
     bearing_ranges,
     depth_from_disparity,
     obstacle_points,
+    trim_silhouettes,
 )
 from slitcli.stereo.rectify import rectification_maps, rectify_pair
 
@@ -97,6 +98,42 @@ def test_points_beyond_range_or_without_enough_pixels_are_no_return():
     br2 = bearing_ranges(pts2, obs2, feat2, rig, ObstacleParams())
     assert np.isnan(br2.range_m).all()
     assert not br2.has_features.any()
+
+
+def test_obstacle_runs_are_cut_back_to_the_silhouette_on_plain_backgrounds():
+    # One row, hand-made: a textured object over columns 10..19 (grey alternating 60/140),
+    # a plain background (100 DN) elsewhere. The matcher has carried the object's
+    # disparity 3 px past each silhouette (columns 7..22 obstacle); beyond, no disparity.
+    grey = np.full((1, 40), 100.0)
+    grey[0, 10:20] = np.where(np.arange(10) % 2, 140.0, 60.0)
+    disp = np.full((1, 40), np.nan)
+    disp[0, 7:23] = 20.0
+    mask = np.zeros((1, 40), bool)
+    mask[0, 7:23] = True
+    out = trim_silhouettes(mask, grey, disp, ObstacleParams())
+    assert np.array_equal(np.flatnonzero(out[0]), np.arange(10, 20))
+    assert mask[0, 7:23].all()  # input not modified
+    # a disparity beside the run (a matched background) leaves that end alone
+    disp2 = disp.copy()
+    disp2[0, 23] = 5.0
+    out = trim_silhouettes(mask, grey, disp2, ObstacleParams())
+    assert np.array_equal(np.flatnonzero(out[0]), np.arange(10, 23))
+    # a fattening wider than the reach keeps the run: its edge is not within reach
+    out = trim_silhouettes(mask, grey, disp, ObstacleParams(silhouette_reach_px=2))
+    assert out[0, 7:23].all()
+    # steps must exceed silhouette_step_dn: at 90 DN none does (40 DN silhouettes, 80 DN
+    # texture), so no edge is seen and the run is kept
+    out = trim_silhouettes(mask, grey, disp, ObstacleParams(silhouette_step_dn=90.0))
+    assert out[0, 7:23].all()
+    # a run that reaches the image border is kept at that end
+    mask3 = np.zeros((1, 40), bool)
+    mask3[0, :23] = True
+    disp3 = np.where(mask3, 20.0, np.nan)
+    out = trim_silhouettes(mask3, grey, disp3, ObstacleParams())
+    assert np.array_equal(np.flatnonzero(out[0]), np.arange(0, 20))
+    # off
+    out = trim_silhouettes(mask, grey, disp, ObstacleParams(silhouette_reach_px=0))
+    assert np.array_equal(out, mask)
 
 
 def test_floor_test_allows_for_disparity_noise():

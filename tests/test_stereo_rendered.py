@@ -121,3 +121,32 @@ def test_ranges_per_bearing_against_the_truth(corridor):
     valid = np.isfinite(res.disparity_px)
     agree = (res.obstacle_mask == t.obstacle_mask)[valid & (t.depth_m <= 3.0)]
     assert agree.mean() >= 0.95
+
+
+def test_silhouette_trim_removes_spill_onto_a_plain_background():
+    # A textured box and cylinder at 1.5-2 m before a plain wall at 3.6 m (beyond the
+    # stereo range, so never an obstacle itself): the window carries the objects'
+    # disparity past their silhouettes onto the plain wall; cutting each row's runs at
+    # the outermost intensity step removes most of that spill and keeps the objects.
+    from slitcli.stereo.obstacles import ObstacleParams
+    from slitcli.stereo.pipeline import StereoParams
+
+    textured = _surface("noise", [0.55, 0.6, 0.5], 0.02, 0.7)
+    scene = scene_from_dict({"slitcli_scene": 1, "seed": 1, "objects": [
+        {"type": "box", "centre_xy_m": [1.5, 0.1], "size_m": [0.3, 0.4, 0.6], "yaw_deg": 20,
+         "surface": textured},
+        {"type": "cylinder", "centre_xy_m": [2.0, -0.5], "radius_m": 0.12, "height_m": 0.9,
+         "surface": textured},
+        {"type": "wall", "from_xy_m": [3.6, -4], "to_xy_m": [3.6, 4], "height_m": 2.0,
+         "surface": _surface("plain", [0.5, 0.5, 0.52])}], "robot": {"frames": 1}})
+    rig = paper_rig()
+    frame = render_frame(scene, rig, scene.poses(1)[0])
+    objects = np.isin(frame.truth.object_id, [1, 2])
+    counts = {}
+    for reach in (0, 4):
+        params = StereoParams(obstacles=ObstacleParams(silhouette_reach_px=reach))
+        mask = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, params).obstacle_mask
+        counts[reach] = ((mask & ~objects).sum(), (mask & objects).sum())
+    assert counts[0][0] >= 100                      # the spill exists
+    assert counts[4][0] <= 0.7 * counts[0][0]       # most of it goes
+    assert counts[4][1] >= 0.97 * counts[0][1]      # the objects stay

@@ -4,6 +4,8 @@
 - :func:`clip_quantise`: the prefilter's clip and quantisation;
 - :func:`reproject`, :func:`bin_percentile`: depth, sensor-frame points, obstacle
   tests and the per-bearing range percentile;
+- :func:`trim_silhouettes`: obstacle runs cut back to their last intensity step where
+  they end on a plain (unmatched) background;
 - :func:`speckle_finish`: speckle removal and the NaN of invalid pixels.
 
 All release the GIL (``nogil``) so bands of rows can run on plain threads. Compiled on
@@ -93,6 +95,69 @@ def bin_percentile(pts, obstacle, feature, bin_idx, nbins, step_m, max_range_m,
             if acc > rank:
                 range_out[b] = (c + 0.5) * step_m
                 break
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _plain(grey, disp, y, x0, step, reach_px, step_dn):
+    """Whether ``x0`` and the next ``reach_px`` pixels outwards (fewer at the border) are
+    all unmatched and stay within ``step_dn`` of each other: a plain background, not a
+    hole in a textured surface."""
+    width = grey.shape[1]
+    lo = hi = grey[y, x0]
+    x = x0
+    for _ in range(reach_px):
+        x += step
+        if x < 0 or x >= width:
+            break
+        if not np.isnan(disp[y, x]):
+            return False
+        lo = min(lo, grey[y, x])
+        hi = max(hi, grey[y, x])
+    return hi - lo <= step_dn
+
+
+@nb.njit(cache=True, nogil=True)
+def trim_silhouettes(obstacle, grey, disp, reach_px, step_dn, same_px, out):
+    """Cut each row's obstacle runs back to their outermost intensity step.
+
+    A run of obstacle pixels that ends on a plain background (the next ``reach_px + 1``
+    pixels unmatched and within ``step_dn`` of each other)
+    keeps only the pixels up to the outermost step of more than
+    ``step_dn`` between two neighbours of ``grey`` within ``reach_px`` columns of the end;
+    without such a step, or at the image border, the run is kept whole, and so is a run
+    whose disparity changes by more than ``same_px`` across the step (a depth edge between
+    two matched surfaces, such as a plain object's matched rim before a textured wall).
+    """
+    height, width = obstacle.shape
+    out[:, :] = obstacle
+    for y in range(height):
+        x = 0
+        while x < width:
+            if not obstacle[y, x]:
+                x += 1
+                continue
+            a = x
+            while x < width and obstacle[y, x]:
+                x += 1
+            b = x - 1
+            # right end: steps between g and g + 1 for g in [b - reach, b]
+            if b + 1 < width and np.isnan(disp[y, b + 1]) and _plain(grey, disp, y, b + 1,
+                                                                     1, reach_px, step_dn):
+                for g in range(b, max(a, b - reach_px) - 1, -1):
+                    if abs(grey[y, g + 1] - grey[y, g]) > step_dn:
+                        if g < b and abs(disp[y, b] - disp[y, g]) <= same_px:
+                            for k in range(g + 1, b + 1):
+                                out[y, k] = False
+                        break
+            # left end: steps between g and g + 1 for g in [a - 1, a - 1 + reach]
+            if a >= 1 and np.isnan(disp[y, a - 1]) and _plain(grey, disp, y, a - 1, -1,
+                                                              reach_px, step_dn):
+                for g in range(a - 1, min(b - 1, a - 1 + reach_px) + 1):
+                    if abs(grey[y, g + 1] - grey[y, g]) > step_dn:
+                        if g >= a and abs(disp[y, a] - disp[y, g + 1]) <= same_px:
+                            for k in range(a, g + 1):
+                                out[y, k] = False
+                        break
 
 
 @nb.njit(cache=True, nogil=True)

@@ -20,6 +20,14 @@ the nearest obstacle range is a low percentile of the horizontal ranges
 ``min_obstacle_px`` of them (a single wrong pixel cannot make an obstacle), and
 ``has_features`` says whether stereo saw enough valid, non-floor pixels in that
 direction to be trusted (fusion falls back to the laser where it did not).
+
+Before the bins are filled, obstacle runs are cut back to the object's silhouette where
+they end on a plain background (:func:`trim_silhouettes`): a matching window that still
+holds a textured object's edge matches the plain pixels beside it at the object's
+disparity, which carries the object up to half a window past its silhouette, often
+across a bearing-bin boundary (a phantom obstacle in a free bin). The silhouette is
+the outermost intensity step within that reach; the plain pixels beyond it carry no
+evidence of their own.
 """
 
 from __future__ import annotations
@@ -51,6 +59,9 @@ class ObstacleParams:
     range_percentile: float = 10.0
     min_obstacle_px: int = 8
     min_feature_px: int = 20
+    silhouette_reach_px: int = 4
+    silhouette_step_dn: float = 8.0
+    silhouette_same_px: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.floor_margin_m >= 0 or not self.disparity_sigma_px >= 0:
@@ -67,6 +78,10 @@ class ObstacleParams:
                                "[0, 100]")
         if self.min_obstacle_px < 1 or self.min_feature_px < 1:
             raise SlitcliError("--min-obstacle-px and --min-feature-px must be >= 1")
+        if (self.silhouette_reach_px < 0 or not self.silhouette_step_dn >= 0
+                or not self.silhouette_same_px >= 0):
+            raise SlitcliError("the silhouette reach (px), step (DN) and same-surface "
+                               "tolerance (px) must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -179,6 +194,49 @@ def obstacle_points(disparity_px: np.ndarray, rig: Rig, params: ObstacleParams
     return depth, pts, obstacle, feature
 
 
+def trim_silhouettes(obstacle_mask: np.ndarray, left_grey: np.ndarray,
+                     disparity_px: np.ndarray, params: ObstacleParams) -> np.ndarray:
+    """Obstacle mask with each row's runs cut back to the silhouette on plain backgrounds.
+
+    A run of obstacle pixels that ends next to a pixel without disparity keeps only the
+    pixels up to the outermost step of more than ``silhouette_step_dn`` between two
+    horizontal neighbours of ``left_grey`` within ``silhouette_reach_px`` of its end
+    (half the matching window by default: how far window fattening reaches), provided
+    the cut pixels carry the disparity of the pixel inside the step (within
+    ``silhouette_same_px``: the same surface spilling on). A run without such a step is
+    kept (its edge is not visible in the image), as is a run that meets the image border
+    or a pixel with a disparity, and a run that changes depth at the step (a plain
+    object's matched rim in front of a textured surface is the object, not a spill).
+
+    Parameters
+    ----------
+    obstacle_mask : (H, W) bool
+        From :func:`obstacle_points`; not modified.
+    left_grey : (H, W) uint8 or float
+        The rectified left image, grey, DN.
+    disparity_px : (H, W) float
+        The disparity image (NaN = invalid).
+    params : ObstacleParams
+        ``silhouette_reach_px = 0`` returns a copy of the mask unchanged.
+
+    Returns
+    -------
+    obstacle_mask : (H, W) bool
+    """
+    from slitcli.stereo import _kernel
+
+    out = np.empty_like(obstacle_mask, dtype=np.bool_)
+    if params.silhouette_reach_px == 0:
+        out[...] = obstacle_mask
+        return out
+    _kernel.trim_silhouettes(np.ascontiguousarray(obstacle_mask, dtype=np.bool_),
+                             np.ascontiguousarray(left_grey, dtype=np.float32),
+                             np.ascontiguousarray(disparity_px, dtype=np.float32),
+                             int(params.silhouette_reach_px), float(params.silhouette_step_dn),
+                             float(params.silhouette_same_px), out)
+    return out
+
+
 @functools.lru_cache(maxsize=8)
 def _pixel_bins(rig: Rig, bin_width_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres (B,) and each pixel's bin index (H, W) (-1 outside), read-only."""
@@ -233,6 +291,15 @@ def bins_check(rig: Rig, params: ObstacleParams) -> None:
                            f"the {hfov:.1f} deg field of view; use narrower bins")
 
 
-__all__ = ["BearingRanges", "ObstacleParams", "PixelGeometry", "bearing_bin_centres_deg",
-           "bearing_ranges", "bins_check", "depth_from_disparity", "obstacle_points",
-           "pixel_geometry"]
+__all__ = [
+    "BearingRanges",
+    "ObstacleParams",
+    "PixelGeometry",
+    "bearing_bin_centres_deg",
+    "bearing_ranges",
+    "bins_check",
+    "depth_from_disparity",
+    "obstacle_points",
+    "pixel_geometry",
+    "trim_silhouettes",
+]

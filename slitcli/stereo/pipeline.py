@@ -12,8 +12,14 @@ import numpy as np
 
 from slitcli.errors import SlitcliError
 from slitcli.rig import Rig
-from slitcli.stereo.matcher import MatcherParams, compute_disparity
-from slitcli.stereo.obstacles import ObstacleParams, bearing_ranges, bins_check, obstacle_points
+from slitcli.stereo.matcher import MatcherParams, compute_disparity, to_grey
+from slitcli.stereo.obstacles import (
+    ObstacleParams,
+    bearing_ranges,
+    bins_check,
+    obstacle_points,
+    trim_silhouettes,
+)
 from slitcli.stereo.rectify import rectify_pair
 
 
@@ -102,6 +108,7 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left, right = rectify_pair(left_bgr, right_bgr, rig)
     disp = compute_disparity(left, right, p.matcher)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, rig, p.obstacles)
+    obstacle = trim_silhouettes(obstacle, to_grey(left), disp.disparity_px, p.obstacles)
     br = bearing_ranges(pts, obstacle, feature, rig, p.obstacles)
     return StereoFrameResult(disp.disparity_px, disp.invalid_reason, depth, pts, obstacle,
                              br.bearing_deg, br.range_m, br.has_features, br.obstacle_px,
