@@ -1,0 +1,145 @@
+"""Detection study behind docs/detect.md: issue 6's floors on rendered sequences.
+
+Renders (once, into a cache folder) the sample corridor with several seeds, the
+distractors and overhang samples, and random scenes of 2-4 textured or plain boxes and
+cylinders at 0.7-2.8 m (half of them before a back wall), runs the per-frame detector
+(slitcli.detect.Detector) on each and scores its table against the renderer's truth:
+
+- **detected**: a bin whose true nearest obstacle lies at 0.6-3 m, ranged within
+  max(5 cm, 5 %) of it;
+- **phantom**: a free bin (nothing within 3 m) whose fused range is nearer than the
+  truth minus 0.2 m.
+
+Not part of `make bench` (a few minutes).
+
+    .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
+        [--fusion paper] [--details]
+
+Prints one line per sequence and the totals per group (markdown table).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from slitcli.detect import Detector, DetectParams
+from slitcli.io.sequence import StereoSequence
+from slitcli.rig import paper_rig
+from slitcli.sim.scene import scene_from_dict
+from slitcli.sim.sequence import render_sequence
+
+ROOT = Path(__file__).resolve().parent.parent
+CORRIDOR_SEEDS = (21, 22, 23, 24)
+
+
+def random_scene(seed: int) -> dict:
+    """2-4 boxes or cylinders at 0.7-2.8 m (a fifth of those nearer than 1 m plain),
+    a back wall at 3.5-6 m in half of the scenes; 3 frames at 0.1 m/s."""
+    rng = np.random.default_rng(seed)
+    objs = []
+    for _ in range(rng.integers(2, 5)):
+        x = rng.uniform(0.7, 2.8)
+        y = rng.uniform(-0.45, 0.45) * x
+        surface = {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
+                   "texture": "noise", "scale_m": 0.02,
+                   "contrast": round(float(rng.uniform(0.4, 0.8)), 2)}
+        if rng.random() < 0.2 and x < 1.0:
+            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.4, 0.8, 3).round(2)],
+                       "texture": "plain"}
+        if rng.random() < 0.5:
+            objs.append({"type": "box", "centre_xy_m": [float(x), float(y)],
+                         "size_m": [float(rng.uniform(0.15, 0.4)),
+                                    float(rng.uniform(0.15, 0.5)),
+                                    float(rng.uniform(0.2, 0.9))],
+                         "yaw_deg": float(rng.uniform(-40, 40)), "surface": surface})
+        else:
+            objs.append({"type": "cylinder", "centre_xy_m": [float(x), float(y)],
+                         "radius_m": float(rng.uniform(0.04, 0.2)),
+                         "height_m": float(rng.uniform(0.2, 1.0)), "surface": surface})
+    if rng.random() < 0.5:
+        d = float(rng.uniform(3.5, 6))
+        objs.append({"type": "wall", "from_xy_m": [d, -4], "to_xy_m": [d, 4], "height_m": 2.0,
+                     "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": "noise",
+                                 "scale_m": 0.04, "contrast": 0.5}})
+    return {"slitcli_scene": 1, "name": f"random-{seed}", "seed": int(seed),
+            "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
+                      "contrast": 0.5},
+            "objects": objs,
+            "robot": {"start": [0, 0, 0], "motion": "straight", "speed_mps": 0.1,
+                      "frames": 3, "frame_rate_hz": 5.0}}
+
+
+def sequences(n_random: int) -> list[tuple[str, str, dict]]:
+    """(group, name, scene dict) of every evaluation sequence."""
+    out = []
+    corridor = yaml.safe_load((ROOT / "sample_data" / "corridor.yaml").read_text())
+    for s in CORRIDOR_SEEDS:
+        out.append(("corridor", f"corridor-{s}", {**corridor, "seed": s}))
+    for name in ("distractors", "overhang"):
+        out.append((name, name, yaml.safe_load((ROOT / "sample_data" / f"{name}.yaml")
+                                               .read_text())))
+    for s in range(n_random):
+        d = random_scene(s)
+        wall = any(o["type"] == "wall" for o in d["objects"])
+        out.append(("random, back wall" if wall else "random, open", d["name"], d))
+    return out
+
+
+def score(seq_dir: Path, fusion: str) -> tuple[pd.DataFrame, pd.DataFrame, int, int]:
+    """Wrong obstacle bins, phantom free bins, and the two bin counts of a sequence."""
+    seq = StereoSequence(seq_dir)
+    rig = seq.rig()
+    det = Detector(rig, DetectParams(fusion_mode=fusion))
+    rows, prev = [], None
+    for f in seq.frames(rig):
+        rows.append(det(f.left_bgr, f.right_bgr, previous_left_bgr=prev).table(f.index, f.time_s))
+        prev = f.left_bgr
+    table = pd.concat(rows, ignore_index=True)
+    truth = pd.read_csv(seq_dir / "gt" / "ranges.csv")
+    j = table.merge(truth, on=["frame", "bearing_deg"])
+    band = j[(j.range_m >= 0.6) & (j.range_m <= 3.0)]
+    ok = (band.fused_range_m - band.range_m).abs() <= np.maximum(0.05, 0.05 * band.range_m)
+    free = j[j.range_m.isna() | (j.range_m > 3.0)]
+    limit = np.where(free.range_m.isna(), np.inf, free.range_m) - 0.2
+    return band[~ok], free[free.fused_range_m < limit], len(band), len(free)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cache", default=str(ROOT / "out" / "detect_eval"),
+                    help="folder for the rendered sequences (reused when present)")
+    ap.add_argument("--random", type=int, default=24, help="number of random scenes")
+    ap.add_argument("--fusion", default="paper", choices=("paper", "conservative"))
+    ap.add_argument("--details", action="store_true", help="print every wrong bin")
+    args = ap.parse_args()
+    rig = paper_rig()
+    totals: dict[str, np.ndarray] = {}
+    cols = ["frame", "bearing_deg", "range_m", "laser_range_m", "stereo_range_m",
+            "fused_range_m", "fused_source"]
+    for group, name, d in sequences(args.random):
+        out = Path(args.cache) / name
+        if not (out / "gt" / "ranges.csv").exists():
+            render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)
+        wrong, phantom, n_band, n_free = score(out, args.fusion)
+        totals.setdefault(group, np.zeros(4, int))
+        totals[group] += [len(wrong), n_band, len(phantom), n_free]
+        print(f"{name}: missed {len(wrong)}/{n_band}, phantom {len(phantom)}/{n_free}",
+              flush=True)
+        if args.details and len(wrong):
+            print(wrong[cols].to_string(index=False))
+        if args.details and len(phantom):
+            print(phantom[cols].to_string(index=False))
+    print(f"\n| group ({args.fusion} fusion) | detected | phantom free bins |\n|---|---|---|")
+    for group, (m, nb, p, nf) in totals.items():
+        print(f"| {group} | {nb - m}/{nb} = {(nb - m) / max(nb, 1):.2%} | "
+              f"{p}/{nf} = {p / max(nf, 1):.2%} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
