@@ -179,8 +179,8 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
 
     Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
-    least ``seed_dn``, and saturated red plateaus next to a red pixel (one alone is
-    a white highlight). A candidate's extent is the stretch around it where the
+    least ``seed_dn``, and saturated red plateaus with red pixels on both sides (a white
+    highlight's fringe is white). A candidate's extent is the stretch around it where the
     evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
     surface is cut out of the surface's texture); longer than ``max_run_px``, it is
     a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
@@ -231,8 +231,12 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 while j < n and sat[j] and score[j] >= seed_dn:
                     peak = max(peak, score[j])
                     j += 1
-                red = (j0 > 0 and score[j0 - 1] >= seed_dn) or (j < n and score[j] >= seed_dn)
-                if not red:
+                # a clipped laser core has red flanks on both sides (its light is red
+                # wherever it is not clipped); a white highlight's fringe is white, and
+                # noise or texture makes one side red only by chance
+                red_a = j0 == 0 or not mask[i, j0 - 1] or score[j0 - 1] >= seed_dn
+                red_b = j == n or not mask[i, j] or score[j] >= seed_dn
+                if not (red_a and red_b):
                     continue
                 centre = 0.5 * (j0 + j - 1)
                 lim = max(seed_dn, CORE_SHARE * peak)

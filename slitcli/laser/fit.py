@@ -42,6 +42,11 @@ QUICK_Z = 2.5  # candidates less significant at their start are not fitted furth
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
 #: largest standard error (px) of a clipped core's centre fitted where it runs off the image
 BORDER_SE = 0.2
+#: largest peak of a clipped core, in units of the saturation level: a Gaussian of the
+#: sheet's width s peaking this far above clipping is clipped over 2 s sqrt(2 ln 10) =
+#: 4.3 s rows; a fit that needs a higher peak to span its plateau is a broad,
+#: flat-topped blob (a white highlight), not the sheet
+MAX_CLIP_GAIN = 10.0
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
@@ -536,6 +541,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     if nsat > 0:
         # clipped up to the image border: the plateau's far edge is not seen
         border = (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn)
+        if amp > MAX_CLIP_GAIN * sat_dn:
+            return False
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
         # its flanks alone leave amplitude and width ill-determined: a fit whose
