@@ -177,3 +177,29 @@ def test_rendered_grazing_cylinder_end_column(frame):
     end = int(np.flatnonzero(np.isfinite(t) & (np.arange(t.size) > 200)).max())
     assert r.truth.stripe_peak_dn[end] < 40.0 and abs(t[end] - t[end - 1]) >= 1.0
     assert abs(f.v_px[end] - t[end]) < 1.0 and not f.found[end + 1]
+
+
+def _floor_highlights(floor_rgb, noise_dn, highlights):
+    """A bare textured floor lit by white highlights (radius m, brightness), no laser."""
+    return {"slitcli_scene": 1, "name": "highlights", "seed": 3,
+            "floor": {"colour_rgb": list(floor_rgb), "texture": "noise", "scale_m": 0.01,
+                      "contrast": 0.3},
+            "highlights": [{"position_xyz_m": [x, y, 0.0], "radius_m": rad, "brightness": b}
+                           for x, y, rad, b in highlights],
+            "laser": {"enabled": False}, "image": {"noise_sigma_dn": noise_dn},
+            "robot": {"frames": 1}}
+
+
+@pytest.mark.parametrize(("floor_rgb", "noise_dn"), [((0.44, 0.61, 0.68), 6.6),
+                                                     ((0.46, 0.43, 0.63), 6.0),
+                                                     ((0.36, 0.65, 0.4), 4.8)])
+def test_rendered_saturated_white_highlights_are_not_the_laser(floor_rgb, noise_dn):
+    # white highlights on a blue, violet or green floor at 0.9-1.8 m, clipped over
+    # 4-12 rows: a clipped red channel alone is no laser core (its fringe is white,
+    # not red on both sides), nor is a flat top that a Gaussian of the sheet's width
+    # could only span with a peak thousands of times the saturation level
+    spots = [(0.92, -0.54, 0.04, 1.07), (0.94, 0.24, 0.0135, 1.84), (1.33, 0.34, 0.013, 1.53),
+             (1.05, 0.26, 0.037, 0.92), (1.80, -0.48, 0.035, 2.13), (1.20, 0.0, 0.03, 2.5)]
+    r, f, _ = _run(_floor_highlights(floor_rgb, noise_dn, spots))
+    assert (r.left_bgr[..., 2] >= PARAMS.saturation_dn).sum() >= 30  # the spots do clip
+    assert not f.found.any()
