@@ -17,6 +17,7 @@ from slitcli.laser.fit import (
     C_AMP,
     C_CHI2,
     C_CLUT,
+    C_EDGE,
     C_Z,
     N_FIELDS,
     N_WORK,
@@ -40,6 +41,13 @@ CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
 #: above all but CLUTTER_SHARE of the evidence around it
 MIN_CLUTTER_RATIO = 1.5
 CLUTTER_SHARE = 0.2
+#: one minus the cosine between the surface colours above and below beyond which a
+#: candidate sits on an edge between two surfaces (a red band ending at the floor)
+MAX_EDGE = 0.02
+#: evidence peaks per column taken in order of strength to fill the K fitted slots:
+#: a peak found on an edge between surfaces (never the stripe) frees its slot for the
+#: next, so a red object's two edges cannot hide the stripe between them
+N_SEEDS = 5
 
 
 @njit(cache=True, nogil=True)
@@ -212,9 +220,10 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     k_best = out.shape[1]
     res = np.empty(N_FIELDS)
     ws = np.empty((8, N_WORK))
-    rs = np.empty(k_best)
-    rc = np.empty(k_best)
-    rn = np.empty(k_best, np.int64)
+    n_seeds = max(k_best, N_SEEDS)
+    rs = np.empty(n_seeds)
+    rc = np.empty(n_seeds)
+    rn = np.empty(n_seeds, np.int64)
     score = np.empty(n)
     sat = np.empty(n, np.bool_)
     for i in range(i0, i1):
@@ -269,7 +278,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             run_n = b - a
             if run_n > max_run_px:
                 continue
-            if nk < k_best:
+            if nk < n_seeds:
                 slot = nk
                 nk += 1
             elif peak > rs[nk - 1]:
@@ -284,8 +293,12 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             rs[slot] = peak
             rc[slot] = centre
             rn[slot] = run_n
+        p = 0  # slots filled
+        r0q = 0  # the seed in slot 0
         for q in range(nk):
-            if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
+            if p == k_best:
+                break
+            if p > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[r0q]:
                 break  # Eq. 4 cannot prefer it to a strong first candidate
             s_core = 0.0
             if sheet_m > 0.0:
@@ -295,20 +308,25 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
                                False, ws, res):
                 continue
+            if res[C_EDGE] > MAX_EDGE and q + 1 < nk:
+                continue  # an edge between surfaces: the next seed takes the slot
+            if p == 0:
+                r0q = q
             for f in range(N_FIELDS):
-                out[i, q, f] = res[f]
+                out[i, p, f] = res[f]
             if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
-                out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
+                out[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
                                              sigma)
             # a faint candidate, in a column without a strong one, is fitted again on
             # the column averaged with its neighbours
-            strong = q > 0 and out[i, 0, C_Z] >= z_strong
+            strong = p > 0 and out[i, 0, C_Z] >= z_strong
             if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
                                 False, ws, res):
                 for f in range(N_FIELDS):
-                    out_avg[i, q, f] = res[f]
-                out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
+                    out_avg[i, p, f] = res[f]
+                out_avg[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
                                                  res[C_AMP], sigma)
+            p += 1
 
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.candidates import CLUTTER_SHARE
+from slitcli.laser.candidates import CLUTTER_SHARE, MAX_EDGE
 from slitcli.laser.fit import (
     AVG_VAR,
     C_AMP,
@@ -33,9 +33,6 @@ MIN_SIGMA_PX = 0.4
 EQ_WIDTH = 2.5
 #: reduced chi-square above which an unsaturated candidate is not a Gaussian stripe
 MAX_CHI2 = 8.0
-#: one minus the cosine between the surface colours above and below beyond which a
-#: candidate sits on an edge between two surfaces (a red band ending at the floor)
-MAX_EDGE = 0.02
 #: a stripe's implied sheet thickness may differ from the expected by this factor;
 #: amid clutter (a share of the evidence around above CLUTTER_SHEET_SHARE) by less
 SHEET_TOLERANCE = 1.6
