@@ -203,3 +203,37 @@ def test_rendered_saturated_white_highlights_are_not_the_laser(floor_rgb, noise_
     r, f, _ = _run(_floor_highlights(floor_rgb, noise_dn, spots))
     assert (r.left_bgr[..., 2] >= PARAMS.saturation_dn).sum() >= 30  # the spots do clip
     assert not f.found.any()
+
+
+def test_rendered_stripe_between_a_red_objects_edges():
+    # a green wall 1.0-1.2 m ahead behind a low red textured box (1.1 m, 23 cm tall)
+    # and a red cylinder: in the columns where the stripe on the wall (truth peak
+    # ~30 DN, noise 2.4 DN) runs between the box's top edge and its floor edge, those
+    # two edges are the strongest red evidence of the column; on an edge between two
+    # surfaces they are never the stripe and must not take the stripe's fitted slot
+    surf = {"texture": "noise", "scale_m": 0.04, "contrast": 0.66}
+    d = {"slitcli_scene": 1, "seed": 29,
+         "floor": {"colour_rgb": [0.39, 0.31, 0.3], "texture": "noise", "scale_m": 0.03,
+                   "contrast": 0.28},
+         "objects": [
+             {"type": "box", "centre_xy_m": [1.076, -0.485], "size_m": [0.265, 0.054, 0.228],
+              "yaw_deg": 49.46, "surface": {"colour_rgb": [0.747, 0.173, 0.071], **surf}},
+             {"type": "wall", "from_xy_m": [1.207, -0.359], "to_xy_m": [0.973, 0.096],
+              "height_m": 1.5, "surface": {"colour_rgb": [0.61, 0.84, 0.42], "texture": "noise",
+                                           "scale_m": 0.01, "contrast": 0.38}},
+             {"type": "cylinder", "centre_xy_m": [0.593, 0.185], "radius_m": 0.1,
+              "height_m": 0.75, "surface": {"colour_rgb": [0.865, 0.077, 0.191], "texture": "noise",
+                                            "scale_m": 0.02, "contrast": 0.27}}],
+         "laser": {"power_dn": 642.0}, "image": {"noise_sigma_dn": 2.43},
+         "robot": {"motion": "straight", "speed_mps": 0.1, "frames": 2, "frame_rate_hz": 5.0}}
+    r, f, lit = _run(d, 1)
+    s = _stats(r, f, lit)
+    assert s["vis"] >= 120 and s["false"] == 0 and s["wrong"] == 0
+    # the stripe on the box (the columns right of 230): its two edges used to take
+    # both fitted slots, and none of its 56 columns was found; its left half, where the
+    # box's red texture (contrast 0.66) swamps the 30 DN stripe, is still missed
+    t = r.truth.stripe_v_px
+    box = np.isfinite(t) & (np.arange(t.size) > 230)
+    assert box.sum() >= 50
+    assert (f.found & box).sum() >= 0.4 * box.sum()
+    assert np.abs(f.v_px[f.found & box] - t[f.found & box]).max() < 1.0
