@@ -17,7 +17,6 @@ from slitcli.laser.fit import (
     C_AMP,
     C_CHI2,
     C_CLUT,
-    C_EDGE,
     C_Z,
     N_FIELDS,
     N_WORK,
@@ -305,11 +304,11 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
                 if np.isfinite(gpx):
                     s_core = gpx * sheet_m
+            # on an edge between surfaces (never the stripe) a seed is not fitted
+            # while another is left to take the slot
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
-                               False, ws, res):
+                               False, MAX_EDGE if q + 1 < nk else 0.0, ws, res):
                 continue
-            if res[C_EDGE] > MAX_EDGE and q + 1 < nk:
-                continue  # an edge between surfaces: the next seed takes the slot
             if p == 0:
                 r0q = q
             for f in range(N_FIELDS):
@@ -322,7 +321,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             strong = p > 0 and out[i, 0, C_Z] >= z_strong
             if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                False, ws, res):
+                                False, 0.0, ws, res):
                 for f in range(N_FIELDS):
                     out_avg[i, p, f] = res[f]
                 out_avg[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],

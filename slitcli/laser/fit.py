@@ -90,7 +90,7 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
                 sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
-                fixed: bool, ws: np.ndarray,
+                fixed: bool, max_edge: float, ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -129,6 +129,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ``centre`` and the prior width (1.2 px without one): the matched filter of the
     expected profile there, unbiased in noise (the amplitude may be negative); the
     row's standard error is reported as infinite, the reduced chi-square as NaN.
+    ``max_edge > 0``: a window whose surface colours above and below differ by more
+    (the ``edge`` measure) is not fitted (False): the caller has another candidate
+    to try.
     """
     n = img.shape[1]
     c = math.floor(centre + 0.5)
@@ -228,6 +231,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                 nlg += xg
                 nlb += xb
     if sw < 3.0:
+        return False
+    if max_edge > 0.0 and 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
+            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb)) > max_edge:
         return False
     det = sw * sjj - sj * sj
     if det > 1e-9 and n_up >= 2 and n_lo >= 2:
