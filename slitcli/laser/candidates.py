@@ -43,6 +43,11 @@ CLUTTER_SHARE = 0.2
 #: one minus the cosine between the surface colours above and below beyond which a
 #: candidate sits on an edge between two surfaces (a red band ending at the floor)
 MAX_EDGE = 0.02
+#: largest mean square, per core row in noise variances, of the light a fit gives the
+#: laser across the plane of the laser colour and the surface colour
+#: (:data:`~slitcli.laser.fit.C_COLOUR`): 16 = 4 noise sigmas a row, beyond any noise
+#: (a stripe's rows in the stress set: median 0.8, 99.5 % below 7)
+MAX_COLOUR = 16.0
 #: evidence peaks per column taken in order of strength to fill the K fitted slots:
 #: a peak found on an edge between surfaces (never the stripe) frees its slot for the
 #: next, so a red object's two edges cannot hide the stripe between them

@@ -51,6 +51,7 @@ BORDER_SE = 0.2
 #: flat-topped blob (a white highlight), not the sheet
 MAX_CLIP_GAIN = 10.0
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
+COLOUR_CORE = 1.5  # rows within this many fitted sigmas of the centre: the colour check
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
 #: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
@@ -59,8 +60,8 @@ PIXEL_VAR = 2.0 / 27.0
 
 #: fields of a candidate row (last axis of the candidate table)
 (C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
- C_HVAR, C_SE_AMP) = range(12)
-N_FIELDS = 12
+ C_HVAR, C_SE_AMP, C_COLOUR) = range(13)
+N_FIELDS = 13
 N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
 
 
@@ -400,6 +401,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_WIDTH] = s
         out[C_Z] = z_quick
         out[C_SE_AMP] = math.sqrt(s00 / det2) * (s_prior / s_core if s_core > 0.0 else 1.0)
+        out[C_COLOUR] = 0.0
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.nan
         out[C_SAT] = 1.0 if nsat > 0 else 0.0
@@ -417,6 +419,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_WIDTH] = s
         out[C_Z] = z_quick
         out[C_SE_AMP] = math.sqrt(s00 / det2)
+        out[C_COLOUR] = 0.0
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.inf
         out[C_SAT] = 0.0
@@ -514,6 +517,36 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if border and (var_v > BORDER_SE * BORDER_SE or not 0.0 <= v0 <= n - 1.0):
             return False
     dot = nur * nlr + nug * nlg + nub * nlb
+    # the light the fit gives the laser must have the laser's colour: per core row the
+    # excess over the background lines, across the plane of the laser colour and the
+    # surface colour of the row's side (texture and shading scale that colour, the
+    # laser adds along l), is noise alone for a stripe; a band of another surface's
+    # colour between two others (an object's top face, a seam) leaves it there
+    cq = 0.0
+    nq = 0
+    for jj in range(m):
+        j = j0 + jj
+        if abs(j - v0) > max(COLOUR_CORE * s, 1.0):
+            continue
+        xr, xg, xb = win[0, jj], win[1, jj], win[2, jj]
+        if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
+            continue
+        d = j - c
+        if (j < v0 and n_up > 0) or n_lo == 0:
+            kr, kg, kb = ur_, ug_, ub_
+        else:
+            kr, kg, kb = lr_, lg_, lb_
+        # n = l x k, l = (1, XT, XT)
+        nr = XT * (kb - kg)
+        ng = XT * kr - kb
+        nb = kg - XT * kr
+        nn = math.sqrt(nr * nr + ng * ng + nb * nb)
+        if nn <= 0.0:
+            continue
+        q = (nr * (xr - ar - br * d) + ng * (xg - ag - bg_ * d) + nb * (xb - ab - bb * d)) / nn
+        cq += q * q
+        nq += 1
+    out[C_COLOUR] = cq / (nq * s2n) if nq > 0 else 0.0
     out[C_HVAR] = np.nan
     out[C_POS] = v0
     # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
