@@ -40,6 +40,18 @@ CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
 #: above all but CLUTTER_SHARE of the evidence around it
 MIN_CLUTTER_RATIO = 1.5
 CLUTTER_SHARE = 0.2
+#: one minus the cosine between the surface colours above and below beyond which a
+#: candidate sits on an edge between two surfaces (a red band ending at the floor)
+MAX_EDGE = 0.02
+#: largest mean square, per core row in noise variances, of the light a fit gives the
+#: laser across the plane of the laser colour and the surface colour
+#: (:data:`~slitcli.laser.fit.C_COLOUR`): 16 = 4 noise sigmas a row, beyond any noise
+#: (a stripe's rows in the stress set: median 0.8, 99.5 % below 7)
+MAX_COLOUR = 16.0
+#: evidence peaks per column taken in order of strength to fill the K fitted slots:
+#: a peak found on an edge between surfaces (never the stripe) frees its slot for the
+#: next, so a red object's two edges cannot hide the stripe between them
+N_SEEDS = 5
 
 
 @njit(cache=True, nogil=True)
@@ -179,8 +191,8 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
 
     Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
-    least ``seed_dn``, and saturated red plateaus next to a red pixel (one alone is
-    a white highlight). A candidate's extent is the stretch around it where the
+    least ``seed_dn``, and saturated red plateaus with red pixels on both sides (a white
+    highlight's fringe is white). A candidate's extent is the stretch around it where the
     evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
     surface is cut out of the surface's texture); longer than ``max_run_px``, it is
     a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
@@ -212,9 +224,10 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     k_best = out.shape[1]
     res = np.empty(N_FIELDS)
     ws = np.empty((8, N_WORK))
-    rs = np.empty(k_best)
-    rc = np.empty(k_best)
-    rn = np.empty(k_best, np.int64)
+    n_seeds = max(k_best, N_SEEDS)
+    rs = np.empty(n_seeds)
+    rc = np.empty(n_seeds)
+    rn = np.empty(n_seeds, np.int64)
     score = np.empty(n)
     sat = np.empty(n, np.bool_)
     for i in range(i0, i1):
@@ -231,8 +244,12 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 while j < n and sat[j] and score[j] >= seed_dn:
                     peak = max(peak, score[j])
                     j += 1
-                red = (j0 > 0 and score[j0 - 1] >= seed_dn) or (j < n and score[j] >= seed_dn)
-                if not red:
+                # a clipped laser core has red flanks on both sides (its light is red
+                # wherever it is not clipped); a white highlight's fringe is white, and
+                # noise or texture makes one side red only by chance
+                red_a = j0 == 0 or not mask[i, j0 - 1] or score[j0 - 1] >= seed_dn
+                red_b = j == n or not mask[i, j] or score[j] >= seed_dn
+                if not (red_a and red_b):
                     continue
                 centre = 0.5 * (j0 + j - 1)
                 lim = max(seed_dn, CORE_SHARE * peak)
@@ -265,7 +282,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             run_n = b - a
             if run_n > max_run_px:
                 continue
-            if nk < k_best:
+            if nk < n_seeds:
                 slot = nk
                 nk += 1
             elif peak > rs[nk - 1]:
@@ -280,31 +297,40 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             rs[slot] = peak
             rc[slot] = centre
             rn[slot] = run_n
+        p = 0  # slots filled
+        r0q = 0  # the seed in slot 0
         for q in range(nk):
-            if q > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[0]:
+            if p == k_best:
+                break
+            if p > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[r0q]:
                 break  # Eq. 4 cannot prefer it to a strong first candidate
             s_core = 0.0
             if sheet_m > 0.0:
                 gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
                 if np.isfinite(gpx):
                     s_core = gpx * sheet_m
+            # on an edge between surfaces (never the stripe) a seed is not fitted
+            # while another is left to take the slot
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
-                               False, ws, res):
+                               False, MAX_EDGE if q + 1 < nk else 0.0, ws, res):
                 continue
+            if p == 0:
+                r0q = q
             for f in range(N_FIELDS):
-                out[i, q, f] = res[f]
+                out[i, p, f] = res[f]
             if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
-                out[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
+                out[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
                                              sigma)
             # a faint candidate, in a column without a strong one, is fitted again on
             # the column averaged with its neighbours
-            strong = q > 0 and out[i, 0, C_Z] >= z_strong
+            strong = p > 0 and out[i, 0, C_Z] >= z_strong
             if not strong and support_z <= res[C_Z] < z_strong and \
                     fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                False, ws, res):
+                                False, 0.0, ws, res):
                 for f in range(N_FIELDS):
-                    out_avg[i, q, f] = res[f]
-                out_avg[i, q, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
+                    out_avg[i, p, f] = res[f]
+                out_avg[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
                                                  res[C_AMP], sigma)
+            p += 1
 
 

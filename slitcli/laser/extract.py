@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slitcli.laser import candidates, fit, select, track
+from slitcli.laser import candidates, fit, select, sheet, track
 from slitcli.laser.params import LaserParams
 
 #: candidates fitted per column
@@ -213,9 +213,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     if use_sheet:
         # the sheet's thickness is the rig's; where the frame shows it clearly (many
         # clean, strong columns agreeing) that value replaces the parameter
-        mode_m, support, voters = select.sheet_mode(cand, g_map_t, params.max_width_px)
-        if support >= select.MODE_SUPPORT and 2 * support >= voters and \
-                abs(math.log(mode_m / sheet_m)) > math.log(1.0 + select.MODE_WINDOW):
+        mode_m, support, voters = sheet.sheet_mode(cand, g_map_t, params.max_width_px)
+        if support >= sheet.MODE_SUPPORT and 2 * support >= voters and \
+                abs(math.log(mode_m / sheet_m)) > math.log(1.0 + sheet.MODE_WINDOW):
             sheet_m = mode_m
             candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     merged = select.merge_sources(cand, cand_avg, z_strong)

@@ -13,9 +13,10 @@ colour ``l = (1, XT, XT)`` (a red diode leaks ``XT`` of itself into green and bl
 ``n``: sensor noise, standard deviation ``sigma`` per channel. White light (lamp
 highlights) adds ``(1, 1, 1)``. The best linear estimate of ``A p(v)`` per row is the
 channel sum ``w . (x - background)`` with ``w . l = 1`` that minimises noise plus
-texture variance (generalised least squares, :func:`_gls`): on a grey or coloured
-surface the texture cancels; on a red surface (colour parallel to the laser) it
-cannot, and counts as noise. Saturated channels are left out of their row's sum.
+texture variance (generalised least squares,
+:func:`~slitcli.laser.lsq.gls_weights`): on a grey or coloured surface the texture
+cancels; on a red surface (colour parallel to the laser) it cannot, and counts as
+noise. Saturated channels are left out of their row's sum.
 A candidate's fit (:func:`fit_profile`) fills one row of the candidate table, whose
 fields are the ``C_*`` indices below.
 """
@@ -26,6 +27,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from slitcli.laser.lsq import gls_weights, normal_eq, solve4
 
 #: green and blue response to the red laser, fraction of the red response (a red
 #: diode seen through a Bayer colour filter; the renderer's default crosstalk)
@@ -42,7 +45,13 @@ QUICK_Z = 2.5  # candidates less significant at their start are not fitted furth
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
 #: largest standard error (px) of a clipped core's centre fitted where it runs off the image
 BORDER_SE = 0.2
+#: largest peak of a clipped core, in units of the saturation level: a Gaussian of the
+#: sheet's width s peaking this far above clipping is clipped over 2 s sqrt(2 ln 10) =
+#: 4.3 s rows; a fit that needs a higher peak to span its plateau is a broad,
+#: flat-topped blob (a white highlight), not the sheet
+MAX_CLIP_GAIN = 10.0
 S_PRIOR_SPREAD = 0.3  # relative spread of the prior on a stripe's width
+COLOUR_CORE = 1.5  # rows within this many fitted sigmas of the centre: the colour check
 #: extra variance across columns of the (1, 2, 1) / 4 column average, px^2
 AVG_VAR = 0.5
 #: variance a pixel's extent adds to a profile, px^2: the renderer averages 3 x 3
@@ -51,72 +60,9 @@ PIXEL_VAR = 2.0 / 27.0
 
 #: fields of a candidate row (last axis of the candidate table)
 (C_POS, C_AMP, C_WIDTH, C_Z, C_SE_POS, C_CHI2, C_SAT, C_TEX, C_CLUT, C_EDGE,
- C_HVAR, C_SE_AMP) = range(12)
-N_FIELDS = 12
+ C_HVAR, C_SE_AMP, C_COLOUR) = range(13)
+N_FIELDS = 13
 N_WORK = 2 * (FIT_HALF + 64) + 1  # longest fit window the workspace holds
-
-
-@njit(cache=True, nogil=True)
-def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray,
-            m: np.ndarray) -> bool:  # pragma: no cover
-    """Solve the 4x4 system ``a x = b`` (Gaussian elimination, partial pivoting) using
-    the (4, 5) scratch ``m``; False if singular."""
-    for r in range(4):
-        for c in range(4):
-            m[r, c] = a[r, c]
-        m[r, 4] = b[r]
-    for col in range(4):
-        piv = col
-        for r in range(col + 1, 4):
-            if abs(m[r, col]) > abs(m[piv, col]):
-                piv = r
-        if abs(m[piv, col]) < 1e-300:
-            return False
-        if piv != col:
-            for c in range(5):
-                t = m[col, c]
-                m[col, c] = m[piv, c]
-                m[piv, c] = t
-        for r in range(col + 1, 4):
-            f = m[r, col] / m[col, col]
-            for c in range(col, 5):
-                m[r, c] -= f * m[col, c]
-    for r in range(3, -1, -1):
-        s = m[r, 4]
-        for c in range(r + 1, 4):
-            s -= m[r, c] * x[c]
-        x[r] = s / m[r, r]
-    return True
-
-
-@njit(cache=True, nogil=True)
-def _gls(cov: np.ndarray, lr: float, lg: float, lb: float,
-         w: np.ndarray) -> float:  # pragma: no cover
-    """Best linear unbiased weights for a signal of colour ``l = (lr, lg, lb)`` in noise
-    of covariance ``cov`` (3x3, RGB): ``w = cov^-1 l / (l' cov^-1 l)`` written to ``w``;
-    returns the information ``l' cov^-1 l`` (inverse variance of ``w . x``), 0 if
-    ``cov`` is singular."""
-    a, b, c = cov[0, 0], cov[0, 1], cov[0, 2]
-    d, e, f = cov[1, 1], cov[1, 2], cov[2, 2]
-    i00 = d * f - e * e
-    i01 = c * e - b * f
-    i02 = b * e - c * d
-    i11 = a * f - c * c
-    i12 = b * c - a * e
-    i22 = a * d - b * b
-    det = a * i00 + b * i01 + c * i02
-    if abs(det) < 1e-300:
-        return 0.0
-    v0 = (i00 * lr + i01 * lg + i02 * lb) / det
-    v1 = (i01 * lr + i11 * lg + i12 * lb) / det
-    v2 = (i02 * lr + i12 * lg + i22 * lb) / det
-    info = lr * v0 + lg * v1 + lb * v2
-    if info <= 0.0:
-        return 0.0
-    w[0] = v0 / info
-    w[1] = v1 / info
-    w[2] = v2 / info
-    return info
 
 
 @njit(cache=True, nogil=True)
@@ -145,7 +91,7 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
                 sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
-                fixed: bool, ws: np.ndarray,
+                fixed: bool, max_edge: float, ws: np.ndarray,
                 out: np.ndarray) -> bool:  # pragma: no cover
     """Fit the laser profile near row ``centre`` of column ``i`` (module notes).
 
@@ -153,9 +99,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ``max(4, run_n / 2 + 2)`` rows from the centre; a constant where one side is cut
     off by the image border). Texture: the surface colour above and below (two
     colours where the window straddles an edge between surfaces), with the variance
-    of each flank about its line along its colour. Per row ``y = w . d`` (:func:`_gls`,
-    saturated channels left out) with its information as weight; then a weighted
-    Gauss-Newton fit of ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
+    of each flank about its line along its colour. Per row ``y = w . d``
+    (:func:`~slitcli.laser.lsq.gls_weights`, saturated channels left out) with its
+    information as weight; then a weighted Gauss-Newton fit of
+    ``y = offset + A exp(-(v - v0)^2 / (2 s^2))``.
 
     Writes the ``C_*`` fields of ``out``: v0, A (red DN; with ``s_core`` the peak
     before the pixels' blur), s (px), significance, standard error of v0, reduced
@@ -183,6 +130,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     ``centre`` and the prior width (1.2 px without one): the matched filter of the
     expected profile there, unbiased in noise (the amplitude may be negative); the
     row's standard error is reported as infinite, the reduced chi-square as NaN.
+    ``max_edge > 0``: a window whose surface colours above and below differ by more
+    (the ``edge`` measure) is not fitted (False): the caller has another candidate
+    to try.
     """
     n = img.shape[1]
     c = math.floor(centre + 0.5)
@@ -283,6 +233,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                 nlb += xb
     if sw < 3.0:
         return False
+    if max_edge > 0.0 and 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
+            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb)) > max_edge:
+        return False
     det = sw * sjj - sj * sj
     if det > 1e-9 and n_up >= 2 and n_lo >= 2:
         br = (sw * sjr - sj * sxr) / det
@@ -361,7 +314,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             lg = 0.0 if pat & 2 else XT
             lb = 0.0 if pat & 4 else XT
             a = lr * lr + lg * lg + lb * lb
-            info = _gls(sub, lr, lg, lb, wv) if a > 0.0 else 0.0
+            info = gls_weights(sub, lr, lg, lb, wv) if a > 0.0 else 0.0
             if info * max(s2n, 1e-6) <= 1e-4 * a:
                 info = 0.0
             info_c[pat] = info
@@ -448,6 +401,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_WIDTH] = s
         out[C_Z] = z_quick
         out[C_SE_AMP] = math.sqrt(s00 / det2) * (s_prior / s_core if s_core > 0.0 else 1.0)
+        out[C_COLOUR] = 0.0
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.nan
         out[C_SAT] = 1.0 if nsat > 0 else 0.0
@@ -465,6 +419,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_WIDTH] = s
         out[C_Z] = z_quick
         out[C_SE_AMP] = math.sqrt(s00 / det2)
+        out[C_COLOUR] = 0.0
         out[C_SE_POS] = np.inf
         out[C_CHI2] = np.inf
         out[C_SAT] = 0.0
@@ -478,7 +433,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     dx = ws[3, 48:52]
     scratch = ws[3, 52:72].reshape((4, 5))
     w_prior = 1.0 / (S_PRIOR_SPREAD * s_prior) ** 2 if s_prior > 0.0 else 0.0
-    chi = _normal_eq(y, wt, j0, m, off, amp, v0, s, h, g)
+    chi = normal_eq(y, wt, j0, m, off, amp, v0, s, h, g)
     chi += w_prior * (s - s_prior) ** 2
     h[3, 3] += w_prior
     g[3] += w_prior * (s_prior - s)
@@ -486,14 +441,14 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     for _ in range(MAX_ITER):
         for r in range(4):
             h[r, r] *= 1.0 + lam
-        solved = _solve4(h, g, dx, scratch)
+        solved = solve4(h, g, dx, scratch)
         for r in range(4):
             h[r, r] /= 1.0 + lam
         if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
             break  # at the minimum: h, the covariance, stays that of these parameters
         n_v0, n_s = v0 + dx[2], s + dx[3]
         if solved and 0.3 <= n_s <= 8.0 and abs(n_v0 - centre) <= half - 1:
-            n_chi = _normal_eq(y, wt, j0, m, off + dx[0], amp + dx[1], n_v0, n_s, ht, gt)
+            n_chi = normal_eq(y, wt, j0, m, off + dx[0], amp + dx[1], n_v0, n_s, ht, gt)
             n_chi += w_prior * (n_s - s_prior) ** 2
             ht[3, 3] += w_prior
             gt[3] += w_prior * (s_prior - n_s)
@@ -522,12 +477,12 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     for r in range(4):
         unit[r] = 0.0
     unit[1] = 1.0
-    if not _solve4(h, unit, col, scratch):
+    if not solve4(h, unit, col, scratch):
         return False
     var_a = col[1]
     unit[1] = 0.0
     unit[2] = 1.0
-    if not _solve4(h, unit, col, scratch):
+    if not solve4(h, unit, col, scratch):
         return False
     var_v = col[2]
     if not (amp > 0.0 and var_a > 0.0 and var_v > 0.0):
@@ -536,6 +491,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     if nsat > 0:
         # clipped up to the image border: the plateau's far edge is not seen
         border = (j0 == 0 and win[0, 0] >= sat_dn) or (j1 == n and win[0, m - 1] >= sat_dn)
+        if amp > MAX_CLIP_GAIN * sat_dn:
+            return False
         # a clipped core: how far saturation lies above what the surface reaches
         z = max(z, (sat_dn - ar) / math.sqrt(s2n + cov[0, 0]))
         # its flanks alone leave amplitude and width ill-determined: a fit whose
@@ -560,6 +517,36 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if border and (var_v > BORDER_SE * BORDER_SE or not 0.0 <= v0 <= n - 1.0):
             return False
     dot = nur * nlr + nug * nlg + nub * nlb
+    # the light the fit gives the laser must have the laser's colour: per core row the
+    # excess over the background lines, across the plane of the laser colour and the
+    # surface colour of the row's side (texture and shading scale that colour, the
+    # laser adds along l), is noise alone for a stripe; a band of another surface's
+    # colour between two others (an object's top face, a seam) leaves it there
+    cq = 0.0
+    nq = 0
+    for jj in range(m):
+        j = j0 + jj
+        if abs(j - v0) > max(COLOUR_CORE * s, 1.0):
+            continue
+        xr, xg, xb = win[0, jj], win[1, jj], win[2, jj]
+        if xr >= sat_dn or xg >= sat_dn or xb >= sat_dn:
+            continue
+        d = j - c
+        if (j < v0 and n_up > 0) or n_lo == 0:
+            kr, kg, kb = ur_, ug_, ub_
+        else:
+            kr, kg, kb = lr_, lg_, lb_
+        # n = l x k, l = (1, XT, XT)
+        nr = XT * (kb - kg)
+        ng = XT * kr - kb
+        nb = kg - XT * kr
+        nn = math.sqrt(nr * nr + ng * ng + nb * nb)
+        if nn <= 0.0:
+            continue
+        q = (nr * (xr - ar - br * d) + ng * (xg - ag - bg_ * d) + nb * (xb - ab - bb * d)) / nn
+        cq += q * q
+        nq += 1
+    out[C_COLOUR] = cq / (nq * s2n) if nq > 0 else 0.0
     out[C_HVAR] = np.nan
     out[C_POS] = v0
     # the pixels' extent lowers a narrow stripe's peak; where the sheet's width here
@@ -575,52 +562,3 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     out[C_EDGE] = 1.0 - dot / math.sqrt((nur * nur + nug * nug + nub * nub)
                                         * (nlr * nlr + nlg * nlg + nlb * nlb))
     return True
-
-
-@njit(cache=True, nogil=True)
-def _normal_eq(y: np.ndarray, wt: np.ndarray, j0: int, m: int, off: float, amp: float,
-               v0: float, s: float, h: np.ndarray, g: np.ndarray) -> float:  # pragma: no cover
-    """Weighted chi-square of the profile model at (off, amp, v0, s), with the
-    Gauss-Newton normal equations ``h = J' W J`` (4x4) and ``g = J' W r`` there."""
-    chi = 0.0
-    for r in range(4):
-        g[r] = 0.0
-        for q in range(r, 4):
-            h[r, q] = 0.0
-    # the Gaussian at successive rows by recurrence (two exponentials per pass)
-    t = (j0 - v0) / s
-    e_next = math.exp(-0.5 * t * t)
-    ratio = math.exp(-t / s - 0.5 / (s * s))
-    step = math.exp(-1.0 / (s * s))
-    for jj in range(m):
-        e = e_next
-        e_next = e * ratio
-        ratio *= step
-        t = (j0 + jj - v0) / s
-        wj = wt[jj]
-        if wj == 0.0:
-            continue
-        res = y[jj] - (off + amp * e)
-        chi += wj * res * res
-        j2 = amp * e * t / s
-        j3 = j2 * t
-        g[0] += wj * res
-        g[1] += wj * e * res
-        g[2] += wj * j2 * res
-        g[3] += wj * j3 * res
-        h[0, 0] += wj
-        h[0, 1] += wj * e
-        h[0, 2] += wj * j2
-        h[0, 3] += wj * j3
-        h[1, 1] += wj * e * e
-        h[1, 2] += wj * e * j2
-        h[1, 3] += wj * e * j3
-        h[2, 2] += wj * j2 * j2
-        h[2, 3] += wj * j2 * j3
-        h[3, 3] += wj * j3 * j3
-    for r in range(4):
-        for q in range(r):
-            h[r, q] = h[q, r]
-    return chi
-
-

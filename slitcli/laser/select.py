@@ -12,12 +12,13 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.candidates import CLUTTER_SHARE
+from slitcli.laser.candidates import CLUTTER_SHARE, MAX_COLOUR, MAX_EDGE
 from slitcli.laser.fit import (
     AVG_VAR,
     C_AMP,
     C_CHI2,
     C_CLUT,
+    C_COLOUR,
     C_EDGE,
     C_HVAR,
     C_POS,
@@ -26,28 +27,15 @@ from slitcli.laser.fit import (
     C_Z,
     PIXEL_VAR,
 )
+from slitcli.laser.sheet import EQ_WIDTH, MIN_SIGMA_PX, sheet_sigma_m
 
-#: narrowest plausible Gaussian sigma of a stripe across a column, px
-MIN_SIGMA_PX = 0.4
-#: a Gaussian's equivalent width (sum / peak) in sigmas, rounded: sigma <= max_width / 2.5
-EQ_WIDTH = 2.5
 #: reduced chi-square above which an unsaturated candidate is not a Gaussian stripe
 MAX_CHI2 = 8.0
-#: one minus the cosine between the surface colours above and below beyond which a
-#: candidate sits on an edge between two surfaces (a red band ending at the floor)
-MAX_EDGE = 0.02
 #: a stripe's implied sheet thickness may differ from the expected by this factor;
 #: amid clutter (a share of the evidence around above CLUTTER_SHEET_SHARE) by less
 SHEET_TOLERANCE = 1.6
 CLUTTER_SHEET_SHARE = 0.04
 CLUTTER_SHEET_TOLERANCE = 1.3
-#: the frame's own sheet thickness: candidates at least MODE_Z significant with a
-#: reduced chi-square of at most MODE_CHI2 vote; the densest window of relative
-#: half-width MODE_WINDOW wins when it holds MODE_SUPPORT of them and half of all
-MODE_Z = 12.0
-MODE_CHI2 = 3.0
-MODE_WINDOW = 0.12
-MODE_SUPPORT = 16
 #: a weak candidate of the averaged columns must be backed by a candidate of the
 #: column itself this close (px) and at least this significant
 SUPPORT_PX = 1.5
@@ -82,20 +70,6 @@ SMOOTH_HALF = 4
 SMOOTH_MIN_SE = 0.02
 #: a second difference of the rows beyond this (and four times its noise) is a corner
 SMOOTH_CORNER_PX = 0.5
-
-
-@njit(cache=True, nogil=True)
-def sheet_sigma_m(width_px: float, slope: float, hvar_px2: float,
-                  g_px_per_m: float) -> float:  # pragma: no cover
-    """Laser-sheet thickness (Gaussian sigma, metres) implied by a fitted stripe width.
-
-    Across one column the profile is the sheet's thickness seen on an upright surface,
-    ``g_px_per_m`` pixels per metre of height there, widened by the pixel's extent
-    (``PIXEL_VAR``) and, along a stripe of slope ``dv/du``, by ``slope^2`` times the
-    variance of the sampling across columns (``hvar_px2``).
-    """
-    core = width_px * width_px - PIXEL_VAR - slope * slope * hvar_px2
-    return math.sqrt(max(core, 0.04)) / g_px_per_m
 
 
 @njit(cache=True, nogil=True)
@@ -147,7 +121,7 @@ def _valid(cand: np.ndarray, u: int, q: int, sigma: float, max_width_px: float,
         return False
     if cand[u, q, C_SAT] > 0:
         return True
-    if cand[u, q, C_CHI2] > MAX_CHI2:
+    if cand[u, q, C_CHI2] > MAX_CHI2 or cand[u, q, C_COLOUR] > MAX_COLOUR:
         return False
     return cand[u, q, C_CLUT] <= CLUTTER_SHARE
 
@@ -505,63 +479,6 @@ def gap_rows(v: np.ndarray, keep: np.ndarray, max_jump_px: float, cols: np.ndarr
                 m += 1
         last = u
     return m
-
-
-@njit(cache=True, nogil=True)
-def sheet_mode(cand: np.ndarray, g_map: np.ndarray,
-               max_width_px: float) -> tuple[float, int, int]:  # pragma: no cover
-    """The laser sheet's thickness as the frame shows it (metres), and its support.
-
-    Clean, strong candidates (significance ``MODE_Z``, reduced chi-square at most
-    ``MODE_CHI2``, no clutter or edge, unsaturated, with a neighbouring column's
-    candidate within a row) imply a thickness each
-    (:func:`sheet_sigma_m`, slope 0); all the stripe's columns share one, texture
-    spreads. Returns the centre of the densest window of relative half-width
-    ``MODE_WINDOW``, how many fall in it and how many voted. ``g_map`` is (W, H),
-    rows per metre."""
-    w_cols, k = cand.shape[0], cand.shape[1]
-    h = g_map.shape[1]
-    vals = np.empty(w_cols * k)
-    n = 0
-    for u in range(w_cols):
-        for q in range(k):
-            if not np.isfinite(cand[u, q, C_POS]) or cand[u, q, C_SAT] > 0:
-                continue
-            if cand[u, q, C_Z] < MODE_Z or cand[u, q, C_CHI2] > MODE_CHI2 or \
-                    cand[u, q, C_CLUT] > 0.0 or cand[u, q, C_EDGE] > 0.5 * MAX_EDGE:
-                continue
-            w = cand[u, q, C_WIDTH]
-            if w < MIN_SIGMA_PX or w > max_width_px / EQ_WIDTH:
-                continue
-            # a flat stretch (a neighbour within a row): on a steep one the pixel's
-            # width adds slope-dependent spread
-            flat = False
-            for d in (-1, 1):
-                if 0 <= u + d < w_cols:
-                    for r in range(k):
-                        if abs(cand[u + d, r, C_POS] - cand[u, q, C_POS]) <= 1.0:
-                            flat = True
-            if not flat:
-                continue
-            row = min(max(int(cand[u, q, C_POS] + 0.5), 0), h - 1)
-            g = g_map[u, row]
-            if np.isfinite(g) and g > 0.0:
-                vals[n] = math.log(sheet_sigma_m(w, 0.0, PIXEL_VAR, g))
-                n += 1
-    if n == 0:
-        return 0.0, 0, 0
-    x = np.sort(vals[:n])
-    half = math.log(1.0 + MODE_WINDOW)
-    best = 0
-    best_c = x[0]
-    b = 0
-    for a in range(n):
-        while b < n and x[b] - x[a] <= 2.0 * half:
-            b += 1
-        if b - a > best:
-            best = b - a
-            best_c = x[(a + b - 1) // 2]
-    return math.exp(best_c), best, n
 
 
 @njit(cache=True, nogil=True)

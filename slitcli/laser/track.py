@@ -92,7 +92,7 @@ def _fit_at(img: np.ndarray, cols: np.ndarray, rows: np.ndarray, slopes: np.ndar
         sl = slopes[k]
         for averaged in (False, True):
             if fit_profile(img, i, c, 3, sigma_avg if averaged else sigma, sat_dn, s_max,
-                           s_core, sl, averaged, False, ws, res):
+                           s_core, sl, averaged, False, 0.0, ws, res):
                 if not np.isfinite(out[k, C_Z]) or res[C_Z] > out[k, C_Z]:
                     for f in range(N_FIELDS):
                         out[k, f] = res[f]
@@ -214,7 +214,7 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
                     mf[f] = pick[x - d, f]
                 mf[C_POS] = pred
             elif not fit_profile(img, x, pred, 3, sigma_avg, sat_dn, s_max, s_core, slope,
-                                 True, True, ws, mf):
+                                 True, True, 0.0, ws, mf):
                 break
             _window_put(wa, wi, slot, mf[C_AMP], mf[C_SE_AMP])
             slot = (slot + 1) % TRACK_WINDOW
@@ -226,7 +226,7 @@ def track_ends(img: np.ndarray, pick: np.ndarray, keep: np.ndarray, tracked: np.
             # TRACK_PENDING columns in a row may fall short (noise), the next one that
             # does not vouches for them
             passed = clipped or (fit_profile(
-                img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, ws,
+                img, x, pred, 3, sigma, sat_dn, s_max, s_core, slope, False, True, 0.0, ws,
                 one) and (one[C_SAT] > 0.0 or
                           one[C_AMP] >= share * max(_window_mean(wa, wi), min_peak_dn)))
             r = pend[n_pend]
