@@ -85,10 +85,12 @@ def test_textureless_surfaces_are_invalid_not_guessed(corridor):
 # One textureless object of each kind before the textured corridor of SCENE, lit by the
 # laser; measured (docs/stereo.md): 97.4 %, 96.1 %, 96.2 % and 98.6 % invalid.
 _PLAIN_OBJECTS = {
-    "box 0.5 m wide at 1.2 m": [{"type": "box", "centre_xy_m": [1.2, 0.0], "size_m": [0.4, 0.5, 0.6],
-                                 "surface": _surface("plain", [0.7, 0.7, 0.68])}],
-    "cylinder 0.2 m across at 0.9 m": [{"type": "cylinder", "centre_xy_m": [0.9, 0.1], "radius_m": 0.1,
-                                        "height_m": 0.7, "surface": _surface("plain", [0.7, 0.7, 0.68])}],
+    "box 0.5 m wide at 1.2 m": [
+        {"type": "box", "centre_xy_m": [1.2, 0.0], "size_m": [0.4, 0.5, 0.6],
+         "surface": _surface("plain", [0.7, 0.7, 0.68])}],
+    "cylinder 0.2 m across at 0.9 m": [
+        {"type": "cylinder", "centre_xy_m": [0.9, 0.1], "radius_m": 0.1, "height_m": 0.7,
+         "surface": _surface("plain", [0.7, 0.7, 0.68])}],
     "two boxes at 2-3 m": [
         {"type": "box", "centre_xy_m": [2.0, -0.4], "size_m": [0.3, 0.4, 0.5], "yaw_deg": 20,
          "surface": _surface("plain", [0.5, 0.55, 0.6])},
@@ -179,10 +181,11 @@ def test_silhouette_trim_removes_spill_onto_a_plain_background():
     frame = render_frame(scene, rig, scene.poses(1)[0])
     objects = np.isin(frame.truth.object_id, [1, 2])
     counts = {}
-    for reach in (0, 4):
+    for reach in (0, ObstacleParams().silhouette_reach_px):
         params = StereoParams(obstacles=ObstacleParams(silhouette_reach_px=reach))
         mask = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, params).obstacle_mask
         counts[reach] = ((mask & ~objects).sum(), (mask & objects).sum())
+    trimmed = counts[ObstacleParams().silhouette_reach_px]
     assert counts[0][0] >= 100                      # the spill exists
-    assert counts[4][0] <= 0.7 * counts[0][0]       # most of it goes
-    assert counts[4][1] >= 0.97 * counts[0][1]      # the objects stay
+    assert trimmed[0] <= 0.7 * counts[0][0]         # most of it goes
+    assert trimmed[1] >= 0.97 * counts[0][1]        # the objects stay

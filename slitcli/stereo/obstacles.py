@@ -24,9 +24,10 @@ direction to be trusted (fusion falls back to the laser where it did not).
 Before the bins are filled, obstacle runs are cut back to the object's silhouette where
 they end on a plain background (:func:`trim_silhouettes`): a matching window that still
 holds a textured object's edge matches the plain pixels beside it at the object's
-disparity, which carries the object up to half a window past its silhouette, often
-across a bearing-bin boundary (a phantom obstacle in a free bin). The silhouette is
-the outermost intensity step within that reach; the plain pixels beyond it carry no
+disparity, which carries the object up to half a window past its silhouette (and
+the prefilter's local mean half its size farther: 8 px with the defaults), often across
+a bearing-bin boundary (a phantom obstacle in a free bin). The silhouette is the
+outermost intensity step within that reach; the plain pixels beyond it carry no
 evidence of their own.
 """
 
@@ -59,7 +60,7 @@ class ObstacleParams:
     range_percentile: float = 10.0
     min_obstacle_px: int = 8
     min_feature_px: int = 20
-    silhouette_reach_px: int = 4
+    silhouette_reach_px: int = 8
     silhouette_step_dn: float = 8.0
     silhouette_same_px: float = 1.0
 
