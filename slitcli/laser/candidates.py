@@ -17,6 +17,7 @@ from slitcli.laser.fit import (
     C_AMP,
     C_CHI2,
     C_CLUT,
+    C_SAT,
     C_Z,
     N_FIELDS,
     N_WORK,
@@ -313,6 +314,12 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             # while another is left to take the slot
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
                                False, MAX_EDGE if q + 1 < nk else 0.0, ws, res):
+                continue
+            # a fit below support_z can never count (not valid, not refitted on the
+            # averaged columns, backs no averaged one): on a red textured surface the
+            # texture's blobs outrank a (clipped) stripe's evidence and would fill the
+            # slots, so such a fit frees its slot for the next seed
+            if res[C_Z] < support_z and res[C_SAT] == 0.0:
                 continue
             if p == 0:
                 r0q = q
