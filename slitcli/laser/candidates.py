@@ -253,6 +253,10 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 if not (red_a and red_b):
                     continue
                 centre = 0.5 * (j0 + j - 1)
+                # the clipped pixels' contrast understates the core (its flanks can
+                # show more): the seed ranks by its brightest flank when that is higher
+                rank = max(peak, score[j0 - 1] if j0 > 0 else 0.0,
+                           score[j] if j < n else 0.0)
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j0
                 while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
@@ -272,6 +276,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                     continue
                 peak = score[j]
                 centre = float(j)
+                rank = peak
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j
                 while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
@@ -286,16 +291,16 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             if nk < n_seeds:
                 slot = nk
                 nk += 1
-            elif peak > rs[nk - 1]:
+            elif rank > rs[nk - 1]:
                 slot = nk - 1
             else:
                 continue
-            while slot > 0 and rs[slot - 1] < peak:
+            while slot > 0 and rs[slot - 1] < rank:
                 rs[slot] = rs[slot - 1]
                 rc[slot] = rc[slot - 1]
                 rn[slot] = rn[slot - 1]
                 slot -= 1
-            rs[slot] = peak
+            rs[slot] = rank
             rc[slot] = centre
             rn[slot] = run_n
         p = 0  # slots filled
@@ -314,12 +319,6 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             # while another is left to take the slot
             if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
                                False, MAX_EDGE if q + 1 < nk else 0.0, ws, res):
-                continue
-            # a fit below support_z can never count (not valid, not refitted on the
-            # averaged columns, backs no averaged one): on a red textured surface the
-            # texture's blobs outrank a (clipped) stripe's evidence and would fill the
-            # slots, so such a fit frees its slot for the next seed
-            if res[C_Z] < support_z and res[C_SAT] == 0.0:
                 continue
             if p == 0:
                 r0q = q
