@@ -17,7 +17,6 @@ from slitcli.laser.fit import (
     C_AMP,
     C_CHI2,
     C_CLUT,
-    C_SAT,
     C_Z,
     N_FIELDS,
     N_WORK,
