@@ -195,8 +195,10 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     highlight's fringe is white). A candidate's extent is the stretch around it where the
     evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
     surface is cut out of the surface's texture); longer than ``max_run_px``, it is
-    a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
-    are not refined), with ``C_CLUT`` from
+    a red object. Seeds rank by their evidence peak (a clipped plateau by its
+    brightest flank where that is higher: on a red surface the clipped pixels keep
+    only ``255`` less the surface's red). Each is fitted by :func:`fit_profile`
+    (widths beyond ``s_max`` px are not refined), with ``C_CLUT`` from
     :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
     faint stripe, or noise) is fitted again on the column averaged with its
     neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
