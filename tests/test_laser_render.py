@@ -163,6 +163,45 @@ def test_rendered_wide_red_wall_with_and_without_the_laser():
         assert not f.found.any()
 
 
+def _red_box(contrast, power_dn, noise_dn):
+    # a red box 0.6 m wide, its front 0.8 m ahead, 1 cm noise texture
+    return {"slitcli_scene": 1, "seed": 5,
+            "objects": [{"type": "box", "centre_xy_m": [0.9, 0.0], "size_m": [0.2, 0.6, 0.5],
+                         "yaw_deg": 0.0,
+                         "surface": {"colour_rgb": list(RED), "texture": "noise",
+                                     "scale_m": 0.01, "contrast": contrast}}],
+            "laser": {"power_dn": power_dn}, "image": {"noise_sigma_dn": noise_dn},
+            "robot": {"frames": 1}}
+
+
+@pytest.mark.parametrize(("contrast", "power_dn", "noise_dn"), [
+    # the stripe clips on the box (truth peaks 175-240 DN over a red level of 80-200);
+    # texture blobs next to the core reach more red contrast than the clipped pixels
+    (0.8, 900.0, 8.0),
+    (0.5, 500.0, 5.0),
+])
+def test_rendered_red_textured_box_laser_not_the_texture(contrast, power_dn, noise_dn):
+    r, f, _ = _run(_red_box(contrast, power_dn, noise_dn))
+    t = r.truth.stripe_v_px
+    cols = np.flatnonzero(np.isfinite(t))
+    rows = np.clip(np.rint(t[cols]).astype(int), 0, RIG.height_px - 1)
+    on_box = cols[r.truth.object_id[rows, cols] == 1]
+    assert on_box.size >= 150
+    dv = np.abs(np.nan_to_num(f.v_px[on_box] - t[on_box], nan=9.0))
+    assert (dv < 0.5).mean() >= 0.95
+    # no column off the stripe: every reported row is on the truth's stripe, or is the
+    # end column next to the box's last lit column (it sees part of the lit face)
+    found = np.flatnonzero(f.found)
+    on_stripe = np.abs(np.nan_to_num(f.v_px[found] - t[found], nan=9.0)) < 1.5
+    beside = np.zeros(found.size, bool)
+    for d in (-1, 1):
+        nb = np.clip(found + d, 0, t.size - 1)
+        beside |= np.isnan(t[found]) & (np.abs(np.nan_to_num(f.v_px[found] - t[nb], nan=9.0))
+                                         < 1.5)
+    assert (on_stripe | beside).all()
+    assert beside.sum() <= 2
+
+
 @pytest.mark.parametrize("frame", [8, 9, 10])
 def test_rendered_grazing_cylinder_end_column(frame):
     # the corridor's textureless cylinder at 500 DN: towards its right edge the stripe

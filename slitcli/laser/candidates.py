@@ -195,8 +195,10 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     highlight's fringe is white). A candidate's extent is the stretch around it where the
     evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
     surface is cut out of the surface's texture); longer than ``max_run_px``, it is
-    a red object. Each is fitted by :func:`fit_profile` (widths beyond ``s_max`` px
-    are not refined), with ``C_CLUT`` from
+    a red object. Seeds rank by their evidence peak (a clipped plateau by its
+    brightest flank where that is higher: on a red surface the clipped pixels keep
+    only ``255`` less the surface's red). Each is fitted by :func:`fit_profile`
+    (widths beyond ``s_max`` px are not refined), with ``C_CLUT`` from
     :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
     faint stripe, or noise) is fitted again on the column averaged with its
     neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
@@ -252,6 +254,10 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 if not (red_a and red_b):
                     continue
                 centre = 0.5 * (j0 + j - 1)
+                # the clipped pixels' contrast understates the core (its flanks can
+                # show more): the seed ranks by its brightest flank when that is higher
+                rank = max(peak, score[j0 - 1] if j0 > 0 else 0.0,
+                           score[j] if j < n else 0.0)
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j0
                 while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
@@ -271,6 +277,7 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                     continue
                 peak = score[j]
                 centre = float(j)
+                rank = peak
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j
                 while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
@@ -285,16 +292,16 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
             if nk < n_seeds:
                 slot = nk
                 nk += 1
-            elif peak > rs[nk - 1]:
+            elif rank > rs[nk - 1]:
                 slot = nk - 1
             else:
                 continue
-            while slot > 0 and rs[slot - 1] < peak:
+            while slot > 0 and rs[slot - 1] < rank:
                 rs[slot] = rs[slot - 1]
                 rc[slot] = rc[slot - 1]
                 rn[slot] = rn[slot - 1]
                 slot -= 1
-            rs[slot] = peak
+            rs[slot] = rank
             rc[slot] = centre
             rn[slot] = run_n
         p = 0  # slots filled

@@ -43,6 +43,8 @@ CONVERGED_PX = 0.02  # a fit has converged when its centre moves less (px)
 CONVERGED_REL_S = 0.05  # and its width less than this share of itself
 QUICK_Z = 2.5  # candidates less significant at their start are not fitted further
 MIN_SAT_SIGMA = 0.5  # a saturated fit narrower than this (px) has collapsed
+#: rows from a saturated fit's centre within which a clipped plateau is its core
+PLATEAU_REACH = 2
 #: largest standard error (px) of a clipped core's centre fitted where it runs off the image
 BORDER_SE = 0.2
 #: largest peak of a clipped core, in units of the saturation level: a Gaussian of the
@@ -499,6 +501,21 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         # centre left the clipped plateau (or that collapsed) gives way to the
         # midpoint of the plateau's two edges
         cc = min(max(c - j0, 0), m - 1)
+        if win[0, cc] < sat_dn:
+            # a seed beside the clipped core (bright red texture next to it) fits
+            # the core's flanks as well: a red clipped plateau (a white highlight
+            # clips green and blue too) within PLATEAU_REACH rows of its centre is
+            # the one it must stay on
+            vc = min(max(int(v0 - j0 + 0.5), 0), m - 1)
+            for dd in range(PLATEAU_REACH + 1):
+                if vc - dd >= 0 and win[0, vc - dd] >= sat_dn and \
+                        max(win[1, vc - dd], win[2, vc - dd]) < sat_dn:
+                    cc = vc - dd
+                    break
+                if vc + dd < m and win[0, vc + dd] >= sat_dn and \
+                        max(win[1, vc + dd], win[2, vc + dd]) < sat_dn:
+                    cc = vc + dd
+                    break
         if win[0, cc] >= sat_dn:
             ja = cc
             while ja > 0 and win[0, ja - 1] >= sat_dn:
