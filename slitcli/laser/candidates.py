@@ -174,11 +174,15 @@ def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centr
     lim = math.sqrt(max(lim * lim - sigma * sigma, 0.0))
     nn = 0
     above = 0
-    for jj in range(max(c - CLUTTER_HALF, 0), min(c + CLUTTER_HALF + 1, n)):
-        if abs(jj - c) > hw and mask[i, jj] and not sat[jj]:
-            nn += 1
-            if score[jj] > lim:
-                above += 1
+    # the rows above the core, then below it (counts without branches)
+    for jj in range(max(c - CLUTTER_HALF, 0), min(c - hw, n)):
+        use = mask[i, jj] & (not sat[jj])
+        nn += use
+        above += use & (score[jj] > lim)
+    for jj in range(max(c + hw + 1, 0), min(c + CLUTTER_HALF + 1, n)):
+        use = mask[i, jj] & (not sat[jj])
+        nn += use
+        above += use & (score[jj] > lim)
     return above / nn if nn > 0 else 0.0
 
 
@@ -251,34 +255,45 @@ def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
                 red_b = j == n or not mask[i, j] or score[j] >= seed_dn
                 if not (red_a and red_b):
                     continue
+                if nk == n_seeds and peak <= rs[nk - 1]:
+                    continue  # weaker than every kept seed: its extent does not matter
                 centre = 0.5 * (j0 + j - 1)
                 lim = max(seed_dn, CORE_SHARE * peak)
+                # the extent's walks stop once it is longer than max_run_px (then a red
+                # object, whatever its length): red surfaces hold many texture maxima
                 a = j0
-                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                while a > 0 and j - a <= max_run_px and score[a - 1] >= lim and \
+                        not sat[a - 1]:
                     a -= 1
                 b = j
-                while b < n and score[b] >= lim and not sat[b]:
+                while b < n and b - a <= max_run_px and score[b] >= lim and not sat[b]:
                     b += 1
             else:
-                is_max = True
+                beaten = -1
                 for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
                     if q != j and (score[q] > score[j] or (score[q] == score[j] and q < j)
                                    or sat[q]):
-                        is_max = False
+                        beaten = q
                         break
-                if not is_max:
-                    j += 1
+                if beaten >= 0:
+                    # the rows between j and a later row that beats it are no higher
+                    # than j and unsaturated: that row beats them too
+                    j = max(beaten, j + 1)
                     continue
                 peak = score[j]
+                if nk == n_seeds and peak <= rs[nk - 1]:
+                    j += NMS_HALF + 1  # (the next NMS_HALF rows are below j: no maxima)
+                    continue
                 centre = float(j)
                 lim = max(seed_dn, CORE_SHARE * peak)
                 a = j
-                while a > 0 and score[a - 1] >= lim and not sat[a - 1]:
+                while a > 0 and j + 1 - a <= max_run_px and score[a - 1] >= lim and \
+                        not sat[a - 1]:
                     a -= 1
                 b = j + 1
-                while b < n and score[b] >= lim and not sat[b]:
+                while b < n and b - a <= max_run_px and score[b] >= lim and not sat[b]:
                     b += 1
-                j += 1
+                j += NMS_HALF + 1
             run_n = b - a
             if run_n > max_run_px:
                 continue

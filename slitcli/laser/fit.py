@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.lsq import gls_weights, normal_eq, solve4
+from slitcli.laser.lsq import gls_weights, inverse_diag12, normal_eq, solve4
 
 #: green and blue response to the red laser, fraction of the red response (a red
 #: diode seen through a Bayer colour filter; the renderer's default crosstalk)
@@ -439,11 +439,13 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     g[3] += w_prior * (s_prior - s)
     lam = 0.0
     for _ in range(MAX_ITER):
-        for r in range(4):
-            h[r, r] *= 1.0 + lam
+        if lam != 0.0:  # (undamped: scaling by one is the identity, skipped)
+            for r in range(4):
+                h[r, r] *= 1.0 + lam
         solved = solve4(h, g, dx, scratch)
-        for r in range(4):
-            h[r, r] /= 1.0 + lam
+        if lam != 0.0:
+            for r in range(4):
+                h[r, r] /= 1.0 + lam
         if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
             break  # at the minimum: h, the covariance, stays that of these parameters
         n_v0, n_s = v0 + dx[2], s + dx[3]
@@ -458,10 +460,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                 v0 = n_v0
                 s = n_s
                 chi = n_chi
-                for r in range(4):
-                    g[r] = gt[r]
-                    for q in range(4):
-                        h[r, q] = ht[r, q]
+                # the trial's normal equations become the current ones (the buffers
+                # trade places; the old ones take the next trial)
+                h, ht = ht, h
+                g, gt = gt, g
                 lam = 0.0 if lam <= 1e-4 else lam * 0.1
                 if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
                     break
@@ -472,19 +474,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if lam > 1e4:
             break
     # covariance of (A, v0): h holds J' W J at the solution
-    unit = ws[3, 72:76]
-    col = ws[3, 76:80]
-    for r in range(4):
-        unit[r] = 0.0
-    unit[1] = 1.0
-    if not solve4(h, unit, col, scratch):
+    var_a, var_v = inverse_diag12(h, ws[3, 72:96].reshape((4, 6)))
+    if math.isnan(var_a):
         return False
-    var_a = col[1]
-    unit[1] = 0.0
-    unit[2] = 1.0
-    if not solve4(h, unit, col, scratch):
-        return False
-    var_v = col[2]
     if not (amp > 0.0 and var_a > 0.0 and var_v > 0.0):
         return False
     z = amp / math.sqrt(var_a)
