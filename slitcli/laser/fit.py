@@ -295,6 +295,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     wv = ws[4, 18:21]
     nsat = 0
     nuse = 0
+    # the current pattern's weights in local variables (runs of rows share one)
+    last = -1
+    info = w_r = w_g = w_b = 0.0
     for jj in range(m):
         j = j0 + jj
         d = j - c
@@ -303,7 +306,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             (4 if xb >= sat_dn else 0)
         if pat & 1:
             nsat += 1
-        if info_c[pat] < 0.0:
+        if pat != last and info_c[pat] < 0.0:
             for r in range(3):
                 for q in range(3):
                     if (pat >> r) & 1 or (pat >> q) & 1:
@@ -321,13 +324,15 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             wc[pat, 0] = wv[0]
             wc[pat, 1] = wv[1]
             wc[pat, 2] = wv[2]
-        info = info_c[pat]
+        if pat != last:
+            last = pat
+            info = info_c[pat]
+            w_r, w_g, w_b = wc[pat, 0], wc[pat, 1], wc[pat, 2]
         if info <= 0.0:
             wt[jj] = 0.0
             y[jj] = 0.0
             continue
-        y[jj] = (wc[pat, 0] * (xr - ar - br * d) + wc[pat, 1] * (xg - ag - bg_ * d)
-                 + wc[pat, 2] * (xb - ab - bb * d))
+        y[jj] = w_r * (xr - ar - br * d) + w_g * (xg - ag - bg_ * d) + w_b * (xb - ab - bb * d)
         wt[jj] = info
         nuse += 1
     if nuse < MIN_ROWS:
