@@ -115,15 +115,16 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
     the background's colour removed to the share ``LAM_DETECT``, so texture, shading
     and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
     elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
-    red contrast and ``sat`` True. ``img`` and ``bg`` must be C-contiguous.
+    red contrast and ``sat`` True.
     """
     n = img.shape[1]
     # the column's pixels as flat runs of b, g, r, every pixel computed alike and the
     # outcomes selected without branches: the compiler turns the loop into vector
     # instructions (twice as fast as skipping masked pixels and caching the weights per
     # background colour, with the same values: the weights are a function of it)
-    xi = img[i].reshape(n * 3)
-    bi = bg[i].reshape(n * 3)
+    # (C-contiguous images, as the extractor's, are not copied here; other layouts are)
+    xi = np.ascontiguousarray(img[i]).reshape(n * 3)
+    bi = np.ascontiguousarray(bg[i]).reshape(n * 3)
     mi = mask[i]
     for j in range(n):
         xr = xi[3 * j + 2]
