@@ -48,6 +48,7 @@ def interleaved(fn_a: Callable[[], object], fn_b: Callable[[], object],
 
 
 def bench(timer) -> list[dict]:
+    # (run.py's interface; ``timer`` is not used: the two calls are timed alternately)
     rig = paper_rig()
     params = LaserParams()
     geometry = LaserGeometry.from_rig(rig, params)
