@@ -87,6 +87,22 @@ def test_candidate_mask_eq2_eq3():
                             PARAMS.alpha, PARAMS.saturation_dn, score, sat_col)
         np.testing.assert_array_equal((score > -1.0) & ~sat_col, red[:, i])
         np.testing.assert_array_equal(sat_col, sat[:, i])
+    # contiguous columns (the extractor's layout) give the same values; masked pixels
+    # none
+    img_t, back_t = cv2.transpose(img), cv2.transpose(back)
+    mask_t = rng.random((40, 60)) < 0.7
+    score_c = np.empty(60)
+    sat_c = np.empty(60, bool)
+    for i in range(40):
+        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2), mask_t, i,
+                            PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
+                            PARAMS.saturation_dn, score, sat_col)
+        candidates.evidence(img_t, back_t, mask_t, i, PARAMS.min_th, PARAMS.min_delta_th,
+                            PARAMS.alpha, PARAMS.saturation_dn, score_c, sat_c)
+        np.testing.assert_array_equal(score_c, score)
+        np.testing.assert_array_equal(sat_c, sat_col)
+        assert np.all(score_c[~mask_t[i]] == -1.0) and not sat_c[~mask_t[i]].any()
+        np.testing.assert_array_equal((score_c > -1.0) & ~sat_c, red[:, i] & mask_t[i])
 
 
 def test_noise_sigma_estimate_ignores_texture():

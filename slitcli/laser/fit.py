@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.lsq import gls_weights, normal_eq, solve4
+from slitcli.laser.lsq import gls_weights, inverse_diag12, normal_eq, solve4
 
 #: green and blue response to the red laser, fraction of the red response (a red
 #: diode seen through a Bayer colour filter; the renderer's default crosstalk)
@@ -297,6 +297,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     wv = ws[4, 18:21]
     nsat = 0
     nuse = 0
+    # the current pattern's weights in local variables (runs of rows share one)
+    last = -1
+    info = w_r = w_g = w_b = 0.0
     for jj in range(m):
         j = j0 + jj
         d = j - c
@@ -305,7 +308,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             (4 if xb >= sat_dn else 0)
         if pat & 1:
             nsat += 1
-        if info_c[pat] < 0.0:
+        if pat != last and info_c[pat] < 0.0:
             for r in range(3):
                 for q in range(3):
                     if (pat >> r) & 1 or (pat >> q) & 1:
@@ -323,13 +326,15 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             wc[pat, 0] = wv[0]
             wc[pat, 1] = wv[1]
             wc[pat, 2] = wv[2]
-        info = info_c[pat]
+        if pat != last:
+            last = pat
+            info = info_c[pat]
+            w_r, w_g, w_b = wc[pat, 0], wc[pat, 1], wc[pat, 2]
         if info <= 0.0:
             wt[jj] = 0.0
             y[jj] = 0.0
             continue
-        y[jj] = (wc[pat, 0] * (xr - ar - br * d) + wc[pat, 1] * (xg - ag - bg_ * d)
-                 + wc[pat, 2] * (xb - ab - bb * d))
+        y[jj] = w_r * (xr - ar - br * d) + w_g * (xg - ag - bg_ * d) + w_b * (xb - ab - bb * d)
         wt[jj] = info
         nuse += 1
     if nuse < MIN_ROWS:
@@ -441,11 +446,13 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     g[3] += w_prior * (s_prior - s)
     lam = 0.0
     for _ in range(MAX_ITER):
-        for r in range(4):
-            h[r, r] *= 1.0 + lam
+        if lam != 0.0:  # (undamped: scaling by one is the identity, skipped)
+            for r in range(4):
+                h[r, r] *= 1.0 + lam
         solved = solve4(h, g, dx, scratch)
-        for r in range(4):
-            h[r, r] /= 1.0 + lam
+        if lam != 0.0:
+            for r in range(4):
+                h[r, r] /= 1.0 + lam
         if solved and abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
             break  # at the minimum: h, the covariance, stays that of these parameters
         n_v0, n_s = v0 + dx[2], s + dx[3]
@@ -460,10 +467,10 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                 v0 = n_v0
                 s = n_s
                 chi = n_chi
-                for r in range(4):
-                    g[r] = gt[r]
-                    for q in range(4):
-                        h[r, q] = ht[r, q]
+                # the trial's normal equations become the current ones (the buffers
+                # trade places; the old ones take the next trial)
+                h, ht = ht, h
+                g, gt = gt, g
                 lam = 0.0 if lam <= 1e-4 else lam * 0.1
                 if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < CONVERGED_REL_S * s:
                     break
@@ -474,19 +481,9 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         if lam > 1e4:
             break
     # covariance of (A, v0): h holds J' W J at the solution
-    unit = ws[3, 72:76]
-    col = ws[3, 76:80]
-    for r in range(4):
-        unit[r] = 0.0
-    unit[1] = 1.0
-    if not solve4(h, unit, col, scratch):
+    var_a, var_v = inverse_diag12(h, ws[3, 72:96].reshape((4, 6)))
+    if math.isnan(var_a):
         return False
-    var_a = col[1]
-    unit[1] = 0.0
-    unit[2] = 1.0
-    if not solve4(h, unit, col, scratch):
-        return False
-    var_v = col[2]
     if not (amp > 0.0 and var_a > 0.0 and var_v > 0.0):
         return False
     z = amp / math.sqrt(var_a)
