@@ -78,14 +78,7 @@ def rendered(tmp_path_factory):
     return out
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param("corridor", marks=pytest.mark.xfail(
-        strict=True, reason="known miss (issue 6 open): detection 440/442 = 99.5 % passes, "
-        "but 1 of 78 free bins (1.28 %, limit 1 %) gets a stereo return from the yawed box's "
-        "edge at 1.46 m: after the silhouette trim exactly 8 points remain (the minimum), "
-        "6 of them spilled 1 px onto the textured floor, 2 mixed edge pixels")),
-    "distractors",
-])
+@pytest.mark.parametrize("name", ["corridor", "distractors"])
 def test_fused_ranges_against_truth(rendered, name):
     seq = BUNDLED if name == "corridor" else rendered[name]
     s = _scores(seq)

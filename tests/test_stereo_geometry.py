@@ -16,6 +16,8 @@ from slitcli.stereo.obstacles import (
     ObstacleParams,
     bearing_ranges,
     depth_from_disparity,
+    floor_check,
+    floor_disparity,
     obstacle_points,
     trim_silhouettes,
 )
@@ -145,6 +147,46 @@ def test_a_partial_near_object_is_ranged_from_its_own_points():
     assert one.range_m[k] == ref.range_m[k]
     with pytest.raises(SlitcliError, match="surface gap"):
         ObstacleParams(surface_gap_px=-1.0)
+
+
+def test_floor_pixels_given_an_objects_disparity_are_floor():
+    # A hand-made rectified pair: the right image a random texture, the left image the
+    # floor seen through the rig (each left pixel is the right image at the floor's
+    # disparity, Eq. 8 on the floor plane), except an object over columns 150-169,
+    # rows 140-199 at 20 px. The matcher's fattening is mimicked by marking 4 more
+    # columns (170-173) with the object's disparity: they see floor.
+    rig = paper_rig()
+    w, h = rig.image_size_px
+    rng = np.random.default_rng(3)
+    right = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)), (0, 0), 1.0)
+    dfl = floor_disparity(rig).astype(np.float64)
+    # the floor's disparity is Eq. 8 at the depth where the pixel's ray meets the floor
+    rays = rig.pixel_rays_cam(np.array([160.0]), np.array([200.0]))[0]
+    rz = (rays @ rig.R_sensor_from_cam.T)[2]
+    assert dfl[200, 160] == pytest.approx(250.0 * 0.088 * -rz / 0.65, rel=1e-5)
+    assert (dfl[:28] == 0).all() and (dfl[30:] > 0).all()   # the horizon at row 28.5
+    disp = np.where(dfl > 0, dfl, np.nan)
+    disp[140:200, 150:170] = 20.0
+    xs = np.arange(w)[None, :] - np.nan_to_num(disp)
+    left = np.stack([np.interp(xs[y], np.arange(w), right[y]) for y in range(h)])
+    disp[140:200, 170:174] = 20.0            # fattening: floor pixels at the object's disparity
+    mask = np.zeros((h, w), bool)
+    mask[140:200, 150:174] = True
+    out = floor_check(mask, left, right, disp, rig, ObstacleParams())
+    # the object is kept wherever its 5-row column lies on it (its top and bottom 2 rows
+    # straddle the floor: either hypothesis may win there)
+    assert out[142:198, 150:170].all()
+    # the fattened floor columns are floor where the floor lies at least 1 px
+    # (floor_check_min_px) farther than the object; nearer its foot the floor test decides
+    rows = np.arange(142, 198)
+    far = rows[dfl[rows, 171] <= 19.0]
+    assert far.size >= 30
+    assert not out[far][:, 170:174].any()
+    assert mask[140:200, 150:174].all()      # input not modified
+    off = floor_check(mask, left, right, disp, rig, ObstacleParams(floor_check_ratio=0.0))
+    assert (off == mask).all()
+    with pytest.raises(SlitcliError, match="floor check"):
+        ObstacleParams(floor_check_half_px=-1)
 
 
 def test_obstacle_runs_are_cut_back_to_the_silhouette_on_plain_backgrounds():

@@ -200,6 +200,78 @@ def trim_silhouettes(obstacle, grey, disp, reach_px, step_dn, same_px, out):
                         break
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _right_at(right, y, x, d):
+    """The right image at row ``y``, column ``x - d`` (linear along the row); NaN outside."""
+    xr = x - d
+    x0 = int(np.floor(xr))
+    if x0 < 0 or x0 + 1 >= right.shape[1]:
+        return np.nan
+    a = xr - x0
+    return right[y, x0] * (1.0 - a) + right[y, x0 + 1] * a
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _column_zssd(left, right, y, x, half_h, d, dmap, per_row):
+    """Zero-mean SSD of the left image's column ``x``, rows ``y - half_h .. y + half_h``,
+    against the right image shifted by ``d`` (``per_row``: by each row's ``dmap[row, x]``,
+    a plane whose disparity changes along the column); infinite when it leaves the image."""
+    n = 2 * half_h + 1
+    sl = 0.0
+    sr = 0.0
+    for i in range(-half_h, half_h + 1):
+        r = _right_at(right, y + i, x, dmap[y + i, x] if per_row else d)
+        if np.isnan(r):
+            return np.inf
+        sl += left[y + i, x]
+        sr += r
+    ml = sl / n
+    mr = sr / n
+    acc = 0.0
+    for i in range(-half_h, half_h + 1):
+        r = _right_at(right, y + i, x, dmap[y + i, x] if per_row else d)
+        e = (left[y + i, x] - ml) - (r - mr)
+        acc += e * e
+    return acc
+
+
+@nb.njit(cache=True, nogil=True)
+def floor_check(obstacle, left, right, disp, floor_disp, half_h, ratio, min_step_px, reach_px,
+                out):
+    """Drop obstacle pixels that the floor explains better than their own disparity.
+
+    For an obstacle pixel below the horizon (``floor_disp > 0``, the disparity the floor
+    plane would have there) whose disparity differs from the floor's by at least
+    ``min_step_px``, the pixel's own one-pixel-wide column of ``2 half_h + 1`` rows is
+    compared with the right image at its disparity and at the floor's (each row at its
+    own: the floor's disparity grows down the image); if the floor's residual is below
+    ``ratio`` times its own, the pixel is floor (``out`` False). Only pixels within
+    ``reach_px`` columns of the end of their row's obstacle run are tested (how far
+    window fattening reaches).
+    """
+    height, width = obstacle.shape
+    out[:, :] = obstacle
+    for y in range(half_h, height - half_h):
+        for x in range(width):
+            if not obstacle[y, x]:
+                continue
+            at_end = False
+            for k in range(max(0, x - reach_px), min(width, x + reach_px + 1)):
+                if not obstacle[y, k]:
+                    at_end = True
+                    break
+            if not at_end:
+                continue
+            df = floor_disp[y, x]
+            d = disp[y, x]
+            if not (df > 0) or abs(d - df) < min_step_px:
+                continue
+            own = _column_zssd(left, right, y, x, half_h, d, floor_disp, False)
+            flo = _column_zssd(left, right, y, x, half_h, df, floor_disp, True)
+            if flo < ratio * own:
+                out[y, x] = False
+
+
 @nb.njit(cache=True, nogil=True)
 def clip_quantise(grey, smooth, sign, cap, scale, out):
     """``out = rint(clip(grey - sign * smooth, -cap, cap) * scale)`` in one pass.
