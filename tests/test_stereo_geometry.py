@@ -16,6 +16,8 @@ from slitcli.stereo.obstacles import (
     ObstacleParams,
     bearing_ranges,
     depth_from_disparity,
+    floor_check,
+    floor_disparity,
     obstacle_points,
     trim_silhouettes,
 )
@@ -98,6 +100,93 @@ def test_points_beyond_range_or_without_enough_pixels_are_no_return():
     br2 = bearing_ranges(pts2, obs2, feat2, rig, ObstacleParams())
     assert np.isnan(br2.range_m).all()
     assert not br2.has_features.any()
+
+
+def _one_bin_points(ranges_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Obstacle points with the given horizontal ranges on pixels of the 0 deg bin
+    (column 159 of the paper rig, straight ahead), their masks."""
+    h, w = 240, 320
+    pts = np.full((h, w, 3), np.nan, np.float32)
+    mask = np.zeros((h, w), bool)
+    rows = np.arange(ranges_m.size) + 60
+    pts[rows, 159, 0] = ranges_m
+    pts[rows, 159, 1] = 0.0
+    pts[rows, 159, 2] = 0.3
+    mask[rows, 159] = True
+    return pts, mask, mask.copy()
+
+
+def test_a_partial_near_object_is_ranged_from_its_own_points():
+    # One bin: a face seen at a grazing angle (15 points evenly over 1.35-1.50 m) in
+    # front of a wall at 2.9 m (85 points). The bin's 10th percentile (rank 9 of 100)
+    # lands on the face, but 9 face points deep: 1.35 + 9 x 0.15 / 14 = 1.446 m. The
+    # face's own 10th percentile (rank 1 of 15) is 1.35 + 0.15 / 14 = 1.361 m.
+    rig = paper_rig()
+    cell = 0.001 + 1e-9   # read from 2 mm histogram cells: exact to half a cell
+    face = 1.35 + np.arange(15) * 0.15 / 14
+    ranges = np.r_[face, np.full(85, 2.9)]
+    pts, obstacle, feature = _one_bin_points(ranges)
+    k = 32   # the 0 deg bin of -32..32
+    br = bearing_ranges(pts, obstacle, feature, rig, ObstacleParams())
+    assert br.obstacle_px[k] == 100
+    assert abs(br.range_m[k] - face[1]) <= cell
+    # without the surface split, the plain percentile of the bin (the old rule)
+    plain = bearing_ranges(pts, obstacle, feature, rig, ObstacleParams(surface_gap_px=0.0))
+    assert abs(plain.range_m[k] - face[9]) <= cell
+    # a near object below the percentile's share (8 of 100 points) is still outvoted:
+    # the split never admits points the plain percentile would not reach
+    pts2, obs2, feat2 = _one_bin_points(np.r_[face[:8], np.full(92, 2.9)])
+    br2 = bearing_ranges(pts2, obs2, feat2, rig, ObstacleParams())
+    assert abs(br2.range_m[k] - 2.9) <= cell
+    # a surface that only steps by less than the gap is one surface: ranges 2.0-2.9 m
+    # in 0.05 m steps (disparity steps of 0.13-0.27 px) give the plain percentile
+    ramp = np.repeat(np.arange(2.0, 2.91, 0.05), 5)
+    pts3, obs3, feat3 = _one_bin_points(ramp)
+    one = bearing_ranges(pts3, obs3, feat3, rig, ObstacleParams())
+    ref = bearing_ranges(pts3, obs3, feat3, rig, ObstacleParams(surface_gap_px=0.0))
+    assert one.range_m[k] == ref.range_m[k]
+    with pytest.raises(SlitcliError, match="surface gap"):
+        ObstacleParams(surface_gap_px=-1.0)
+
+
+def test_floor_pixels_given_an_objects_disparity_are_floor():
+    # A hand-made rectified pair: the right image a random texture, the left image the
+    # floor seen through the rig (each left pixel is the right image at the floor's
+    # disparity, Eq. 8 on the floor plane), except an object over columns 150-169,
+    # rows 140-199 at 20 px. The matcher's fattening is mimicked by marking 4 more
+    # columns (170-173) with the object's disparity: they see floor.
+    rig = paper_rig()
+    w, h = rig.image_size_px
+    rng = np.random.default_rng(3)
+    right = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)), (0, 0), 1.0)
+    dfl = floor_disparity(rig).astype(np.float64)
+    # the floor's disparity is Eq. 8 at the depth where the pixel's ray meets the floor
+    rays = rig.pixel_rays_cam(np.array([160.0]), np.array([200.0]))[0]
+    rz = (rays @ rig.R_sensor_from_cam.T)[2]
+    assert dfl[200, 160] == pytest.approx(250.0 * 0.088 * -rz / 0.65, rel=1e-5)
+    assert (dfl[:28] == 0).all() and (dfl[30:] > 0).all()   # the horizon at row 28.5
+    disp = np.where(dfl > 0, dfl, np.nan)
+    disp[140:200, 150:170] = 20.0
+    xs = np.arange(w)[None, :] - np.nan_to_num(disp)
+    left = np.stack([np.interp(xs[y], np.arange(w), right[y]) for y in range(h)])
+    disp[140:200, 170:174] = 20.0            # fattening: floor pixels at the object's disparity
+    mask = np.zeros((h, w), bool)
+    mask[140:200, 150:174] = True
+    out = floor_check(mask, left, right, disp, rig, ObstacleParams())
+    # the object is kept wherever its 5-row column lies on it (its top and bottom 2 rows
+    # straddle the floor: either hypothesis may win there)
+    assert out[142:198, 150:170].all()
+    # the fattened floor columns are floor where the floor lies at least 1 px
+    # (floor_check_min_px) farther than the object; nearer its foot the floor test decides
+    rows = np.arange(142, 198)
+    far = rows[dfl[rows, 171] <= 19.0]
+    assert far.size >= 30
+    assert not out[far][:, 170:174].any()
+    assert mask[140:200, 150:174].all()      # input not modified
+    off = floor_check(mask, left, right, disp, rig, ObstacleParams(floor_check_ratio=0.0))
+    assert (off == mask).all()
+    with pytest.raises(SlitcliError, match="floor check"):
+        ObstacleParams(floor_check_half_px=-1)
 
 
 def test_obstacle_runs_are_cut_back_to_the_silhouette_on_plain_backgrounds():

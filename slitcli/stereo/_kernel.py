@@ -58,14 +58,36 @@ def reproject(disp, rays_s, fb, height_m, floor_margin_m, two_sigma_d, robot_hei
                                   and px * px + py * py <= max_range_m * max_range_m)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _split(r_near, r_far, fb, gap_px):
+    """Whether two ranges lie on separate surfaces: their disparities ``fb / r`` differ
+    by more than ``gap_px``."""
+    return fb * (r_far - r_near) > gap_px * r_near * r_far
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _rank_cell(hist, b, lo, hi, rank):
+    """The cell in ``[lo, hi]`` holding the ``rank``-th (0-based) count of row ``b``."""
+    acc = 0
+    for c in range(lo, hi + 1):
+        acc += hist[b, c]
+        if acc > rank:
+            return c
+    return hi
+
+
 @nb.njit(cache=True, nogil=True)
 def bin_percentile(pts, obstacle, feature, bin_idx, nbins, step_m, max_range_m,
-                   percentile, range_out, obstacle_px, feature_px):
+                   percentile, fb, gap_px, range_out, obstacle_px, feature_px):
     """Per bearing bin: pixel counts and the percentile of the obstacle ranges.
 
-    Ranges go into ``step_m`` histogram cells up to ``max_range_m``; the percentile is
-    the centre of the cell holding the ``floor(p (n - 1))``-th smallest range.
-    ``range_out`` is left untouched for bins without obstacle points.
+    Ranges go into ``step_m`` histogram cells up to ``max_range_m``; the bin's
+    percentile cell holds the ``floor(p (n - 1))``-th smallest range. With
+    ``gap_px > 0`` the surface that cell lies on (the run of occupied cells around it
+    whose neighbours' disparities ``fb / r`` differ by at most ``gap_px``) gets its own
+    percentile, and the nearer of the two is returned: a near object that fills part
+    of a bin is ranged from its own points, not from a rank diluted by the background
+    behind it. ``range_out`` is left untouched for bins without obstacle points.
     """
     height, width = obstacle.shape
     cells = int(np.ceil(max_range_m / step_m)) + 1
@@ -88,13 +110,31 @@ def bin_percentile(pts, obstacle, feature, bin_idx, nbins, step_m, max_range_m,
         nb_ = obstacle_px[b]
         if nb_ == 0:
             continue
-        rank = int(np.floor(percentile / 100.0 * (nb_ - 1)))
-        acc = 0
-        for c in range(cells):
-            acc += hist[b, c]
-            if acc > rank:
-                range_out[b] = (c + 0.5) * step_m
+        ck = _rank_cell(hist, b, 0, cells - 1, int(np.floor(percentile / 100.0 * (nb_ - 1))))
+        range_out[b] = (ck + 0.5) * step_m
+        if not gap_px > 0:
+            continue
+        lo = ck
+        for c in range(ck - 1, -1, -1):
+            if hist[b, c] > 0:
+                if _split((c + 0.5) * step_m, (lo + 0.5) * step_m, fb, gap_px):
+                    break
+                lo = c
+            elif _split((c + 0.5) * step_m, (lo + 0.5) * step_m, fb, gap_px):
+                break   # every cell nearer than this is split from lo already
+        hi = ck
+        for c in range(ck + 1, cells):
+            if hist[b, c] > 0:
+                if _split((hi + 0.5) * step_m, (c + 0.5) * step_m, fb, gap_px):
+                    break
+                hi = c
+            elif _split((hi + 0.5) * step_m, (c + 0.5) * step_m, fb, gap_px):
                 break
+        n_s = 0
+        for c in range(lo, hi + 1):
+            n_s += hist[b, c]
+        cs = _rank_cell(hist, b, lo, hi, int(np.floor(percentile / 100.0 * (n_s - 1))))
+        range_out[b] = min(range_out[b], (cs + 0.5) * step_m)
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -158,6 +198,78 @@ def trim_silhouettes(obstacle, grey, disp, reach_px, step_dn, same_px, out):
                             for k in range(a, g + 1):
                                 out[y, k] = False
                         break
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _right_at(right, y, x, d):
+    """The right image at row ``y``, column ``x - d`` (linear along the row); NaN outside."""
+    xr = x - d
+    x0 = int(np.floor(xr))
+    if x0 < 0 or x0 + 1 >= right.shape[1]:
+        return np.nan
+    a = xr - x0
+    return right[y, x0] * (1.0 - a) + right[y, x0 + 1] * a
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _column_zssd(left, right, y, x, half_h, d, dmap, per_row):
+    """Zero-mean SSD of the left image's column ``x``, rows ``y - half_h .. y + half_h``,
+    against the right image shifted by ``d`` (``per_row``: by each row's ``dmap[row, x]``,
+    a plane whose disparity changes along the column); infinite when it leaves the image."""
+    n = 2 * half_h + 1
+    sl = 0.0
+    sr = 0.0
+    for i in range(-half_h, half_h + 1):
+        r = _right_at(right, y + i, x, dmap[y + i, x] if per_row else d)
+        if np.isnan(r):
+            return np.inf
+        sl += left[y + i, x]
+        sr += r
+    ml = sl / n
+    mr = sr / n
+    acc = 0.0
+    for i in range(-half_h, half_h + 1):
+        r = _right_at(right, y + i, x, dmap[y + i, x] if per_row else d)
+        e = (left[y + i, x] - ml) - (r - mr)
+        acc += e * e
+    return acc
+
+
+@nb.njit(cache=True, nogil=True)
+def floor_check(obstacle, left, right, disp, floor_disp, half_h, ratio, min_step_px, reach_px,
+                out):
+    """Drop obstacle pixels that the floor explains better than their own disparity.
+
+    For an obstacle pixel below the horizon (``floor_disp > 0``, the disparity the floor
+    plane would have there) whose disparity differs from the floor's by at least
+    ``min_step_px``, the pixel's own one-pixel-wide column of ``2 half_h + 1`` rows is
+    compared with the right image at its disparity and at the floor's (each row at its
+    own: the floor's disparity grows down the image); if the floor's residual is below
+    ``ratio`` times its own, the pixel is floor (``out`` False). Only pixels within
+    ``reach_px`` columns of the end of their row's obstacle run are tested (how far
+    window fattening reaches).
+    """
+    height, width = obstacle.shape
+    out[:, :] = obstacle
+    for y in range(half_h, height - half_h):
+        for x in range(width):
+            if not obstacle[y, x]:
+                continue
+            at_end = False
+            for k in range(max(0, x - reach_px), min(width, x + reach_px + 1)):
+                if not obstacle[y, k]:
+                    at_end = True
+                    break
+            if not at_end:
+                continue
+            df = floor_disp[y, x]
+            d = disp[y, x]
+            if not (df > 0) or abs(d - df) < min_step_px:
+                continue
+            own = _column_zssd(left, right, y, x, half_h, d, floor_disp, False)
+            flo = _column_zssd(left, right, y, x, half_h, df, floor_disp, True)
+            if flo < ratio * own:
+                out[y, x] = False
 
 
 @nb.njit(cache=True, nogil=True)

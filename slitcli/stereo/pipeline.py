@@ -17,6 +17,7 @@ from slitcli.stereo.obstacles import (
     ObstacleParams,
     bearing_ranges,
     bins_check,
+    floor_check,
     obstacle_points,
     trim_silhouettes,
 )
@@ -108,7 +109,9 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left, right = rectify_pair(left_bgr, right_bgr, rig)
     disp = compute_disparity(left, right, p.matcher)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, rig, p.obstacles)
-    obstacle = trim_silhouettes(obstacle, to_grey(left), disp.disparity_px, p.obstacles)
+    grey = to_grey(left)
+    obstacle = trim_silhouettes(obstacle, grey, disp.disparity_px, p.obstacles)
+    obstacle = floor_check(obstacle, grey, to_grey(right), disp.disparity_px, rig, p.obstacles)
     br = bearing_ranges(pts, obstacle, feature, rig, p.obstacles)
     return StereoFrameResult(disp.disparity_px, disp.invalid_reason, depth, pts, obstacle,
                              br.bearing_deg, br.range_m, br.has_features, br.obstacle_px,
