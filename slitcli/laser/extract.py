@@ -186,11 +186,15 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     r0 = max(first_row - params.background_window_px - fit.FIT_HALF, 0)
     # the kernels walk image columns: transposed, contiguous (W, H, 3) copies (one
     # column is one contiguous run of memory); the opening runs along the columns
-    img_t = cv2.transpose(img[r0:])
+    sub = img[r0:]
+    img_t = cv2.transpose(sub)
     # (OpenCV's vertical filters run along whole image rows at once: twice as fast as
-    # the same opening along the transposed image's rows; min and max are exact)
-    bg_t = cv2.transpose(cv2.morphologyEx(img[r0:], cv2.MORPH_OPEN,
-                                          np.ones((params.background_window_px, 1), np.uint8)))
+    # the same opening along the transposed image's rows; min and max are exact. A
+    # vertical window mixes no channels: on the (rows, 3 W) one-channel view of the
+    # image it is the same opening, and almost twice as fast again)
+    bg_t = cv2.transpose(cv2.morphologyEx(
+        sub.reshape(sub.shape[0], 3 * w), cv2.MORPH_OPEN,
+        np.ones((params.background_window_px, 1), np.uint8)).reshape(sub.shape))
     mask_t = mask.T[:, r0:]  # contiguous rows for LaserGeometry's (Fortran-order) masks
     sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
     thr = max(params.min_peak_dn, params.noise_k * sigma)
