@@ -23,6 +23,7 @@ from slitcli.laser import (
     chromaticity,
     detect_laser,
     extract_stripe,
+    finish,
     nearest_range_per_bin,
     select,
     triangulate_stripe,
@@ -322,3 +323,36 @@ def test_wall_rows_helper_is_the_rig_line():
     rows = wall_stripe_rows(RIG, 0.8)
     assert rows[160] == pytest.approx(RIG.stripe_row_on_wall(0.8, 160.0), abs=1e-9)
     assert rows[17] == pytest.approx(RIG.stripe_row_on_wall(0.8, 17.0), abs=1e-9)
+
+
+def test_first_search_row_is_the_masks_first_row():
+    # the extractor's crop starts from this row: it must be the first row holding a
+    # search pixel in any column, for C- and Fortran-order masks alike, -1 for none
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        h, w = rng.integers(1, 60, size=2)
+        m = rng.random((h, w)) < rng.random() * 0.05
+        if rng.random() < 0.5:
+            m = np.asfortranarray(m)
+        rows = np.flatnonzero(m.any(axis=1))
+        assert finish.first_search_row(m.T) == (rows[0] if rows.size else -1)
+    v3 = 119.5 + 250.0 * math.tan(math.atan(0.6 / 3.0) - math.radians(20.0))
+    assert finish.first_search_row(GEOM.search_mask.T) <= math.ceil(v3) + 1
+
+
+def test_background_opening_on_one_channel_view_is_per_channel():
+    # extract_stripe opens the (rows, 3 W) one-channel view of the image: a vertical
+    # window mixes no channels, so it must equal the opening of each channel
+    rng = np.random.default_rng(6)
+    img = cv2.GaussianBlur(rng.integers(0, 256, (90, 40, 3), dtype=np.uint8), (5, 5), 0)
+    k = np.ones((PARAMS.background_window_px, 1), np.uint8)
+    view = cv2.morphologyEx(img.reshape(90, 120), cv2.MORPH_OPEN, k).reshape(img.shape)
+    # the opening by hand: the max over the window of the erosion (the min over the
+    # window), rows beyond the image ignored (padded with the neutral value)
+    r = PARAMS.background_window_px // 2
+    swv = np.lib.stride_tricks.sliding_window_view
+    ero = swv(np.pad(img, ((r, r), (0, 0), (0, 0)), constant_values=255), 2 * r + 1,
+              axis=0).min(axis=-1)
+    ref = swv(np.pad(ero, ((r, r), (0, 0), (0, 0)), constant_values=0), 2 * r + 1,
+              axis=0).max(axis=-1)
+    np.testing.assert_array_equal(view, ref)

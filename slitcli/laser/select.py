@@ -84,13 +84,18 @@ def merge_sources(cand: np.ndarray, cand_avg: np.ndarray,
     the sampling variance across columns of each source.
     """
     w, k = cand.shape[0], cand.shape[1]
-    out = np.full((w, 2 * k, cand.shape[2]), np.nan)
+    # every entry is written once: the candidate or NaN (no NaN fill of the whole
+    # table first)
+    out = np.empty((w, 2 * k, cand.shape[2]))
     for u in range(w):
         for q in range(k):
             if np.isfinite(cand[u, q, C_POS]):
                 out[u, q] = cand[u, q]
                 out[u, q, C_HVAR] = PIXEL_VAR
+            else:
+                out[u, q] = np.nan
         for q in range(k):
+            out[u, k + q] = np.nan
             v = cand_avg[u, q, C_POS]
             if not np.isfinite(v):
                 continue
