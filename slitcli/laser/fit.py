@@ -90,6 +90,31 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
     return 0.5 * (up + lo)
 
 
+#: a step of this much in red chromaticity r = R / (R + G + B) between the surface just
+#: above and just below a candidate counts as much as the colour angle MAX_EDGE_REF
+RED_STEP = 0.04
+MAX_EDGE_REF = 0.02
+
+
+@njit(cache=True, nogil=True, inline="always")
+def edge_measure(ur: float, ug: float, ub: float, lr: float, lg: float, lb: float,
+                 both: bool) -> float:  # pragma: no cover
+    """How clearly the colours just above (u) and just below (l) are two surfaces.
+
+    One minus the cosine between the two colours, or, where larger, the step in red
+    chromaticity in units of ``RED_STEP`` squared, times ``MAX_EDGE_REF``: a crease
+    between a redder and a greyer surface changes the red share (the stripe's own
+    colour) more than it turns the colour. ``both``: rows on both sides were seen (not
+    at the image's border); otherwise only the angle counts.
+    """
+    one_cos = 1.0 - (ur * lr + ug * lg + ub * lb) / math.sqrt(
+        (ur * ur + ug * ug + ub * ub) * (lr * lr + lg * lg + lb * lb))
+    if not both:
+        return one_cos
+    step = (ur / (ur + ug + ub) - lr / (lr + lg + lb)) / RED_STEP
+    return max(one_cos, MAX_EDGE_REF * step * step)
+
+
 @njit(cache=True, nogil=True)
 def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float,
                 sat_dn: int, s_max: float, s_core: float, slope: float, averaged: bool,
@@ -178,6 +203,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     lr_ = lg_ = lb_ = 0.0
     nur = nug = nub = 0.5
     nlr = nlg = nlb = 0.5
+    near_u = near_l = 0
     # per side: n, sum d, sum d^2, sum x (3), sum x d (3), sum x x' (rr rg rb gg gb bb)
     side_s = ws[4, 24:56].reshape((2, 16))
     for r in range(32):
@@ -221,6 +247,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             ug_ += xg
             ub_ += xb
             if -d < flank + NEAR_ROWS:
+                near_u += 1
                 nur += xr
                 nug += xg
                 nub += xb
@@ -230,13 +257,13 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
             lg_ += xg
             lb_ += xb
             if d < flank + NEAR_ROWS:
+                near_l += 1
                 nlr += xr
                 nlg += xg
                 nlb += xb
     if sw < 3.0:
         return False
-    if max_edge > 0.0 and 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
-            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb)) > max_edge:
+    if max_edge > 0.0 and edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0) > max_edge:
         return False
     det = sw * sjj - sj * sj
     if det > 1e-9 and n_up >= 2 and n_lo >= 2:
@@ -413,8 +440,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_CHI2] = np.nan
         out[C_SAT] = 1.0 if nsat > 0 else 0.0
         out[C_TEX] = math.sqrt(t2_max)
-        out[C_EDGE] = 1.0 - (nur * nlr + nug * nlg + nub * nlb) / math.sqrt(
-            (nur * nur + nug * nug + nub * nub) * (nlr * nlr + nlg * nlg + nlb * nlb))
+        out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0)
         return True
     if z_quick < QUICK_Z and nsat == 0:
         if amp <= 0.0:
@@ -530,7 +556,6 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         # lies beyond the last row, there is no fit
         if border and (var_v > BORDER_SE * BORDER_SE or not 0.0 <= v0 <= n - 1.0):
             return False
-    dot = nur * nlr + nug * nlg + nub * nlb
     # the light the fit gives the laser must have the laser's colour: per core row the
     # excess over the background lines, across the plane of the laser colour and the
     # surface colour of the row's side (texture and shading scale that colour, the
@@ -573,6 +598,5 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     out[C_CHI2] = chi / max(nuse - 4, 1)
     out[C_SAT] = 1.0 if nsat > 0 else 0.0
     out[C_TEX] = math.sqrt(t2_max)
-    out[C_EDGE] = 1.0 - dot / math.sqrt((nur * nur + nug * nug + nub * nub)
-                                        * (nlr * nlr + nlg * nlg + nlb * nlb))
+    out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0)
     return True
