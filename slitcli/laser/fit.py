@@ -94,6 +94,9 @@ def _plateau_centre(win: np.ndarray, ja: int, jb: int, m: int,
 #: above and just below a candidate counts as much as the colour angle MAX_EDGE_REF
 RED_STEP = 0.04
 MAX_EDGE_REF = 0.02
+#: the red step is judged between surfaces of at most this red share; on a red surface
+#: the stripe's own tails and clipped neighbours move the red share of its flanks
+MAX_GREY_RED = 0.5
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -104,14 +107,19 @@ def edge_measure(ur: float, ug: float, ub: float, lr: float, lg: float, lb: floa
     One minus the cosine between the two colours, or, where larger, the step in red
     chromaticity in units of ``RED_STEP`` squared, times ``MAX_EDGE_REF``: a crease
     between a redder and a greyer surface changes the red share (the stripe's own
-    colour) more than it turns the colour. ``both``: rows on both sides were seen (not
+    colour) more than it turns the colour (between surfaces of red share up to
+    ``MAX_GREY_RED``). ``both``: rows on both sides were seen (not
     at the image's border); otherwise only the angle counts.
     """
     one_cos = 1.0 - (ur * lr + ug * lg + ub * lb) / math.sqrt(
         (ur * ur + ug * ug + ub * ub) * (lr * lr + lg * lg + lb * lb))
     if not both:
         return one_cos
-    step = (ur / (ur + ug + ub) - lr / (lr + lg + lb)) / RED_STEP
+    r_u = ur / (ur + ug + ub)
+    r_l = lr / (lr + lg + lb)
+    if max(r_u, r_l) > MAX_GREY_RED:
+        return one_cos
+    step = (r_u - r_l) / RED_STEP
     return max(one_cos, MAX_EDGE_REF * step * step)
 
 
