@@ -271,7 +271,8 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
                 nlb += xb
     if sw < 3.0:
         return False
-    if max_edge > 0.0 and edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0) > max_edge:
+    both_sides = near_u > 0 and near_l > 0
+    if max_edge > 0.0 and edge_measure(nur, nug, nub, nlr, nlg, nlb, both_sides) > max_edge:
         return False
     det = sw * sjj - sj * sj
     if det > 1e-9 and n_up >= 2 and n_lo >= 2:
@@ -448,7 +449,7 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
         out[C_CHI2] = np.nan
         out[C_SAT] = 1.0 if nsat > 0 else 0.0
         out[C_TEX] = math.sqrt(t2_max)
-        out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0)
+        out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, both_sides)
         return True
     if z_quick < QUICK_Z and nsat == 0:
         if amp <= 0.0:
@@ -606,5 +607,5 @@ def fit_profile(img: np.ndarray, i: int, centre: float, run_n: int, sigma: float
     out[C_CHI2] = chi / max(nuse - 4, 1)
     out[C_SAT] = 1.0 if nsat > 0 else 0.0
     out[C_TEX] = math.sqrt(t2_max)
-    out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, near_u > 0 and near_l > 0)
+    out[C_EDGE] = edge_measure(nur, nug, nub, nlr, nlg, nlb, both_sides)
     return True
