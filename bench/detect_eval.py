@@ -10,10 +10,17 @@ cylinders at 0.7-2.8 m (half of them before a back wall), runs the per-frame det
 - **phantom**: a free bin (nothing within 3 m) whose fused range is nearer than the
   truth minus 0.2 m.
 
+With ``--overhang N`` it adds N random overhang scenes: 1-2 slabs 4-40 cm thick whose
+underside is 0.15-0.6 m up (above the laser sheet), at 0.8-2.4 m, four in five textured,
+before a back wall. ``--coverage`` prints, for each missed bin, the share of its 1-degree
+wedge in which the true obstacle lies within tolerance of the bin's true range (20
+sub-wedges): a share of 0.05-0.2 is an object edge that reaches 1-4 tenths of a degree
+(a pixel or less) into the bin.
+
 Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
-        [--fusion paper] [--details]
+        [--overhang 0] [--fusion paper] [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -32,6 +39,7 @@ from slitcli.io.sequence import StereoSequence
 from slitcli.rig import paper_rig
 from slitcli.sim.scene import scene_from_dict
 from slitcli.sim.sequence import render_sequence
+from slitcli.sim.truth import true_ranges
 
 ROOT = Path(__file__).resolve().parent.parent
 CORRIDOR_SEEDS = (21, 22, 23, 24)
@@ -74,7 +82,55 @@ def random_scene(seed: int) -> dict:
                       "frames": 3, "frame_rate_hz": 5.0}}
 
 
-def sequences(n_random: int) -> list[tuple[str, str, dict]]:
+def overhang_scene(seed: int) -> dict:
+    """1-2 slabs (boxes lifted above the laser sheet) at 0.8-2.4 m before a back wall."""
+    rng = np.random.default_rng(500 + seed)
+    objs = []
+    for _ in range(rng.integers(1, 3)):
+        x = rng.uniform(0.8, 2.4)
+        y = rng.uniform(-0.4, 0.4) * x
+        thickness = float(rng.choice([0.04, 0.08, 0.2, 0.4]))
+        z_min = float(rng.uniform(0.15, 0.6))
+        if rng.random() < 0.8:
+            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
+                       "texture": "noise", "scale_m": 0.02,
+                       "contrast": round(float(rng.uniform(0.4, 0.8)), 2)}
+        else:
+            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.4, 0.8, 3).round(2)],
+                       "texture": "plain"}
+        objs.append({"type": "box", "centre_xy_m": [float(x), float(y)],
+                     "size_m": [float(rng.uniform(0.3, 0.6)), float(rng.uniform(0.3, 0.8)),
+                                thickness],
+                     "z_min_m": z_min, "yaw_deg": float(rng.uniform(-30, 30)),
+                     "surface": surface})
+    d = float(rng.uniform(3.2, 5))
+    objs.append({"type": "wall", "from_xy_m": [d, -4], "to_xy_m": [d, 4], "height_m": 2.0,
+                 "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": "noise",
+                             "scale_m": 0.04, "contrast": 0.5}})
+    return {"slitcli_scene": 1, "name": f"overhang-{seed}", "seed": int(seed),
+            "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
+                      "contrast": 0.5},
+            "objects": objs,
+            "robot": {"start": [0, 0, 0], "motion": "straight", "speed_mps": 0.1,
+                      "frames": 3, "frame_rate_hz": 5.0}}
+
+
+def wedge_coverage(d: dict, name: str, seq_dir: Path, wrong: pd.DataFrame) -> np.ndarray:
+    """Per missed bin, the share of its wedge where the truth is within tolerance of
+    the bin's true range (20 sub-wedges; 1 = the obstacle fills the bin)."""
+    scene = scene_from_dict(d, name)
+    poses = scene.poses(scene.robot.frames)
+    forward_m = StereoSequence(seq_dir).rig().mount.forward_m
+    out = []
+    for frame, b, r in zip(wrong.frame, wrong.bearing_deg, wrong.range_m,
+                               strict=True):
+        edges = np.linspace(b - 0.5, b + 0.5, 21)
+        sub = true_ranges(scene, poses[frame], edges[:-1], edges[1:], forward_m=forward_m)
+        out.append(float(np.mean(np.abs(sub - r) <= max(0.05, 0.05 * r))))
+    return np.array(out)
+
+
+def sequences(n_random: int, n_overhang: int = 0) -> list[tuple[str, str, dict]]:
     """(group, name, scene dict) of every evaluation sequence."""
     out = []
     corridor = yaml.safe_load((ROOT / "sample_data" / "corridor.yaml").read_text())
@@ -87,6 +143,9 @@ def sequences(n_random: int) -> list[tuple[str, str, dict]]:
         d = random_scene(s)
         wall = any(o["type"] == "wall" for o in d["objects"])
         out.append(("random, back wall" if wall else "random, open", d["name"], d))
+    for s in range(n_overhang):
+        d = overhang_scene(s)
+        out.append(("random overhangs", d["name"], d))
     return out
 
 
@@ -114,14 +173,18 @@ def main() -> int:
     ap.add_argument("--cache", default=str(ROOT / "out" / "detect_eval"),
                     help="folder for the rendered sequences (reused when present)")
     ap.add_argument("--random", type=int, default=24, help="number of random scenes")
+    ap.add_argument("--overhang", type=int, default=0, help="number of random overhang scenes")
     ap.add_argument("--fusion", default="paper", choices=("paper", "conservative"))
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
+    ap.add_argument("--coverage", action="store_true",
+                    help="print how much of each missed bin's wedge the true obstacle fills")
     args = ap.parse_args()
     rig = paper_rig()
     totals: dict[str, np.ndarray] = {}
     cols = ["frame", "bearing_deg", "range_m", "laser_range_m", "stereo_range_m",
             "fused_range_m", "fused_source"]
-    for group, name, d in sequences(args.random):
+    coverage = []
+    for group, name, d in sequences(args.random, args.overhang):
         out = Path(args.cache) / name
         if not (out / "gt" / "ranges.csv").exists():
             render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)
@@ -134,10 +197,20 @@ def main() -> int:
             print(wrong[cols].to_string(index=False))
         if args.details and len(phantom):
             print(phantom[cols].to_string(index=False))
+        if args.coverage and len(wrong):
+            cov = wedge_coverage(d, name, out, wrong)
+            coverage.append(cov)
+            print("  missed bins, wedge coverage: " + ", ".join(
+                f"{b:.0f} deg {c:.2f}" for b, c in zip(wrong.bearing_deg, cov, strict=True)))
     print(f"\n| group ({args.fusion} fusion) | detected | phantom free bins |\n|---|---|---|")
     for group, (m, nb, p, nf) in totals.items():
         print(f"| {group} | {nb - m}/{nb} = {(nb - m) / max(nb, 1):.2%} | "
               f"{p}/{nf} = {p / max(nf, 1):.2%} |")
+    if coverage:
+        c = np.concatenate(coverage)
+        print(f"\nmissed bins {c.size}: the obstacle fills < 25 % of the wedge in "
+              f"{np.sum(c < 0.25)}, < 50 % in {np.sum(c < 0.5)}, all of it in "
+              f"{np.sum(c >= 0.99)}")
     return 0
 
 
