@@ -45,6 +45,33 @@ ROOT = Path(__file__).resolve().parent.parent
 CORRIDOR_SEEDS = (21, 22, 23, 24)
 
 
+def _textured(rng: np.random.Generator) -> dict:
+    return {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
+            "texture": "noise", "scale_m": 0.02,
+            "contrast": round(float(rng.uniform(0.4, 0.8)), 2)}
+
+
+def _plain(rng: np.random.Generator) -> dict:
+    return {"colour_rgb": [float(c) for c in rng.uniform(0.4, 0.8, 3).round(2)],
+            "texture": "plain"}
+
+
+def _back_wall(distance_m: float) -> dict:
+    return {"type": "wall", "from_xy_m": [distance_m, -4], "to_xy_m": [distance_m, 4],
+            "height_m": 2.0, "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": "noise",
+                                         "scale_m": 0.04, "contrast": 0.5}}
+
+
+def _scene(name: str, seed: int, objs: list[dict]) -> dict:
+    """A scene of ``objs`` on the textured floor, 3 frames driving ahead at 0.1 m/s."""
+    return {"slitcli_scene": 1, "name": name, "seed": int(seed),
+            "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
+                      "contrast": 0.5},
+            "objects": objs,
+            "robot": {"start": [0, 0, 0], "motion": "straight", "speed_mps": 0.1,
+                      "frames": 3, "frame_rate_hz": 5.0}}
+
+
 def random_scene(seed: int) -> dict:
     """2-4 boxes or cylinders at 0.7-2.8 m (a fifth of those nearer than 1 m plain),
     a back wall at 3.5-6 m in half of the scenes; 3 frames at 0.1 m/s."""
@@ -53,12 +80,9 @@ def random_scene(seed: int) -> dict:
     for _ in range(rng.integers(2, 5)):
         x = rng.uniform(0.7, 2.8)
         y = rng.uniform(-0.45, 0.45) * x
-        surface = {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
-                   "texture": "noise", "scale_m": 0.02,
-                   "contrast": round(float(rng.uniform(0.4, 0.8)), 2)}
+        surface = _textured(rng)
         if rng.random() < 0.2 and x < 1.0:
-            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.4, 0.8, 3).round(2)],
-                       "texture": "plain"}
+            surface = _plain(rng)
         if rng.random() < 0.5:
             objs.append({"type": "box", "centre_xy_m": [float(x), float(y)],
                          "size_m": [float(rng.uniform(0.15, 0.4)),
@@ -71,15 +95,8 @@ def random_scene(seed: int) -> dict:
                          "height_m": float(rng.uniform(0.2, 1.0)), "surface": surface})
     if rng.random() < 0.5:
         d = float(rng.uniform(3.5, 6))
-        objs.append({"type": "wall", "from_xy_m": [d, -4], "to_xy_m": [d, 4], "height_m": 2.0,
-                     "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": "noise",
-                                 "scale_m": 0.04, "contrast": 0.5}})
-    return {"slitcli_scene": 1, "name": f"random-{seed}", "seed": int(seed),
-            "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
-                      "contrast": 0.5},
-            "objects": objs,
-            "robot": {"start": [0, 0, 0], "motion": "straight", "speed_mps": 0.1,
-                      "frames": 3, "frame_rate_hz": 5.0}}
+        objs.append(_back_wall(d))
+    return _scene(f"random-{seed}", seed, objs)
 
 
 def overhang_scene(seed: int) -> dict:
@@ -91,28 +108,15 @@ def overhang_scene(seed: int) -> dict:
         y = rng.uniform(-0.4, 0.4) * x
         thickness = float(rng.choice([0.04, 0.08, 0.2, 0.4]))
         z_min = float(rng.uniform(0.15, 0.6))
-        if rng.random() < 0.8:
-            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
-                       "texture": "noise", "scale_m": 0.02,
-                       "contrast": round(float(rng.uniform(0.4, 0.8)), 2)}
-        else:
-            surface = {"colour_rgb": [float(c) for c in rng.uniform(0.4, 0.8, 3).round(2)],
-                       "texture": "plain"}
+        surface = _textured(rng) if rng.random() < 0.8 else _plain(rng)
         objs.append({"type": "box", "centre_xy_m": [float(x), float(y)],
                      "size_m": [float(rng.uniform(0.3, 0.6)), float(rng.uniform(0.3, 0.8)),
                                 thickness],
                      "z_min_m": z_min, "yaw_deg": float(rng.uniform(-30, 30)),
                      "surface": surface})
     d = float(rng.uniform(3.2, 5))
-    objs.append({"type": "wall", "from_xy_m": [d, -4], "to_xy_m": [d, 4], "height_m": 2.0,
-                 "surface": {"colour_rgb": [0.7, 0.68, 0.62], "texture": "noise",
-                             "scale_m": 0.04, "contrast": 0.5}})
-    return {"slitcli_scene": 1, "name": f"overhang-{seed}", "seed": int(seed),
-            "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
-                      "contrast": 0.5},
-            "objects": objs,
-            "robot": {"start": [0, 0, 0], "motion": "straight", "speed_mps": 0.1,
-                      "frames": 3, "frame_rate_hz": 5.0}}
+    objs.append(_back_wall(d))
+    return _scene(f"overhang-{seed}", seed, objs)
 
 
 def wedge_coverage(d: dict, name: str, seq_dir: Path, wrong: pd.DataFrame) -> np.ndarray:
