@@ -384,7 +384,8 @@ def _on_curve(v: np.ndarray, x0: int, x1: int, x2: int) -> bool:  # pragma: no c
 def prune_ends(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: np.ndarray,
                keep: np.ndarray, max_jump_px: float,
                min_peak_dn: float) -> None:  # pragma: no cover
-    """:func:`trim_ends` on every segment of the kept columns (``keep`` updated)."""
+    """:func:`trim_ends` on every segment of the kept columns, and lone spikes
+    (:func:`spike`) dropped (``keep`` updated)."""
     n = v.shape[0]
     idx = np.empty(n, np.int64)
     u = 0
@@ -393,11 +394,42 @@ def prune_ends(v: np.ndarray, width: np.ndarray, amp: np.ndarray, sat: np.ndarra
             u += 1
             continue
         cnt = segment(v, width, keep, u, max_jump_px, idx)
+        if cnt == 1 and spike(v, keep, u, max_jump_px):
+            keep[u] = False
+            u += 1
+            continue
         a, b = trim_ends(v, amp, sat, idx, cnt, min_peak_dn)
         for k in range(cnt):
             if k < a or k >= b:
                 keep[idx[k]] = False
         u = idx[cnt - 1] + 1
+
+
+@njit(cache=True, nogil=True)
+def spike(v: np.ndarray, keep: np.ndarray, u: int,
+          max_jump_px: float) -> bool:  # pragma: no cover
+    """Whether the kept column ``u``, which links with no kept neighbour (a segment
+    of its own), is a spike off a stripe that passes it by: the nearest kept columns
+    on both sides (within ``MAX_GAP + 1`` columns) continue each other across it
+    (rows at most ``max_jump_px`` per column apart).
+
+    :func:`keep_segments` takes no segment of one column, but its gap rule can join
+    a column several rows off a faint stripe to the stripe's end across a gap;
+    tracking then fills that gap along the stripe's course from both sides and
+    leaves the column alone between them (a corridor frame: 9 rows off, on a floor
+    texture, where no laser light falls)."""
+    n = v.shape[0]
+    left = -1
+    for x in range(u - 1, max(u - MAX_GAP - 2, -1), -1):
+        if keep[x]:
+            left = x
+            break
+    right = -1
+    for x in range(u + 1, min(u + MAX_GAP + 2, n)):
+        if keep[x]:
+            right = x
+            break
+    return left >= 0 and right >= 0 and abs(v[right] - v[left]) <= max_jump_px * (right - left)
 
 
 @njit(cache=True, nogil=True)
