@@ -82,23 +82,25 @@ def test_candidate_mask_eq2_eq3():
     assert 0.05 < red.mean() < 0.6
     score = np.empty(60)
     sat_col = np.empty(60, bool)
+    # the background per channel, one row per column and channel (the extractor's layout)
+    back_p = cv2.transpose(back.reshape(60, 120))
     for i in range(40):
-        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2),
-                            np.ones((40, 60), bool), i, PARAMS.min_th, PARAMS.min_delta_th,
-                            PARAMS.alpha, PARAMS.saturation_dn, score, sat_col)
+        candidates.evidence(img.transpose(1, 0, 2), back_p, np.ones((40, 60), bool), i,
+                            PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
+                            PARAMS.saturation_dn, score, sat_col)
         np.testing.assert_array_equal((score > -1.0) & ~sat_col, red[:, i])
         np.testing.assert_array_equal(sat_col, sat[:, i])
     # contiguous columns (the extractor's layout) give the same values; masked pixels
     # none
-    img_t, back_t = cv2.transpose(img), cv2.transpose(back)
+    img_t = cv2.transpose(img)
     mask_t = rng.random((40, 60)) < 0.7
     score_c = np.empty(60)
     sat_c = np.empty(60, bool)
     for i in range(40):
-        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2), mask_t, i,
+        candidates.evidence(img.transpose(1, 0, 2), back_p, mask_t, i,
                             PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
                             PARAMS.saturation_dn, score, sat_col)
-        candidates.evidence(img_t, back_t, mask_t, i, PARAMS.min_th, PARAMS.min_delta_th,
+        candidates.evidence(img_t, back_p, mask_t, i, PARAMS.min_th, PARAMS.min_delta_th,
                             PARAMS.alpha, PARAMS.saturation_dn, score_c, sat_c)
         np.testing.assert_array_equal(score_c, score)
         np.testing.assert_array_equal(sat_c, sat_col)

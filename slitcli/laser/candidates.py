@@ -1,7 +1,8 @@
 """Compiled (numba) candidate crossings per image column (paper Eqs. 1-3 and the seeds of Eq. 4).
 
 Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row;
-views of the ``(H, W, 3)`` images); all loops over pixels live here and in
+views of the ``(H, W, 3)`` images), the background as ``(3 W, H)`` (one channel of one
+column per row, :func:`evidence`); all loops over pixels live here and in
 :mod:`slitcli.laser.fit`, compiled. The signal model is :mod:`slitcli.laser.fit`'s.
 """
 
@@ -108,10 +109,12 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
              sat: np.ndarray) -> None:  # pragma: no cover
     """Per-pixel laser evidence of column ``i`` (paper Eqs. 1-3), into ``score``.
 
-    On the contrast ``t = x - bg`` (light above the local background, ``bg`` a
-    vertical opening): Eq. 1/2 on the chromaticity of ``t``, ``t_r > min_th sum(t)``
-    and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3, white rejection,
-    ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
+    ``bg``, the local background (a vertical opening), comes per channel, (3 W, H):
+    row ``3 i + c`` holds channel ``c`` (b, g, r) of column ``i`` (the transpose of
+    the one-channel (H, 3 W) view of an (H, W, 3) image). On the contrast ``t = x -
+    bg`` (light above the local background): Eq. 1/2 on the chromaticity of ``t``,
+    ``t_r > min_th sum(t)`` and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3,
+    white rejection, ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
     the background's colour removed to the share ``LAM_DETECT``, so texture, shading
     and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
     elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
@@ -122,15 +125,16 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
     # outcomes selected without branches: the compiler turns the loop into vector
     # instructions (twice as fast as skipping masked pixels and caching the weights per
     # background colour, with the same values: the weights are a function of it)
-    # (C-contiguous images, as the extractor's, are not copied here; other layouts are)
+    # (C-contiguous images, as the extractor's, are not copied here; other layouts are;
+    # the background's channels are separate runs, which load without shuffles)
     xi = np.ascontiguousarray(img[i]).reshape(n * 3)
-    bi = np.ascontiguousarray(bg[i]).reshape(n * 3)
+    b_b, b_g, b_r = bg[3 * i], bg[3 * i + 1], bg[3 * i + 2]
     mi = mask[i]
     for j in range(n):
         xr = xi[3 * j + 2]
-        br = bi[3 * j + 2]
-        bgg = bi[3 * j + 1]
-        bb = bi[3 * j]
+        br = b_r[j]
+        bgg = b_g[j]
+        bb = b_b[j]
         tr = float(xr) - br
         tg = float(xi[3 * j + 1]) - bgg
         tb = float(xi[3 * j]) - bb
@@ -201,7 +205,8 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: 
     brightest flank where that is higher: on a red surface the clipped pixels keep
     only ``255`` less the surface's red). Each is fitted by :func:`fit_profile`
     (widths beyond ``s_max`` px are not refined), with ``C_CLUT`` from
-    :func:`_clutter`. A candidate of significance in ``[support_z, z_strong)`` (a
+    :func:`_clutter`. ``bg`` is the background as :func:`evidence` takes it. A
+    candidate of significance in ``[support_z, z_strong)`` (a
     faint stripe, or noise) is fitted again on the column averaged with its
     neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
     width of the sheet there (``g_map`` (W, H), rows per metre, times ``sheet_m``)
