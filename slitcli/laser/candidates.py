@@ -114,9 +114,9 @@ def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: 
     the one-channel (H, 3 W) view of an (H, W, 3) image). On the contrast ``t = x -
     bg`` (light above the local background): Eq. 1/2 on the chromaticity of ``t``,
     ``t_r > min_th sum(t)`` and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3,
-    white rejection, ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate (``w . l = 1``,
-    the background's colour removed to the share ``LAM_DETECT``, so texture, shading
-    and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
+    white rejection, ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate
+    (``w . l = 1``, the background's colour removed to the share ``LAM_DETECT``, so
+    texture, shading and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
     elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
     red contrast and ``sat`` True.
     """
