@@ -108,6 +108,32 @@ def test_candidate_mask_eq2_eq3():
         np.testing.assert_array_equal((score_c > -1.0) & ~sat_c, red[:, i] & mask_t[i])
 
 
+def test_vertical_opening_matches_opencv():
+    # the extractor's background (an opening along the rows, rows beyond the border
+    # left out) equals OpenCV's morphologyEx with a (k, 1) kernel, value for value: odd
+    # and even windows, images shorter than the window, bright bands narrower and
+    # wider than it
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        rows, cols = int(rng.integers(1, 70)), int(rng.integers(1, 40))
+        img = rng.integers(0, 256, (rows, cols)).astype(np.uint8)
+        if trial % 2:
+            img = np.where(rng.random((rows, 1)) < 0.3, 220, 40).astype(np.uint8) + \
+                rng.integers(0, 3, (rows, cols)).astype(np.uint8)
+        k = int(rng.integers(3, 32))
+        out = np.empty_like(img)
+        candidates.vertical_opening(img, k, out)
+        np.testing.assert_array_equal(
+            out, cv2.morphologyEx(img, cv2.MORPH_OPEN, np.ones((k, 1), np.uint8)))
+    # a bright band narrower than the window is removed, a wider one kept
+    col = np.full((40, 1), 10, np.uint8)
+    col[5:9] = 200
+    col[20:35] = 150
+    out = np.empty_like(col)
+    candidates.vertical_opening(col, 7, out)
+    assert (out[5:9] == 10).all() and (out[20:35] == 150).all()
+
+
 def test_noise_sigma_estimate_ignores_texture():
     # a strongly textured wall without the laser: the estimate is the noise alone
     for noise_dn in (2.0, 6.0):

@@ -56,6 +56,73 @@ N_SEEDS = 5
 
 
 @njit(cache=True, nogil=True)
+def _min3(src: np.ndarray, dst: np.ndarray, m: int, sh1: int, sh2: int,
+          is_max: bool) -> None:  # pragma: no cover
+    """``dst[t] = min(src[t], src[t + sh1], src[t + sh2])`` (max with ``is_max``) for
+    ``t < m``; the explicit slices let the compiler vectorise the loop."""
+    a = src[:m]
+    b = src[sh1:sh1 + m]
+    c = src[sh2:sh2 + m]
+    d = dst[:m]
+    if is_max:
+        for t in range(m):
+            u, v, w = a[t], b[t], c[t]
+            u = u if u > v else v
+            d[t] = u if u > w else w
+    else:
+        for t in range(m):
+            u, v, w = a[t], b[t], c[t]
+            u = u if u < v else v
+            d[t] = u if u < w else w
+
+
+@njit(cache=True, nogil=True)
+def _vertical_filter(x: np.ndarray, k: int, out: np.ndarray, buf_a: np.ndarray,
+                     buf_b: np.ndarray, is_max: bool) -> None:  # pragma: no cover
+    """Minimum (maximum) over ``k`` rows, anchor ``k // 2``, of ``x`` (rows, C) uint8
+    into ``out``; rows beyond the border are left out (OpenCV's erosion and dilation
+    with a (k, 1) kernel). Windows doubled in width pass by pass (1, 2, 4, ... rows),
+    the last pass joins three: a handful of passes instead of ``k`` comparisons a
+    pixel; the scratch buffers hold ``(rows + k - 1) C`` values."""
+    n = x.shape[0]
+    c = x.shape[1]
+    hc = (k // 2) * c
+    xf = x.reshape(n * c)
+    fill = 0 if is_max else 255  # the padding never wins
+    pad_a = buf_a[:hc]
+    for t in range(hc):
+        pad_a[t] = fill
+    mid = buf_a[hc:hc + n * c]
+    for t in range(n * c):
+        mid[t] = xf[t]
+    pad_b = buf_a[hc + n * c:(n + k - 1) * c]
+    for t in range(pad_b.size):
+        pad_b[t] = fill
+    w = 1
+    src, dst = buf_a, buf_b
+    while 3 * w < k:
+        # rows j .. j + 2 w - 1 from two windows of w rows
+        _min3(src, dst, (n + k - 2 * w) * c, w * c, w * c, is_max)
+        w *= 2
+        src, dst = dst, src
+    # rows j .. j + k - 1 from three windows of w rows (3 w >= k)
+    _min3(src, out.reshape(n * c), n * c, min(w, k - w) * c, (k - w) * c, is_max)
+
+
+@njit(cache=True, nogil=True)
+def vertical_opening(x: np.ndarray, k: int, out: np.ndarray) -> None:  # pragma: no cover
+    """Morphological opening of ``x`` (rows, C) uint8 along its rows with a window of
+    ``k`` rows, into ``out`` (same shape): the same values as OpenCV's
+    ``morphologyEx(x, MORPH_OPEN, ones((k, 1)))`` (min and max are exact), single
+    threaded, a fifth faster at 320 x 240 x 3."""
+    n, c = x.shape
+    buf_a = np.empty((n + k - 1) * c, np.uint8)
+    buf_b = np.empty((n + k - 1) * c, np.uint8)
+    _vertical_filter(x, k, out, buf_a, buf_b, False)
+    _vertical_filter(out, k, out, buf_a, buf_b, True)
+
+
+@njit(cache=True, nogil=True)
 def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma: no cover
     """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
 
