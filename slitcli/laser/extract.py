@@ -4,7 +4,8 @@ Pipeline (docs/laser.md, "How the stripe is found"); every loop over pixels or
 columns is compiled (:mod:`slitcli.laser.candidates`, :mod:`slitcli.laser.fit`,
 :mod:`slitcli.laser.track`, :mod:`slitcli.laser.select`):
 
-1. Background: a vertical morphological opening per channel (OpenCV); the contrast
+1. Background: a vertical morphological opening per channel (compiled,
+   :func:`slitcli.laser.candidates.vertical_opening`); the contrast
    ``x - opening`` is the light a pixel adds above its surroundings. Noise sigma
    from the colour orthogonal to the surface's (texture cancels there).
 2. Evidence per pixel (Eqs. 1-3) on the contrast: red chromaticity (Eq. 2), white
