@@ -82,28 +82,56 @@ def test_candidate_mask_eq2_eq3():
     assert 0.05 < red.mean() < 0.6
     score = np.empty(60)
     sat_col = np.empty(60, bool)
+    # the background per channel, one row per column and channel (the extractor's layout)
+    back_p = cv2.transpose(back.reshape(60, 120))
     for i in range(40):
-        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2),
-                            np.ones((40, 60), bool), i, PARAMS.min_th, PARAMS.min_delta_th,
-                            PARAMS.alpha, PARAMS.saturation_dn, score, sat_col)
+        candidates.evidence(img.transpose(1, 0, 2), back_p, np.ones((40, 60), bool), i,
+                            PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
+                            PARAMS.saturation_dn, score, sat_col)
         np.testing.assert_array_equal((score > -1.0) & ~sat_col, red[:, i])
         np.testing.assert_array_equal(sat_col, sat[:, i])
     # contiguous columns (the extractor's layout) give the same values; masked pixels
     # none
-    img_t, back_t = cv2.transpose(img), cv2.transpose(back)
+    img_t = cv2.transpose(img)
     mask_t = rng.random((40, 60)) < 0.7
     score_c = np.empty(60)
     sat_c = np.empty(60, bool)
     for i in range(40):
-        candidates.evidence(img.transpose(1, 0, 2), back.transpose(1, 0, 2), mask_t, i,
+        candidates.evidence(img.transpose(1, 0, 2), back_p, mask_t, i,
                             PARAMS.min_th, PARAMS.min_delta_th, PARAMS.alpha,
                             PARAMS.saturation_dn, score, sat_col)
-        candidates.evidence(img_t, back_t, mask_t, i, PARAMS.min_th, PARAMS.min_delta_th,
+        candidates.evidence(img_t, back_p, mask_t, i, PARAMS.min_th, PARAMS.min_delta_th,
                             PARAMS.alpha, PARAMS.saturation_dn, score_c, sat_c)
         np.testing.assert_array_equal(score_c, score)
         np.testing.assert_array_equal(sat_c, sat_col)
         assert np.all(score_c[~mask_t[i]] == -1.0) and not sat_c[~mask_t[i]].any()
         np.testing.assert_array_equal((score_c > -1.0) & ~sat_c, red[:, i] & mask_t[i])
+
+
+def test_vertical_opening_matches_opencv():
+    # the extractor's background (an opening along the rows, rows beyond the border
+    # left out) equals OpenCV's morphologyEx with a (k, 1) kernel, value for value: odd
+    # and even windows, images shorter than the window, bright bands narrower and
+    # wider than it
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        rows, cols = int(rng.integers(1, 70)), int(rng.integers(1, 40))
+        img = rng.integers(0, 256, (rows, cols)).astype(np.uint8)
+        if trial % 2:
+            img = np.where(rng.random((rows, 1)) < 0.3, 220, 40).astype(np.uint8) + \
+                rng.integers(0, 3, (rows, cols)).astype(np.uint8)
+        k = int(rng.integers(3, 32))
+        out = np.empty_like(img)
+        candidates.vertical_opening(img, k, out)
+        np.testing.assert_array_equal(
+            out, cv2.morphologyEx(img, cv2.MORPH_OPEN, np.ones((k, 1), np.uint8)))
+    # a bright band narrower than the window is removed, a wider one kept
+    col = np.full((40, 1), 10, np.uint8)
+    col[5:9] = 200
+    col[20:35] = 150
+    out = np.empty_like(col)
+    candidates.vertical_opening(col, 7, out)
+    assert (out[5:9] == 10).all() and (out[20:35] == 150).all()
 
 
 def test_noise_sigma_estimate_ignores_texture():
