@@ -21,6 +21,8 @@ the matches, row by row, with evidence that does not straddle the edge:
   pole keeps the blocks above and below it, and one on a silhouette the blocks along
   the silhouette. The blocks do not overlap the centred one, so on a plain surface
   the sensor noise passes the centred and both blocks of an axis rarely together.
+  A pixel whose own centred correlation reaches ``strong`` carries its match alone and
+  is not tested (most pixels of a textured surface: this keeps the test cheap).
 - depth edges, a two-hypothesis test on the pixel's own column. Where a
   valid neighbour within ``radius`` columns lies at a smaller disparity (a depth
   step), the grey-level column of the pixel (window-tall, one pixel wide, so it
@@ -194,13 +196,14 @@ def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _cross_row(gl, gr, disp, y, cross_min, r, codes):
-    """Cross support of row y (module notes): valid pixels of ``codes`` supported on
-    neither axis get REASON_SUPPORT. A pixel's test reads its own code only."""
+def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes):
+    """Cross support of row y (module notes; ``zrow``: its centred correlations): valid
+    pixels of ``codes`` below ``strong`` and supported on neither axis get
+    REASON_SUPPORT. A pixel's test reads its own code only."""
     width = gl.shape[1]
     k = 2 * r + 1
     for x in range(width):
-        if codes[x] != 0:
+        if codes[x] != 0 or zrow[x] >= strong:
             continue
         d = disp[y, x]
         if (_zncc_block(gl, gr, y - k, x, d, r, r) >= cross_min
@@ -366,8 +369,8 @@ def _candidates(codes, disp, rdisp, tol, left_cand, right_cand, width):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, r, ry, tol, ratio, step, radius,
-              floor2, y0, y1, reason):
+def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol, ratio, step,
+              radius, floor2, y0, y1, reason):
     """Local support (centred, one-sided, cross) and the depth-edge test, rows y0 .. y1 - 1, in
     place on ``reason``, in one pass (module notes).
 
@@ -383,8 +386,9 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, r, ry, tol, ratio,
     smin, side_min : float
         ``support_min_zncc`` (0 = no support test) and ``support_side_min_zncc``
         (0 = no one-sided test).
-    cross_min : float
-        ``support_cross_min_zncc`` (0 = no cross-support test).
+    cross_min, strong : float
+        ``support_cross_min_zncc`` (0 = no cross-support test) and
+        ``support_strong_zncc`` (a centred correlation this high needs no cross support).
     r, ry : int
         Half size of the (2r+1)^2 support window; half height of the one-sided block
         (2r+1 columns by 2ry+1 rows) and of the depth-edge columns.
@@ -427,7 +431,7 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, r, ry, tol, ratio,
         if support and side_min != 0:
             _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
         if support and cross_min != 0:
-            _cross_row(gl, gr, disp, y, cross_min, r, codes)
+            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes)
         if ratio > 0:
             _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
                         tol, ptr(left_cand), ptr(right_cand), width)
