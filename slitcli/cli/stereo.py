@@ -47,9 +47,13 @@ def matcher_options(f: Any) -> Any:
               help="Uniqueness ratio: other disparities must cost (1 + ratio) x more (0 = off)."),
         click.option("--lr-max-diff", type=int, default=1, show_default=True,
               help="Left-right check tolerance, px (negative = off)."),
-        click.option("--support-min", type=float, default=0.4, show_default=True,
+        click.option("--support-min", type=float, default=0.2, show_default=True,
               help="Minimum 3x3 zero-mean correlation at the chosen disparity, in [-1, 1] "
-              "(0 = off)."),
+              "(0 = off, and no cross support)."),
+        click.option("--support-cross-min", type=float, default=0.4, show_default=True,
+              help="Minimum zero-mean correlation, at the chosen disparity, of both 3x3 "
+              "blocks just above and below the pixel, or of both just left and right of "
+              "it, in [-1, 1] (0 = off)."),
         click.option("--speckle-window", type=int, default=100, show_default=True,
               help="Remove disparity blobs up to this many pixels (0 = off)."),
         click.option("--speckle-range", type=float, default=2.0, show_default=True,
@@ -71,8 +75,9 @@ def matcher_options(f: Any) -> Any:
 
 def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window: str,
                   prefilter: str, texture_min: float, uniqueness: float, lr_max_diff: int,
-                  support_min: float, speckle_window: int, speckle_range: float, subpixel: str,
-                  floor_margin: float, robot_height: float, max_range: float | None) -> Any:
+                  support_min: float, support_cross_min: float, speckle_window: int,
+                  speckle_range: float, subpixel: str, floor_margin: float,
+                  robot_height: float, max_range: float | None) -> Any:
     """Build the StereoParams dataclass from the :func:`matcher_options` values."""
     from slitcli.stereo.matcher import MatcherParams
     from slitcli.stereo.obstacles import ObstacleParams
@@ -84,6 +89,7 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
                               prefilter=prefilter, texture_min_dn=texture_min,
                               uniqueness_ratio=uniqueness, lr_max_diff_px=lr_max_diff,
                               support_min_zncc=support_min,
+                              support_cross_min_zncc=support_cross_min,
                               speckle_window_px=speckle_window,
                               speckle_range_px=speckle_range, subpixel=subpixel),
         obstacles=ObstacleParams(floor_margin_m=floor_margin, robot_height_m=robot_height,
@@ -101,8 +107,9 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
 def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, matcher: str,
                num_disparities: int, min_disparity: int, window: str, prefilter: str,
                texture_min: float, uniqueness: float, lr_max_diff: int, support_min: float,
-               speckle_window: int, speckle_range: float, subpixel: str, floor_margin: float,
-               robot_height: float, max_range: float | None, overwrite: bool) -> None:
+               support_cross_min: float, speckle_window: int, speckle_range: float,
+               subpixel: str, floor_margin: float, robot_height: float,
+               max_range: float | None, overwrite: bool) -> None:
     """Disparity, distance and obstacle-mask images of a stereo sequence (paper Eqs. 8-10).
 
     Writes OUT/disparity/NAME.png (uint16, disparity x 256, 0 = invalid),
@@ -116,7 +123,8 @@ def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, matcher: str,
     from slitcli.stereo.run import run_stereo
 
     params = stereo_params(matcher, num_disparities, min_disparity, window, prefilter,
-                           texture_min, uniqueness, lr_max_diff, support_min, speckle_window,
+                           texture_min, uniqueness, lr_max_diff, support_min,
+                           support_cross_min, speckle_window,
                            speckle_range, subpixel, floor_margin, robot_height, max_range)
     bar = progress_bar(0, "stereo")
     with bar:

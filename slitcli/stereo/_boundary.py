@@ -13,6 +13,16 @@ the matches, row by row, with evidence that does not straddle the edge:
   wrongly matched neighbour) must also be supported by the (2r+1)-wide, window-tall
   block centred one column towards that neighbour. A textureless pixel that borrowed
   its disparity from texture on its other side has nothing there to correlate.
+- cross support: the match must also hold on both sides of the pixel along one axis:
+  the (2r+1)^2 left blocks just above and just below it (rows y -+ (2r+1)), or just
+  left and right of it, correlated with the right image at the pixel's own disparity,
+  must both reach ``cross_min_zncc``. A textureless pixel within half a window of an
+  edge or of the laser stripe has that texture on one side only; a pixel of a thin
+  pole keeps the blocks above and below it, and one on a silhouette the blocks along
+  the silhouette. The blocks do not overlap the centred one, so on a plain surface
+  the sensor noise passes the centred and both blocks of an axis rarely together.
+  A pixel whose own centred correlation reaches ``strong`` carries its match alone and
+  is not tested (most pixels of a textured surface: this keeps the test cheap).
 - depth edges, a two-hypothesis test on the pixel's own column. Where a
   valid neighbour within ``radius`` columns lies at a smaller disparity (a depth
   step), the grey-level column of the pixel (window-tall, one pixel wide, so it
@@ -25,7 +35,7 @@ the matches, row by row, with evidence that does not straddle the edge:
   takes the object's disparity when its window reaches the object, and its partner
   in the right image is then better explained by the farther surface.
 
-All three run in one pass over a band of rows (``y0 .. y1 - 1``; the warped right
+All four run in one pass over a band of rows (``y0 .. y1 - 1``; the warped right
 image is kept for the 2r+1 rows around the current one only), O(pixels): the
 per-pixel work is a fixed-size window, and the residual columns are computed only
 next to depth steps (a row-wise running minimum of the candidates says where). The
@@ -185,6 +195,26 @@ def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes):
                 break
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes):
+    """Cross support of row y (module notes; ``zrow``: its centred correlations): valid
+    pixels of ``codes`` below ``strong`` and supported on neither axis get
+    REASON_SUPPORT. A pixel's test reads its own code only."""
+    width = gl.shape[1]
+    k = 2 * r + 1
+    for x in range(width):
+        if codes[x] != 0 or zrow[x] >= strong:
+            continue
+        d = disp[y, x]
+        if (_zncc_block(gl, gr, y - k, x, d, r, r) >= cross_min
+                and _zncc_block(gl, gr, y + k, x, d, r, r) >= cross_min):
+            continue
+        if (_zncc_block(gl, gr, y, x - k, d, r, r) >= cross_min
+                and _zncc_block(gl, gr, y, x + k, d, r, r) >= cross_min):
+            continue
+        codes[x] = REASON_SUPPORT
+
+
 @nb.njit(cache=True, fastmath=_FASTMATH)
 def _depth_edge_row(gl, gr, disp, y, step, radius, hh, ratio, floor2, left_cand, right_cand,
                     left_min, right_min, codes):
@@ -339,9 +369,9 @@ def _candidates(codes, disp, rdisp, tol, left_cand, right_cand, width):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radius, floor2,
-              y0, y1, reason):
-    """Local support (centred, one-sided) and the depth-edge test, rows y0 .. y1 - 1, in
+def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol, ratio, step,
+              radius, floor2, y0, y1, reason):
+    """Local support (centred, one-sided, cross) and the depth-edge test, rows y0 .. y1 - 1, in
     place on ``reason``, in one pass (module notes).
 
     Parameters
@@ -356,6 +386,9 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radi
     smin, side_min : float
         ``support_min_zncc`` (0 = no support test) and ``support_side_min_zncc``
         (0 = no one-sided test).
+    cross_min, strong : float
+        ``support_cross_min_zncc`` (0 = no cross-support test) and
+        ``support_strong_zncc`` (a centred correlation this high needs no cross support).
     r, ry : int
         Half size of the (2r+1)^2 support window; half height of the one-sided block
         (2r+1 columns by 2ry+1 rows) and of the depth-edge columns.
@@ -397,6 +430,8 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, r, ry, tol, ratio, step, radi
                        width)
         if support and side_min != 0:
             _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
+        if support and cross_min != 0:
+            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes)
         if ratio > 0:
             _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
                         tol, ptr(left_cand), ptr(right_cand), width)

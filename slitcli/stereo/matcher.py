@@ -43,6 +43,11 @@ all optional and each measured in docs/stereo.md:
   disparity: a
   textureless pixel beside a textured surface passes the centred block on the
   strength of that texture alone;
+- cross support (``support_cross_min_zncc``): unless its own correlation reaches
+  ``support_strong_zncc``, the ``(2 r + 1)^2`` blocks just above and just below the
+  pixel, or just left and right of it, must both correlate at the pixel's own
+  disparity: a textureless pixel within half a window of an edge or of the laser
+  stripe sees that texture on one side only;
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
@@ -133,8 +138,10 @@ class MatcherParams:
     uniqueness_ratio: float = 0.15
     lr_max_diff_px: int = 1
     support_radius_px: int = 1
-    support_min_zncc: float = 0.4
+    support_min_zncc: float = 0.2
     support_side_min_zncc: float = 0.45
+    support_cross_min_zncc: float = 0.4
+    support_strong_zncc: float = 0.95
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -175,9 +182,11 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if not p.uniqueness_ratio >= 0:
         raise SlitcliError(f"--uniqueness {p.uniqueness_ratio} must be >= 0 (0 = off)")
     if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0 or \
-            not -1.0 <= p.support_side_min_zncc <= 1.0:
+            not -1.0 <= p.support_side_min_zncc <= 1.0 or \
+            not -1.0 <= p.support_cross_min_zncc <= 1.0 or \
+            not -1.0 <= p.support_strong_zncc <= 1.0:
         raise SlitcliError("--support-radius must be >= 1 px and --support-min, "
-                           "--support-side-min in [-1, 1] (0 = off)")
+                           "--support-side-min, --support-cross-min in [-1, 1] (0 = off)")
     if not 0 <= p.boundary_ratio < 1:
         raise SlitcliError(f"--boundary-ratio {p.boundary_ratio} must be in [0, 1) (0 = off)")
     if not p.boundary_step_px > 0 or not p.boundary_noise_dn >= 0 or p.boundary_radius_px < 1:
@@ -354,7 +363,8 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
     gl = np.asarray(left_grey, np.float32)
     gr = np.asarray(right_grey, np.float32)
     tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
-    args = (smin, float(params.support_side_min_zncc), int(params.support_radius_px), int(n),
+    args = (smin, float(params.support_side_min_zncc), float(params.support_cross_min_zncc),
+            float(params.support_strong_zncc), int(params.support_radius_px), int(n),
             tol, float(params.boundary_ratio), float(params.boundary_step_px),
             int(params.boundary_radius_px), float(params.boundary_noise_dn) ** 2)
     run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, disp, rdisp, *args, y0, y1,
