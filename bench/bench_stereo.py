@@ -108,7 +108,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
     load = f"{before} before, {_load()} after; matcher threads {min(threads)}-{max(threads)}"
     notes = {
         "nssd default filters": "Eq. 10 + prefilter, texture, uniqueness, left-right, "
-                                "support (centred and one-sided), depth edges, speckle; "
+                                "support (centred, one-sided, cross), depth edges, speckle; "
                                 "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
@@ -222,6 +222,7 @@ def _accuracy_rows() -> list[dict]:
         "default, speckle off": replace(base, speckle_window_px=0),
         "default, support off": replace(base, support_min_zncc=0.0),
         "default, one-sided support off": replace(base, support_side_min_zncc=0.0),
+        "default, cross support off": replace(base, support_cross_min_zncc=0.0),
         "default, depth-edge test off": replace(base, boundary_ratio=0.0),
         "default, left-right off": replace(base, lr_max_diff_px=-1),
         "default, uniqueness off": replace(base, uniqueness_ratio=0.0),
