@@ -53,7 +53,8 @@ def matcher_options(f: Any) -> Any:
         click.option("--support-cross-min", type=float, default=0.4, show_default=True,
               help="Minimum zero-mean correlation, at the chosen disparity, of both 3x3 "
               "blocks just above and below the pixel, or of both just left and right of "
-              "it, in [-1, 1] (0 = off)."),
+              "it, in [-1, 1] (0 = off); pixels whose own 3x3 correlation reaches 0.95 "
+              "are not tested."),
         click.option("--speckle-window", type=int, default=100, show_default=True,
               help="Remove disparity blobs up to this many pixels (0 = off)."),
         click.option("--speckle-range", type=float, default=2.0, show_default=True,
