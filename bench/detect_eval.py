@@ -10,17 +10,18 @@ cylinders at 0.7-2.8 m (half of them before a back wall), runs the per-frame det
 - **phantom**: a free bin (nothing within 3 m) whose fused range is nearer than the
   truth minus 0.2 m.
 
-With ``--overhang N`` it adds N random overhang scenes: 1-2 slabs 4-40 cm thick whose
-underside is 0.15-0.6 m up (above the laser sheet), at 0.8-2.4 m, four in five textured,
-before a back wall. ``--coverage`` prints, for each missed bin, the share of its 1-degree
-wedge in which the true obstacle lies within tolerance of the bin's true range (20
-sub-wedges): a share of 0.05-0.2 is an object edge that reaches 1-4 tenths of a degree
-(a pixel or less) into the bin.
+With ``--reseed N`` it adds the three sample scenes again with N new texture and noise
+seeds each (seeds the tuning never saw). With ``--overhang N`` it adds N random overhang
+scenes: 1-2 slabs 4-40 cm thick whose underside is 0.15-0.6 m up (above the laser
+sheet), at 0.8-2.4 m, four in five textured, before a back wall. ``--coverage`` prints,
+for each missed bin, the share of its 1-degree wedge in which the true obstacle lies
+within tolerance of the bin's true range (20 sub-wedges): a share of 0.05-0.2 is an
+object edge that reaches 1-4 tenths of a degree (a pixel or less) into the bin.
 
 Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
-        [--overhang 0] [--fusion paper] [--details] [--coverage]
+        [--overhang 0] [--reseed 0] [--fusion paper] [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -43,6 +44,8 @@ from slitcli.sim.truth import true_ranges
 
 ROOT = Path(__file__).resolve().parent.parent
 CORRIDOR_SEEDS = (21, 22, 23, 24)
+# --reseed: the same sample scenes with new texture and noise seeds, never used in tuning
+RESEED_FIRST = {"corridor": 25, "distractors": 41, "overhang": 51}
 
 
 def _textured(rng: np.random.Generator) -> dict:
@@ -134,7 +137,8 @@ def wedge_coverage(d: dict, name: str, seq_dir: Path, wrong: pd.DataFrame) -> np
     return np.array(out)
 
 
-def sequences(n_random: int, n_overhang: int = 0) -> list[tuple[str, str, dict]]:
+def sequences(n_random: int, n_overhang: int = 0,
+              n_reseed: int = 0) -> list[tuple[str, str, dict]]:
     """(group, name, scene dict) of every evaluation sequence."""
     out = []
     corridor = yaml.safe_load((ROOT / "sample_data" / "corridor.yaml").read_text())
@@ -143,6 +147,10 @@ def sequences(n_random: int, n_overhang: int = 0) -> list[tuple[str, str, dict]]
     for name in ("distractors", "overhang"):
         out.append((name, name, yaml.safe_load((ROOT / "sample_data" / f"{name}.yaml")
                                                .read_text())))
+    for name, first in RESEED_FIRST.items():
+        d = yaml.safe_load((ROOT / "sample_data" / f"{name}.yaml").read_text())
+        for s in range(first, first + n_reseed):
+            out.append((f"{name}, new textures", f"{name}-{s}", {**d, "seed": s}))
     for s in range(n_random):
         d = random_scene(s)
         wall = any(o["type"] == "wall" for o in d["objects"])
@@ -178,6 +186,9 @@ def main() -> int:
                     help="folder for the rendered sequences (reused when present)")
     ap.add_argument("--random", type=int, default=24, help="number of random scenes")
     ap.add_argument("--overhang", type=int, default=0, help="number of random overhang scenes")
+    ap.add_argument("--reseed", type=int, default=0,
+                    help="also score corridor, distractors and overhang with this many "
+                         "new texture seeds each")
     ap.add_argument("--fusion", default="paper", choices=("paper", "conservative"))
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
     ap.add_argument("--coverage", action="store_true",
@@ -188,7 +199,7 @@ def main() -> int:
     cols = ["frame", "bearing_deg", "range_m", "laser_range_m", "stereo_range_m",
             "fused_range_m", "fused_source"]
     coverage = []
-    for group, name, d in sequences(args.random, args.overhang):
+    for group, name, d in sequences(args.random, args.overhang, args.reseed):
         out = Path(args.cache) / name
         if not (out / "gt" / "ranges.csv").exists():
             render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)
