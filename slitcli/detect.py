@@ -116,8 +116,10 @@ class Detector:
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
-        self.fusion = FusionParams(mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
-                                   stereo_max_range_m=rig.stereo.max_range_m)
+        self.fusion = FusionParams(
+            mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
+            stereo_max_range_m=rig.stereo.max_range_m,
+            focal_baseline_px_m=self.rectified_rig.left.fx_px * rig.baseline_m)
         self._laser_geometry = LaserGeometry.from_rig(self.rectified_rig, self.params.laser)
         self._laser_sight_m = laser_sight_range_m(
             self.rectified_rig, laser_bins_centres(self.rectified_rig, self.params.bin_deg))

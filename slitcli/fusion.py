@@ -6,7 +6,13 @@ Paper mode (Eq. 11 as read in DESIGN §7), per bin:
 
 1. stereo has no features there (neither its flag nor a return) -> the laser range
    (which may be "no return");
-2. the laser returns nearer than its maximum range -> ``min(laser, stereo)``;
+2. the laser returns nearer than its maximum range -> ``min(laser, stereo)``, except
+   that a stereo return nearer by at most ``same_surface_px`` of disparity is the
+   same surface as the laser's, and the laser's range is kept: inside its band the
+   laser is the precise sensor (well under 1 %), while a bin's stereo range, a low
+   percentile of its points, sits up to about 1.6 px short of it (measured on the
+   evaluation renders; docs/detect.md). Without this, a textureless obstacle whose
+   silhouette or laser stripe gives stereo a few matches takes the stereo range;
 3. no laser return -> the stereo range, but not closer than the laser's maximum range:
    ``max(laser_max_range, stereo)``. This trusts the laser's negative reading, which is
    wrong for an obstacle that overhangs the laser sheet (a table top, a shelf): the
@@ -28,7 +34,7 @@ Conservative mode: the plain minimum of the two returns.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
@@ -43,12 +49,20 @@ class FusionParams:
     """How laser and stereo ranges are combined.
 
     ``laser_max_range_m`` is the paper's max_Distance (the laser's active band ends
-    there); stereo returns beyond ``stereo_max_range_m`` are ignored.
+    there); stereo returns beyond ``stereo_max_range_m`` are ignored. In paper mode a
+    stereo return at most ``same_surface_px`` of disparity nearer than an in-band
+    laser return is taken as the same surface (the laser's range is kept);
+    ``focal_baseline_px_m`` is the rig's f x B (disparity = f B / range; the paper
+    rig's 250 px x 0.088 m by default, :class:`slitcli.detect.Detector` sets it from
+    the rig).
     """
 
     mode: str = "paper"
     laser_max_range_m: float = 1.0
     stereo_max_range_m: float = 3.0
+    _: KW_ONLY
+    same_surface_px: float = 2.0
+    focal_baseline_px_m: float = 22.0
 
     def __post_init__(self) -> None:
         if self.mode not in FUSION_MODES:
@@ -57,6 +71,9 @@ class FusionParams:
         if not self.laser_max_range_m > 0 or not self.stereo_max_range_m > 0:
             raise SlitcliError("fusion ranges must be positive; check the rig's "
                                "laser.max_range_m and stereo.max_range_m")
+        if not self.same_surface_px >= 0 or not self.focal_baseline_px_m > 0:
+            raise SlitcliError("fusion needs same_surface_px >= 0 and a positive focal "
+                               "length x baseline; check the rig's left.fx_px and baseline_m")
 
 
 @dataclass(frozen=True)
@@ -100,6 +117,11 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     if params.mode == "conservative":
         return FusedRanges(min_rng, min_src)
     laser_in_band = has_l & (laser < params.laser_max_range_m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stereo_nearer_px = params.focal_baseline_px_m * (1.0 / stereo - 1.0 / laser)
+    same_surface = laser_in_band & has_s & (stereo_nearer_px <= params.same_surface_px)
+    band_rng = np.where(same_surface, laser, min_rng)
+    band_src = np.where(same_surface, SOURCE_LASER, min_src)
     sight = (np.zeros_like(stereo) if laser_sight_m is None
              else np.asarray(laser_sight_m, dtype=float))
     beside_lit = np.zeros_like(laser_in_band)
@@ -109,9 +131,9 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
         trust_silence = has_s & (stereo >= sight) & ~beside_lit
     silent_rng = np.where(trust_silence, np.maximum(stereo, params.laser_max_range_m), stereo)
     silent_src = np.where(has_s, SOURCE_STEREO, SOURCE_NONE)
-    rng = np.where(~feat, laser, np.where(laser_in_band, min_rng, silent_rng))
+    rng = np.where(~feat, laser, np.where(laser_in_band, band_rng, silent_rng))
     src = np.where(~feat, np.where(has_l, SOURCE_LASER, SOURCE_NONE),
-                   np.where(laser_in_band, min_src, silent_src))
+                   np.where(laser_in_band, band_src, silent_src))
     return FusedRanges(rng, src.astype(object))
 
 

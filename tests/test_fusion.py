@@ -42,6 +42,30 @@ def test_conservative_mode_is_the_plain_minimum():
     assert f.source[5] == "stereo" and f.source[7] == "laser"
 
 
+def test_stereo_return_on_the_laser_surface_keeps_the_laser_range():
+    # f B = 22 px m: at 0.70 m the disparity is 31.43 px. Stereo 0.68 m is 0.92 px
+    # nearer (the same surface, its percentile a little short): the laser's 0.70 stands.
+    # Stereo 0.66 m is 1.90 px nearer, still within 2 px; 0.65 m is 2.42 px nearer: a
+    # distinct nearer obstacle (an overhang), stereo's range wins. Conservative: minimum.
+    laser = np.full(3, 0.70)
+    stereo = np.array([0.68, 0.66, 0.65])
+    feat = np.ones(3, bool)
+    f = fuse(laser, stereo, feat, FusionParams(focal_baseline_px_m=22.0))
+    np.testing.assert_allclose(f.range_m, [0.70, 0.70, 0.65])
+    assert list(f.source) == ["laser", "laser", "stereo"]
+    f = fuse(laser, stereo, feat, FusionParams(focal_baseline_px_m=22.0, same_surface_px=0.5))
+    np.testing.assert_allclose(f.range_m, [0.68, 0.66, 0.65])
+    c = fuse(laser, stereo, feat, FusionParams(mode="conservative"))
+    np.testing.assert_allclose(c.range_m, stereo)
+
+
+def test_impossible_same_surface_parameters_are_input_errors():
+    with pytest.raises(SlitcliError, match="same_surface_px"):
+        FusionParams(same_surface_px=-1.0)
+    with pytest.raises(SlitcliError, match="baseline"):
+        FusionParams(focal_baseline_px_m=0.0)
+
+
 def test_unknown_mode_is_an_input_error():
     with pytest.raises(SlitcliError, match="--fusion 'best'"):
         FusionParams(mode="best")

@@ -303,7 +303,7 @@ def test_bearing_bins_nearest_range():
     np.testing.assert_array_equal(centres, np.arange(-32.0, 33.0))
     s = make_frame(RIG, forward_m=0.8, seed=3)
     f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
-    bins = nearest_range_per_bin(f, RIG)
+    bins = nearest_range_per_bin(f, RIG, boundary_jump_m=None)  # column centres only
     # independent reduction with pandas
     df = pd.DataFrame({"b": np.round(f.bearing_deg), "r": f.range_m}).dropna()
     expect = df.groupby("b")["r"].min()
@@ -321,6 +321,17 @@ def test_bearing_bins_nearest_range():
     assert np.all((r >= lo - 0.004) & (r <= hi + 0.004))
     inband = nearest_range_per_bin(f, RIG, in_band_only=True)
     assert np.all(np.isnan(inband.range_m) | inband.in_band)
+    # with the bin boundaries interpolated, each bin's range is the wall's exact
+    # nearest point in the wedge (0.8 m / cos of the boundary bearing nearer the axis)
+    edge = nearest_range_per_bin(f, RIG)
+    lit = np.isfinite(edge.range_m[1:-1]) & np.isfinite(edge.range_m[:-2]) \
+        & np.isfinite(edge.range_m[2:])
+    be, re_ = edge.bearing_deg[1:-1][lit], edge.range_m[1:-1][lit]
+    exact = 0.8 / np.cos(np.radians(np.maximum(np.abs(be) - 0.5, 0.0)))
+    cols = bins.range_m[1:-1][lit]
+    assert lit.sum() >= 40
+    assert np.abs(re_ - exact).max() <= 0.001
+    assert np.median(np.abs(re_ - exact)) < 0.5 * np.median(np.abs(cols - exact))
 
 
 def test_search_mask_matches_range_limit():

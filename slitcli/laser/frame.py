@@ -465,8 +465,17 @@ def segment_edges(frame: LaserFrame, rig: Rig, params: EdgeParams | None = None)
 
 def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
                           in_band_only: bool = False,
-                          edges: LaserEdges | None = None) -> LaserBins:
+                          edges: LaserEdges | None = None,
+                          boundary_jump_m: float | None = 0.05) -> LaserBins:
     """Reduce a frame's laser points to the nearest range per bearing bin.
+
+    A bin's truth is the nearest point of the lit outline anywhere in its wedge, and on
+    a surface seen obliquely that lies on the wedge's boundary, up to half a column
+    from the nearest column's centre. So where two neighbouring stripe columns of one
+    surface (ranges within ``boundary_jump_m``) straddle bin boundaries, the range is
+    interpolated linearly in bearing at each boundary, and that point counts in the
+    bins on both sides. On a convex surface the interpolated chord lies behind the
+    surface, so the point is never nearer than the outline.
 
     Parameters
     ----------
@@ -481,6 +490,9 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
         in the bin its bearing falls in, so a lit surface whose edge crosses a bin
         boundary between two columns ranges that bin too. ``count`` stays the number
         of stripe columns.
+    boundary_jump_m : float or None
+        Largest range step between neighbouring columns of one surface, metres; None
+        turns the boundary interpolation off.
 
     Returns
     -------
@@ -496,6 +508,12 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
     nearest = np.full(centres.size, np.inf)
     np.minimum.at(nearest, idx[ok], frame.range_m[use][ok])
     count = np.bincount(idx[ok], minlength=centres.size)
+    if boundary_jump_m is not None:
+        b_rng, b_lo = _bin_boundary_points(frame.range_m, frame.bearing_deg, use, bin_deg,
+                                           boundary_jump_m)
+        for side in (b_lo - k0, b_lo - k0 + 1):
+            b_ok = (side >= 0) & (side < centres.size)
+            np.minimum.at(nearest, side[b_ok], b_rng[b_ok])
     if edges is not None and edges.range_m.size:
         e_idx = np.floor(edges.bearing_deg / bin_deg + 0.5).astype(np.int64) - k0
         e_ok = (e_idx >= 0) & (e_idx < centres.size) & np.isfinite(edges.range_m)
@@ -504,3 +522,25 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
     with np.errstate(invalid="ignore"):
         band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
     return LaserBins(bearing_deg=centres, range_m=rng, in_band=band, count=count)
+
+
+def _bin_boundary_points(range_m: np.ndarray, bearing_deg: np.ndarray, use: np.ndarray,
+                         bin_deg: float, jump_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ranges interpolated at the bin boundaries crossed between neighbouring columns.
+
+    Returns the ranges (m) and, per point, the absolute index ``k`` of the bin below
+    the boundary (the boundary is at bearing ``(k + 0.5) * bin_deg``).
+    """
+    r, b = range_m, bearing_deg
+    with np.errstate(invalid="ignore"):
+        pair = use[:-1] & use[1:] & (np.abs(np.diff(r)) <= jump_m)
+    i = np.flatnonzero(pair)
+    k_a = np.floor(b[i] / bin_deg + 0.5).astype(np.int64)
+    k_b = np.floor(b[i + 1] / bin_deg + 0.5).astype(np.int64)
+    lo = np.minimum(k_a, k_b)
+    n = np.abs(k_b - k_a)  # boundaries crossed: more than one when bins are narrower
+    pair_of = np.repeat(np.arange(i.size), n)
+    k = lo[pair_of] + (np.arange(pair_of.size) - np.repeat(np.cumsum(n) - n, n))
+    j = i[pair_of]
+    t = ((k + 0.5) * bin_deg - b[j]) / (b[j + 1] - b[j])
+    return r[j] + t * (r[j + 1] - r[j]), k
