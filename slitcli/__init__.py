@@ -17,4 +17,4 @@ World frame (simulation only)
     x, y on the floor, z up. A robot pose (x, y, yaw) locates the rotation centre.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

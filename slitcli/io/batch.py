@@ -1,7 +1,8 @@
 """Resumable, parallel batches over frames.
 
 A batch keeps its state in ``OUT/.slitcli/<name>/``: ``manifest.json`` (the arguments,
-rig and input that define the results) and one part file per finished frame, each
+rig and input that define the results, and the slitcli version that made them) and one
+part file per finished frame, each
 written atomically. A re-run with the same manifest skips the finished frames (also
 after ``kill -9``); a different manifest is refused unless ``overwrite``. The final
 table is assembled from the parts in frame order, so it is byte-identical whatever the
@@ -20,6 +21,7 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from slitcli import __version__
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_text_atomic
 
@@ -53,6 +55,8 @@ class FrameBatch:
         self.out = Path(out)
         self.dir = self.out / ".slitcli" / name
         self.parts = self.dir / "parts"
+        # another slitcli version may compute other results from the same arguments
+        manifest = {**manifest, "slitcli_version": __version__}
         self.manifest = manifest
         path = self.dir / "manifest.json"
         if path.exists():
