@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from slitcli.laser.frame import bin_boundary_points
+
 SENSORS = ("fused", "laser", "stereo")
 
 
@@ -69,14 +71,34 @@ class Claim:
         return f"| {self.claim} | {self.measured} | {self.holds} |"
 
 
-def laser_truth_bins(truth_laser: pd.DataFrame, *, bin_deg: float = 1.0) -> pd.DataFrame:
+def laser_truth_bins(truth_laser: pd.DataFrame, *, bin_deg: float = 1.0,
+                     boundary_jump_m: float = 0.05) -> pd.DataFrame:
     """Nearest true lit point per frame and bearing bin, from render's ``gt/laser.csv``:
     where the laser sheet really meets an obstacle (columns frame, bearing_deg,
-    laser_true_m)."""
-    k = np.floor(truth_laser["bearing_deg"] / bin_deg + 0.5) * bin_deg
-    t = pd.DataFrame({"frame": truth_laser["frame"], "bearing_deg": k,
-                      "laser_true_m": truth_laser["range_m"]})
-    return t.groupby(["frame", "bearing_deg"], as_index=False)["laser_true_m"].min()
+    laser_true_m).
+
+    As for the range truth, a bin's value is the nearest lit point anywhere in its
+    wedge: the true points (one per column) are also interpolated at the bin
+    boundaries between neighbouring columns of one surface, as the laser's own
+    reduction does (:func:`slitcli.laser.nearest_range_per_bin`).
+    """
+    t = truth_laser.sort_values(["frame", "u_px"], kind="stable")
+    fr = t["frame"].to_numpy()
+    u = t["u_px"].to_numpy()
+    r = t["range_m"].to_numpy(dtype=float)
+    b = t["bearing_deg"].to_numpy(dtype=float)
+    adjacent = (fr[1:] == fr[:-1]) & (u[1:] - u[:-1] == 1)
+    b_rng, k, first = bin_boundary_points(r, b, np.isfinite(r) & np.isfinite(b), bin_deg,
+                                          boundary_jump_m, adjacent=adjacent)
+    cols = pd.DataFrame({"frame": fr, "bearing_deg": np.floor(b / bin_deg + 0.5) * bin_deg,
+                         "laser_true_m": r})
+    sides = [pd.DataFrame({"frame": fr[first], "bearing_deg": (k + s) * bin_deg,
+                           "laser_true_m": b_rng}) for s in (0, 1)]
+    # a boundary point only refines a bin that holds true columns of its own
+    known = cols[["frame", "bearing_deg"]].drop_duplicates()
+    extra = pd.concat(sides).merge(known, on=["frame", "bearing_deg"])
+    return (pd.concat([cols, extra])
+            .groupby(["frame", "bearing_deg"], as_index=False)["laser_true_m"].min())
 
 
 def laser_range_claim(ranges: pd.DataFrame, truth_laser: pd.DataFrame

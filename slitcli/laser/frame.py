@@ -509,8 +509,8 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
     np.minimum.at(nearest, idx[ok], frame.range_m[use][ok])
     count = np.bincount(idx[ok], minlength=centres.size)
     if boundary_jump_m is not None:
-        b_rng, b_lo = _bin_boundary_points(frame.range_m, frame.bearing_deg, use, bin_deg,
-                                           boundary_jump_m)
+        b_rng, b_lo, _ = bin_boundary_points(frame.range_m, frame.bearing_deg, use, bin_deg,
+                                             boundary_jump_m)
         for side in (b_lo - k0, b_lo - k0 + 1):
             b_ok = (side >= 0) & (side < centres.size)
             np.minimum.at(nearest, side[b_ok], b_rng[b_ok])
@@ -524,16 +524,39 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
     return LaserBins(bearing_deg=centres, range_m=rng, in_band=band, count=count)
 
 
-def _bin_boundary_points(range_m: np.ndarray, bearing_deg: np.ndarray, use: np.ndarray,
-                         bin_deg: float, jump_m: float) -> tuple[np.ndarray, np.ndarray]:
+def bin_boundary_points(range_m: np.ndarray, bearing_deg: np.ndarray, use: np.ndarray,
+                        bin_deg: float, jump_m: float, *,
+                        adjacent: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ranges interpolated at the bin boundaries crossed between neighbouring columns.
 
-    Returns the ranges (m) and, per point, the absolute index ``k`` of the bin below
-    the boundary (the boundary is at bearing ``(k + 0.5) * bin_deg``).
+    Parameters
+    ----------
+    range_m, bearing_deg : ndarray, shape (N,)
+        Lit points in column order (metres, degrees).
+    use : ndarray of bool, shape (N,)
+        Points that may be used.
+    bin_deg, jump_m : float
+        Bin width (degrees) and the largest range step between two columns of one
+        surface (metres).
+    adjacent : ndarray of bool, shape (N - 1,), optional
+        Whether points i and i + 1 are neighbouring columns of one image (default: all).
+
+    Returns
+    -------
+    range_m : ndarray, shape (K,)
+        Interpolated ranges, metres.
+    lower_bin : ndarray of int, shape (K,)
+        Absolute index ``k`` of the bin below each boundary (the boundary lies at
+        bearing ``(k + 0.5) * bin_deg``); the point belongs to bins ``k`` and ``k + 1``.
+    first_point : ndarray of int, shape (K,)
+        Index of the point before each boundary (the pair is ``i``, ``i + 1``).
     """
     r, b = range_m, bearing_deg
     with np.errstate(invalid="ignore"):
         pair = use[:-1] & use[1:] & (np.abs(np.diff(r)) <= jump_m)
+    if adjacent is not None:
+        pair &= adjacent
     i = np.flatnonzero(pair)
     k_a = np.floor(b[i] / bin_deg + 0.5).astype(np.int64)
     k_b = np.floor(b[i + 1] / bin_deg + 0.5).astype(np.int64)
@@ -543,4 +566,4 @@ def _bin_boundary_points(range_m: np.ndarray, bearing_deg: np.ndarray, use: np.n
     k = lo[pair_of] + (np.arange(pair_of.size) - np.repeat(np.cumsum(n) - n, n))
     j = i[pair_of]
     t = ((k + 0.5) * bin_deg - b[j]) / (b[j + 1] - b[j])
-    return r[j] + t * (r[j + 1] - r[j]), k
+    return r[j] + t * (r[j + 1] - r[j]), k, j
