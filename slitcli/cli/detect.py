@@ -19,7 +19,8 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               "required for bags].")
 @click.option("--fusion", type=click.Choice(["paper", "conservative"]), default="paper",
               show_default=True, help="paper = Eq. 11 (trusts a laser 'no return' up to the "
-              "laser's max range); conservative = the nearer of laser and stereo.")
+              "laser's max range; keeps the laser's range where stereo sees the same "
+              "surface, within 2 px); conservative = the nearer of laser and stereo.")
 @click.option("--bin-deg", type=float, default=1.0, show_default=True,
               help="Bearing bin width, degrees.")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
