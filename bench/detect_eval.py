@@ -18,10 +18,13 @@ for each missed bin, the share of its 1-degree wedge in which the true obstacle 
 within tolerance of the bin's true range (20 sub-wedges): a share of 0.05-0.2 is an
 object edge that reaches 1-4 tenths of a degree (a pixel or less) into the bin.
 
+With ``--plain N`` it also renders N scenes of 1-3 textureless boxes and cylinders at
+0.7-1 m and reports which sensor ranges their bins and the laser's error there.
+
 Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
-        [--overhang 0] [--reseed 0] [--fusion paper] [--details] [--coverage]
+        [--overhang 0] [--reseed 0] [--plain 0] [--fusion paper] [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -122,6 +125,49 @@ def overhang_scene(seed: int) -> dict:
     return _scene(f"overhang-{seed}", seed, objs)
 
 
+def plain_near_scene(seed: int) -> dict:
+    """1-3 plain (textureless) boxes or cylinders at 0.7-1 m before a textured wall."""
+    rng = np.random.default_rng(900 + seed)
+    objs = []
+    for _ in range(rng.integers(1, 4)):
+        x = float(rng.uniform(0.7, 1.0))
+        y = float(rng.uniform(-0.5, 0.5)) * x
+        surface = {"colour_rgb": [float(c) for c in rng.uniform(0.35, 0.8, 3).round(2)],
+                   "texture": "plain"}
+        if rng.random() < 0.5:
+            objs.append({"type": "box", "centre_xy_m": [x, y],
+                         "size_m": [float(rng.uniform(0.1, 0.3)), float(rng.uniform(0.15, 0.4)),
+                                    float(rng.uniform(0.2, 0.7))],
+                         "yaw_deg": float(rng.uniform(-40, 40)), "surface": surface})
+        else:
+            objs.append({"type": "cylinder", "centre_xy_m": [x, y],
+                         "radius_m": float(rng.uniform(0.04, 0.15)),
+                         "height_m": float(rng.uniform(0.2, 0.8)), "surface": surface})
+    objs.append(_back_wall(float(rng.uniform(3.2, 5))))
+    return _scene(f"plain-{seed}", seed, objs)
+
+
+def plain_near_report(cache: Path, n: int, fusion: str) -> None:
+    """Which sensor ranges the bins of near textureless obstacles (truth 0.6-0.98 m),
+    and the laser's relative error there."""
+    rig = paper_rig()
+    rows = []
+    for s in range(n):
+        d = plain_near_scene(s)
+        out = cache / d["name"]
+        if not (out / "gt" / "ranges.csv").exists():
+            render_sequence(scene_from_dict(d, d["name"]), rig, out, overwrite=True)
+        j = detect_table(out, fusion).merge(pd.read_csv(out / "gt" / "ranges.csv"),
+                                            on=["frame", "bearing_deg"])
+        rows.append(j[(j.range_m >= 0.6) & (j.range_m < 0.98)])
+    j = pd.concat(rows)
+    rel = ((j.fused_range_m - j.range_m).abs() / j.range_m)[j.fused_source == "laser"]
+    print(f"\nplain obstacles at 0.6-0.98 m ({n} scenes, {fusion} fusion): {len(j)} bins; "
+          f"source {j.fused_source.value_counts().to_dict()}; laser bins: relative error "
+          f"median {rel.median():.2%}, 95th percentile {rel.quantile(0.95):.2%}, "
+          f"within 1 % {(rel <= 0.01).mean():.1%}")
+
+
 def wedge_coverage(d: dict, name: str, seq_dir: Path, wrong: pd.DataFrame) -> np.ndarray:
     """Per missed bin, the share of its wedge where the truth is within tolerance of
     the bin's true range (20 sub-wedges; 1 = the obstacle fills the bin)."""
@@ -161,8 +207,8 @@ def sequences(n_random: int, n_overhang: int = 0,
     return out
 
 
-def score(seq_dir: Path, fusion: str) -> tuple[pd.DataFrame, pd.DataFrame, int, int]:
-    """Wrong obstacle bins, phantom free bins, and the two bin counts of a sequence."""
+def detect_table(seq_dir: Path, fusion: str) -> pd.DataFrame:
+    """The detector's range table of a rendered sequence (what ranges.csv holds)."""
     seq = StereoSequence(seq_dir)
     rig = seq.rig()
     det = Detector(rig, DetectParams(fusion_mode=fusion))
@@ -170,7 +216,12 @@ def score(seq_dir: Path, fusion: str) -> tuple[pd.DataFrame, pd.DataFrame, int, 
     for f in seq.frames(rig):
         rows.append(det(f.left_bgr, f.right_bgr, previous_left_bgr=prev).table(f.index, f.time_s))
         prev = f.left_bgr
-    table = pd.concat(rows, ignore_index=True)
+    return pd.concat(rows, ignore_index=True)
+
+
+def score(seq_dir: Path, fusion: str) -> tuple[pd.DataFrame, pd.DataFrame, int, int]:
+    """Wrong obstacle bins, phantom free bins, and the two bin counts of a sequence."""
+    table = detect_table(seq_dir, fusion)
     truth = pd.read_csv(seq_dir / "gt" / "ranges.csv")
     j = table.merge(truth, on=["frame", "bearing_deg"])
     band = j[(j.range_m >= 0.6) & (j.range_m <= 3.0)]
@@ -189,6 +240,9 @@ def main() -> int:
     ap.add_argument("--reseed", type=int, default=0,
                     help="also score corridor, distractors and overhang with this many "
                          "new texture seeds each")
+    ap.add_argument("--plain", type=int, default=0,
+                    help="also report which sensor ranges near textureless obstacles, over "
+                         "this many scenes")
     ap.add_argument("--fusion", default="paper", choices=("paper", "conservative"))
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
     ap.add_argument("--coverage", action="store_true",
@@ -226,6 +280,8 @@ def main() -> int:
         print(f"\nmissed bins {c.size}: the obstacle fills < 25 % of the wedge in "
               f"{np.sum(c < 0.25)}, < 50 % in {np.sum(c < 0.5)}, all of it in "
               f"{np.sum(c >= 0.99)}")
+    if args.plain:
+        plain_near_report(Path(args.cache), args.plain, args.fusion)
     return 0
 
 
