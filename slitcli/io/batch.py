@@ -2,11 +2,11 @@
 
 A batch keeps its state in ``OUT/.slitcli/<name>/``: ``manifest.json`` (the arguments,
 rig and input that define the results, and the slitcli version that made them) and one
-part file per finished frame, each
-written atomically. A re-run with the same manifest skips the finished frames (also
-after ``kill -9``); a different manifest is refused unless ``overwrite``. The final
-table is assembled from the parts in frame order, so it is byte-identical whatever the
-number of workers and however often the run was interrupted.
+part file per finished frame, each written atomically. A re-run with the same manifest
+skips the finished frames (also after ``kill -9``); a different manifest is refused
+unless ``overwrite``. The final table is assembled from the parts in frame order, so it
+is byte-identical whatever the number of workers and however often the run was
+interrupted.
 """
 
 from __future__ import annotations
