@@ -1,0 +1,242 @@
+"""Score the laser stripe extractor on a folder of real photographs with per-column truth.
+
+Usage::
+
+    .venv/bin/python bench/laser_real_eval.py FOLDER [--method laser|paper|all]
+        [--search full|rig] [--json OUT.json]
+
+``FOLDER`` holds ``images/`` and ``truth/<name>.json`` and a ``truthlib.py`` with
+``load_spec`` and ``compute_truth`` (per column: state 0 no stripe, 1 stripe with its row,
+2 don't care), as the development set ``../shared/real_laser_dev/`` does. Photographs
+are third-party data: they never enter the project; this script only reads them.
+
+Measures, per image and pooled over the folder:
+
+* found: share of stripe columns (state 1) with an estimate within 2 px of the truth row;
+* false: estimates in no-stripe columns (state 0) plus estimates more than 3 px off in
+  stripe columns, over all judged columns (state 0 or 1);
+* median |row error| (px) of the found columns;
+* columns reported on laser-off images (no segment in the truth).
+
+Beside the extractor, the two baselines the folder's README describes: per column the
+argmax of the blurred red excess ``r - (g + b) / 2`` kept above 0.8 times the mean column
+maximum ("argmax"), and per column the brightest 1-20 px run of red excess above a
+threshold, centred by its centre of gravity ("run-cog").
+
+The photographs come without a rig: the extractor searches every row (``--search full``,
+the default here) with the paper rig's parameters otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+FOUND_PX = 2.0
+FALSE_PX = 3.0
+
+
+def _truthlib(folder: Path):
+    path = folder / "truthlib.py"
+    if not path.is_file():
+        sys.exit(f"laser_real_eval: {path} is missing; give a folder with truthlib.py, "
+                 "images/ and truth/")
+    spec = importlib.util.spec_from_file_location("truthlib", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def baseline_argmax(bgr: np.ndarray) -> np.ndarray:
+    """Per column the argmax of the blurred red excess, kept above 0.8 x the mean column
+    maximum (the README's first baseline)."""
+    f = bgr.astype(np.float32)
+    e = f[..., 2] - 0.5 * (f[..., 0] + f[..., 1])
+    e = cv2.GaussianBlur(e, (0, 0), 1.5)
+    arg = np.argmax(e, axis=0)
+    peak = e[arg, np.arange(e.shape[1])]
+    keep = peak > 0.8 * float(np.mean(peak))
+    return np.where(keep, arg.astype(float), np.nan)
+
+
+def baseline_run_cog(bgr: np.ndarray, thr_dn: float = 30.0, max_run: int = 20) -> np.ndarray:
+    """Per column the brightest run (1-``max_run`` px) of red excess above ``thr_dn``,
+    its centre of gravity (the README's second baseline)."""
+    f = bgr.astype(np.float64)
+    e = f[..., 2] - 0.5 * (f[..., 0] + f[..., 1])
+    h, w = e.shape
+    above = e > thr_dn
+    out = np.full(w, np.nan)
+    # runs per column: label run starts along the rows (array code, no pixel loop)
+    pad = np.zeros((1, w), bool)
+    a = np.vstack([pad, above, pad])
+    d = np.diff(a.astype(np.int8), axis=0)
+    starts_r, starts_c = np.nonzero(d == 1)
+    ends_r, ends_c = np.nonzero(d == -1)
+    o1 = np.lexsort((starts_r, starts_c))
+    o2 = np.lexsort((ends_r, ends_c))
+    sr, sc, er = starts_r[o1], starts_c[o1], ends_r[o2]
+    length = er - sr
+    ok = (length >= 1) & (length <= max_run)
+    sr, sc, er = sr[ok], sc[ok], er[ok]
+    if sr.size == 0:
+        return out
+    cs = np.vstack([np.zeros((1, w)), np.cumsum(np.where(above, e, 0.0), axis=0)])
+    rows = np.arange(h, dtype=float)[:, None]
+    csv = np.vstack([np.zeros((1, w)), np.cumsum(np.where(above, e * rows, 0.0), axis=0)])
+    mass = cs[er, sc] - cs[sr, sc]
+    mom = csv[er, sc] - csv[sr, sc]
+    peak = np.zeros(sr.size)
+    # brightest run: the one of largest mass per column
+    order = np.lexsort((mass, sc))
+    last = np.r_[sc[order][1:] != sc[order][:-1], True]
+    best = order[last]
+    del peak
+    out[sc[best]] = mom[best] / mass[best]
+    return out
+
+
+def score(est: np.ndarray, truth: dict) -> dict:
+    """Counts of one image (see the module notes)."""
+    st, row = truth["state"], truth["row"]
+    has = np.isfinite(est)
+    stripe = st == 1
+    none = st == 0
+    err = np.abs(est - row)
+    found = stripe & has & (err <= FOUND_PX)
+    false = (none & has).sum() + (stripe & has & (err > FALSE_PX)).sum()
+    return {"stripe": int(stripe.sum()), "judged": int((stripe | none).sum()),
+            "found": int(found.sum()), "false": int(false),
+            "reported": int(has.sum()), "abs_err": err[found].tolist()}
+
+
+def _summary(c: dict) -> dict:
+    e = np.asarray(c["abs_err"])
+    return {"found_share": c["found"] / c["stripe"] if c["stripe"] else float("nan"),
+            "false_share": c["false"] / c["judged"] if c["judged"] else float("nan"),
+            "median_err_px": float(np.median(e)) if e.size else float("nan"),
+            "reported": c["reported"], "stripe": c["stripe"], "judged": c["judged"]}
+
+
+def _pool(cs: list[dict]) -> dict:
+    out = {"stripe": 0, "judged": 0, "found": 0, "false": 0, "reported": 0, "abs_err": []}
+    for c in cs:
+        for k in ("stripe", "judged", "found", "false", "reported"):
+            out[k] += c[k]
+        out["abs_err"] += c["abs_err"]
+    return out
+
+
+def make_extractors(names: list[str], search: str) -> dict:
+    from slitcli.laser import LaserParams, extract_stripe
+
+    ex = {}
+    for name in names:
+        if name in ("laser", "paper"):
+            try:
+                params = LaserParams(method="paper" if name == "paper" else "model")
+            except TypeError:  # an extractor without the method option
+                params = LaserParams()
+
+            def run(bgr, p=params):
+                return extract_stripe(bgr, p).v_px
+            ex[name] = run
+        elif name == "argmax":
+            ex[name] = baseline_argmax
+        elif name == "run-cog":
+            ex[name] = baseline_run_cog
+    del search
+    return ex
+
+
+def evaluate(folder: Path, extractors: dict) -> dict:
+    tl = _truthlib(folder)
+    specs = sorted((folder / "truth").glob("*.json"))
+    if not specs:
+        sys.exit(f"laser_real_eval: no truth/*.json in {folder}")
+    per: dict[str, dict[str, dict]] = {k: {} for k in extractors}
+    times: dict[str, list[float]] = {k: [] for k in extractors}
+    off_images = []
+    for sp in specs:
+        spec = tl.load_spec(sp)
+        bgr = cv2.imread(str(folder / "images" / spec["image"]), cv2.IMREAD_COLOR)
+        if bgr is None:
+            sys.exit(f"laser_real_eval: cannot read {folder / 'images' / spec['image']}")
+        truth = tl.compute_truth(bgr, spec)
+        name = sp.stem
+        if not spec.get("segments"):
+            off_images.append(name)
+        for k, fn in extractors.items():
+            t0 = time.perf_counter()
+            est = np.asarray(fn(bgr), dtype=float)
+            times[k].append(time.perf_counter() - t0)
+            per[k][name] = score(est, truth)
+    return {"per": per, "off": off_images, "times": times}
+
+
+def report(res: dict) -> dict:
+    per, off = res["per"], res["off"]
+    names = list(per)
+    images = list(next(iter(per.values())))
+    out: dict = {"images": {}, "pooled": {}, "laser_off_columns": {}}
+    hdr = f"{'image':<24}" + "".join(f"{n:>26}" for n in names)
+    print("found % / false % / median px  (laser-off images: columns reported)")
+    print(hdr)
+    for im in images:
+        cells = []
+        for n in names:
+            c = per[n][im]
+            s = _summary(c)
+            out["images"].setdefault(im, {})[n] = s
+            if im in off:
+                cells.append(f"{c['reported']:>20d} cols")
+            else:
+                cells.append(f"{100 * s['found_share']:6.1f} {100 * s['false_share']:6.2f} "
+                             f"{s['median_err_px']:6.3f}".rjust(26))
+        print(f"{im:<24}" + "".join(cells))
+    for n in names:
+        pooled = _summary(_pool([per[n][im] for im in images if im not in off]))
+        out["pooled"][n] = pooled
+        out["laser_off_columns"][n] = {im: per[n][im]["reported"] for im in off}
+    print(f"{'pooled':<24}" + "".join(
+        f"{100 * out['pooled'][n]['found_share']:6.1f} "
+        f"{100 * out['pooled'][n]['false_share']:6.2f} "
+        f"{out['pooled'][n]['median_err_px']:6.3f}".rjust(26) for n in names))
+    print(f"{'max off-image cols':<24}" + "".join(
+        f"{max(out['laser_off_columns'][n].values(), default=0):>26d}" for n in names))
+    print(f"{'median time s':<24}" + "".join(
+        f"{np.median(res['times'][n]):>26.4f}" for n in names))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", type=Path, help="folder with images/, truth/ and truthlib.py")
+    ap.add_argument("--method", default="all",
+                    choices=["laser", "paper", "all"],
+                    help="extractor to score beside the two baselines (default: all)")
+    ap.add_argument("--search", default="full", choices=["full"],
+                    help="rows searched: every row (no rig is known for photographs)")
+    ap.add_argument("--json", type=Path, help="also write the numbers here")
+    a = ap.parse_args(argv)
+    if not a.folder.is_dir():
+        print(f"laser_real_eval: {a.folder} is not a folder; give the folder of "
+              "photographs with truth", file=sys.stderr)
+        return 2
+    names = ["laser", "paper"] if a.method == "all" else [a.method]
+    ex = make_extractors(names + ["argmax", "run-cog"], a.search)
+    out = report(evaluate(a.folder, ex))
+    if a.json:
+        a.json.write_text(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
