@@ -5,9 +5,9 @@ stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points -
 nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
 """
 
-from slitcli.laser import candidates, fit, select, track
+from slitcli.laser import candidates, choose, evidence, paper, profile
 from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
-from slitcli.laser.extract import StripeColumns, candidate_mask, chromaticity, extract_stripe
+from slitcli.laser.extract import StripeColumns, chromaticity, extract_stripe
 from slitcli.laser.frame import (
     LaserBins,
     LaserFrame,
@@ -31,18 +31,18 @@ __all__ = [
     "StripeColumns",
     "bearing_bin_centres_deg",
     "bin_boundary_points",
-    "candidate_mask",
     "candidates",
+    "choose",
     "chromaticity",
     "detect_laser",
     "draw_overlay",
+    "evidence",
     "extract_stripe",
-    "fit",
     "laser_sight_range_m",
     "laser_table",
     "nearest_range_per_bin",
     "run_laser",
-    "select",
-    "track",
+    "paper",
+    "profile",
     "triangulate_stripe",
 ]

@@ -1,9 +1,21 @@
-"""Compiled (numba) candidate crossings per image column (paper Eqs. 1-3 and the seeds of Eq. 4).
+"""Step 3 of the stripe model: candidate crossings per column, seeded and fitted (numba).
 
-Images come in transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row;
-views of the ``(H, W, 3)`` images), the background as ``(3 W, H)`` (one channel of one
-column per row, :func:`evidence`); all loops over pixels live here and in
-:mod:`slitcli.laser.fit`, compiled. The signal model is :mod:`slitcli.laser.fit`'s.
+Seeds of column ``i`` are
+
+* local maxima (within ``NMS_HALF`` rows) of the laser evidence ``y`` at least
+  ``seed_dn`` high (``seed_z`` noise sigmas), and
+* clipped runs (red at the saturation level) at most ``max_run`` rows long with laser
+  light on both sides (``y >= seed_dn`` within ``FLANK_ROWS`` rows beyond each end):
+  a clipped laser core, red or turned white, keeps red flanks, a white highlight's
+  fringe is white.
+
+The ``K`` strongest (clipped cores first) are fitted (:func:`~.profile.fit_gaussian`)
+on the evidence in a window of ``3 s + 3`` rows either side (``s`` the seed's half-
+maximum width), clipped rows left out; a clipped core whose flank fit does not put
+its centre on the plateau is centred on the plateau (:func:`~.profile.plateau_centre`).
+Each fit's significance is judged against the local noise: the larger of the image's
+evidence noise and the robust noise of the evidence around the candidate (its core
+left out), so red texture that the colour cannot cancel raises the bar where it is.
 """
 
 from __future__ import annotations
@@ -13,416 +25,268 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.fit import (
-    A_LASER,
-    C_AMP,
-    C_CHI2,
-    C_CLUT,
-    C_Z,
+from slitcli.laser.evidence import MAD_TO_SIGMA
+from slitcli.laser.profile import (
+    F_AMP,
+    F_CHI2,
+    F_KB,
+    F_KG,
+    F_KR,
+    F_NCORE,
+    F_NOISE,
+    F_POS,
+    F_SAT,
+    F_SE_POS,
+    F_TB,
+    F_TG,
+    F_TR,
+    F_WIDTH,
+    F_FLAT,
+    F_Z,
     N_FIELDS,
-    N_WORK,
-    XT,
-    fit_profile,
+    fit_gaussian,
+    flat_top,
+    plateau_centre,
 )
 
-#: share of the surface-colour direction the per-pixel evidence removes: 1 would
-#: remove all texture but amplify noise without bound on surfaces of the laser's colour
-LAM_DETECT = 0.99
-NOISE_BLOCK = 16  # rows sharing one surface colour in the noise estimate
-CORE_SHARE = 0.35  # a candidate's extent: evidence above this share of its peak
-#: a candidate whose evidence is below this share of a strong first candidate's is not
-#: fitted: its red-peak term (at most this share) plus beta and gamma (each at most 1,
-#: paper weights 0.25) cannot beat the first's
-SECONDARY_SHARE = 0.5
 NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
-CLUTTER_HALF = 24  # half-window of the clutter level, px
-CLUTTER_CORE = 4  # half-width left out around the candidate for the clutter, px
-#: a candidate must stand MIN_CLUTTER_RATIO times (in quadrature with the noise)
-#: above all but CLUTTER_SHARE of the evidence around it
-MIN_CLUTTER_RATIO = 1.5
-CLUTTER_SHARE = 0.2
-#: one minus the cosine between the surface colours above and below beyond which a
-#: candidate sits on an edge between two surfaces (a red band ending at the floor)
-MAX_EDGE = 0.02
-#: largest mean square, per core row in noise variances, of the light a fit gives the
-#: laser across the plane of the laser colour and the surface colour
-#: (:data:`~slitcli.laser.fit.C_COLOUR`): 16 = 4 noise sigmas a row, beyond any noise
-#: (a stripe's rows in the stress set: median 0.8, 99.5 % below 7)
-MAX_COLOUR = 16.0
-#: evidence peaks per column taken in order of strength to fill the K fitted slots:
-#: a peak found on an edge between surfaces (never the stripe) frees its slot for the
-#: next, so a red object's two edges cannot hide the stripe between them
-N_SEEDS = 5
+FLANK_ROWS = 2  # rows beyond a clipped run that must show laser light
+NOISE_HALF = 24  # rows either side whose evidence gives a candidate's local noise
+N_SEEDS = 6  # seeds fitted per column, at most
 
 
 @njit(cache=True, nogil=True)
-def _min3(src: np.ndarray, dst: np.ndarray, m: int, sh1: int, sh2: int,
-          is_max: bool) -> None:  # pragma: no cover
-    """``dst[t] = min(src[t], src[t + sh1], src[t + sh2])`` (max with ``is_max``) for
-    ``t < m``; the explicit slices let the compiler vectorise the loop."""
-    a = src[:m]
-    b = src[sh1:sh1 + m]
-    c = src[sh2:sh2 + m]
-    d = dst[:m]
-    if is_max:
-        for t in range(m):
-            u, v, w = a[t], b[t], c[t]
-            u = u if u > v else v
-            d[t] = u if u > w else w
-    else:
-        for t in range(m):
-            u, v, w = a[t], b[t], c[t]
-            u = u if u < v else v
-            d[t] = u if u < w else w
-
-
-@njit(cache=True, nogil=True)
-def _vertical_filter(x: np.ndarray, k: int, out: np.ndarray, buf_a: np.ndarray,
-                     buf_b: np.ndarray, is_max: bool) -> None:  # pragma: no cover
-    """Minimum (maximum) over ``k`` rows, anchor ``k // 2``, of ``x`` (rows, C) uint8
-    into ``out``; rows beyond the border are left out (OpenCV's erosion and dilation
-    with a (k, 1) kernel). Windows doubled in width pass by pass (1, 2, 4, ... rows),
-    the last pass joins three: a handful of passes instead of ``k`` comparisons a
-    pixel; the scratch buffers hold ``(rows + k - 1) C`` values."""
-    n = x.shape[0]
-    c = x.shape[1]
-    hc = (k // 2) * c
-    xf = x.reshape(n * c)
-    fill = 0 if is_max else 255  # the padding never wins
-    pad_a = buf_a[:hc]
-    for t in range(hc):
-        pad_a[t] = fill
-    mid = buf_a[hc:hc + n * c]
-    for t in range(n * c):
-        mid[t] = xf[t]
-    pad_b = buf_a[hc + n * c:(n + k - 1) * c]
-    for t in range(pad_b.size):
-        pad_b[t] = fill
-    w = 1
-    src, dst = buf_a, buf_b
-    while 3 * w < k:
-        # rows j .. j + 2 w - 1 from two windows of w rows
-        _min3(src, dst, (n + k - 2 * w) * c, w * c, w * c, is_max)
-        w *= 2
-        src, dst = dst, src
-    # rows j .. j + k - 1 from three windows of w rows (3 w >= k)
-    _min3(src, out.reshape(n * c), n * c, min(w, k - w) * c, (k - w) * c, is_max)
-
-
-@njit(cache=True, nogil=True)
-def vertical_opening(x: np.ndarray, k: int, out: np.ndarray) -> None:  # pragma: no cover
-    """Morphological opening of ``x`` (rows, C) uint8 along its rows with a window of
-    ``k`` rows, into ``out`` (same shape): the same values as OpenCV's
-    ``morphologyEx(x, MORPH_OPEN, ones((k, 1)))`` (min and max are exact), single
-    threaded, a fifth faster at 320 x 240 x 3."""
-    n, c = x.shape
-    buf_a = np.empty((n + k - 1) * c, np.uint8)
-    buf_b = np.empty((n + k - 1) * c, np.uint8)
-    _vertical_filter(x, k, out, buf_a, buf_b, False)
-    _vertical_filter(out, k, out, buf_a, buf_b, True)
-
-
-@njit(cache=True, nogil=True)
-def noise_sigma(img: np.ndarray, bg: np.ndarray, step: int) -> float:  # pragma: no cover
-    """Robust per-channel noise sigma (DN) from the colour orthogonal to the surface's.
-
-    Texture and shading scale all channels of a surface alike, so the part of a pixel
-    orthogonal to its surface's colour (the mean colour of its block of
-    ``NOISE_BLOCK`` rows) is noise (two dimensions) plus rare edges, highlights and
-    the laser. Its second difference along the column has ``E|d2|^2 = 12 sigma^2``, a
-    scaled chi-square with 2 degrees of freedom whose median is ``2 ln 2`` times its
-    mean over 2. Every ``step``-th column is used; ``bg`` is not needed (kept for the
-    callers' symmetry).
-    """
-    n_lines, n = img.shape[0], img.shape[1]
-    vals = np.empty(((n_lines + step - 1) // step) * n)
+def _local_sigma(yi: np.ndarray, mi: np.ndarray, c: float, core: float,
+                 buf: np.ndarray) -> float:  # pragma: no cover
+    """Robust noise of the evidence ``yi`` within ``NOISE_HALF + core`` rows of ``c``, the
+    rows within ``core`` left out (lag-2 residuals, as the image's estimate)."""
+    n = yi.shape[0]
+    lo = max(int(c - core - NOISE_HALF), 2)
+    hi = min(int(c + core + NOISE_HALF) + 1, n - 2)
     m = 0
-    p = np.empty((NOISE_BLOCK, 3))
-    for i in range(0, n_lines, step):
-        for j0 in range(0, n - NOISE_BLOCK + 1, NOISE_BLOCK):
-            cr = cg = cb = 0.5
-            for j in range(j0, j0 + NOISE_BLOCK):
-                cr += img[i, j, 2]
-                cg += img[i, j, 1]
-                cb += img[i, j, 0]
-            nn = math.sqrt(cr * cr + cg * cg + cb * cb)
-            cr /= nn
-            cg /= nn
-            cb /= nn
-            for jj in range(NOISE_BLOCK):
-                xr = float(img[i, j0 + jj, 2])
-                xg = float(img[i, j0 + jj, 1])
-                xb = float(img[i, j0 + jj, 0])
-                q = xr * cr + xg * cg + xb * cb
-                p[jj, 0] = xr - q * cr
-                p[jj, 1] = xg - q * cg
-                p[jj, 2] = xb - q * cb
-            for jj in range(1, NOISE_BLOCK - 1):
-                acc = 0.0
-                for c in range(3):
-                    d = 2.0 * p[jj, c] - p[jj - 1, c] - p[jj + 1, c]
-                    acc += d * d
-                vals[m] = acc
-                m += 1
-    if m == 0:
+    for j in range(lo, hi):
+        if abs(j - c) <= core + 2.0 or not (mi[j - 2] and mi[j + 2]):
+            continue
+        buf[m] = abs(yi[j] - 0.5 * (yi[j - 2] + yi[j + 2]))
+        m += 1
+    if m < 8:
         return 0.0
-    med = np.median(vals[:m])
-    return math.sqrt(med / (6.0 * 2.0 * math.log(2.0)))
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def evidence(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, i: int, min_th: float,
-             min_delta_th: float, alpha: float, sat_dn: int, score: np.ndarray,
-             sat: np.ndarray) -> None:  # pragma: no cover
-    """Per-pixel laser evidence of column ``i`` (paper Eqs. 1-3), into ``score``.
-
-    ``bg``, the local background (a vertical opening), comes per channel, (3 W, H):
-    row ``3 i + c`` holds channel ``c`` (b, g, r) of column ``i`` (the transpose of
-    the one-channel (H, 3 W) view of an (H, W, 3) image). On the contrast ``t = x -
-    bg`` (light above the local background): Eq. 1/2 on the chromaticity of ``t``,
-    ``t_r > min_th sum(t)`` and ``t_r - max(t_g, t_b) > min_delta_th sum(t)``; Eq. 3,
-    white rejection, ``y > alpha max(t_g, t_b)`` with ``y = w . t`` the laser estimate
-    (``w . l = 1``, the background's colour removed to the share ``LAM_DETECT``, so
-    texture, shading and, on grey surfaces, white light cancel). ``score = y`` where all hold, -1
-    elsewhere; a saturated red pixel (exempt: a clipped core turns white) gets its
-    red contrast and ``sat`` True.
-    """
-    n = img.shape[1]
-    # the column's pixels as flat runs of b, g, r, every pixel computed alike and the
-    # outcomes selected without branches: the compiler turns the loop into vector
-    # instructions (twice as fast as skipping masked pixels and caching the weights per
-    # background colour, with the same values: the weights are a function of it)
-    # (C-contiguous images, as the extractor's, are not copied here; other layouts are;
-    # the background's channels are separate runs, which load without shuffles)
-    xi = np.ascontiguousarray(img[i]).reshape(n * 3)
-    b_b, b_g, b_r = bg[3 * i], bg[3 * i + 1], bg[3 * i + 2]
-    mi = mask[i]
-    for j in range(n):
-        xr = xi[3 * j + 2]
-        br = b_r[j]
-        bgg = b_g[j]
-        bb = b_b[j]
-        tr = float(xr) - br
-        tg = float(xi[3 * j + 1]) - bgg
-        tb = float(xi[3 * j]) - bb
-        # w = (l - LAM k (k . l) / |k|^2) / (|l|^2 - LAM (k . l)^2 / |k|^2), with
-        # |k|^2 multiplied through: one division, no square root
-        kr = br + 0.5
-        kg = bgg + 0.5
-        kb = bb + 0.5
-        k2 = kr * kr + kg * kg + kb * kb
-        lq = LAM_DETECT * (kr + XT * (kg + kb))
-        inv = 1.0 / (A_LASER * k2 - lq * (kr + XT * (kg + kb)))
-        wr = (k2 - lq * kr) * inv
-        wg = (XT * k2 - lq * kg) * inv
-        wb = (XT * k2 - lq * kb) * inv
-        ssum = tr + tg + tb
-        wht = max(tg, tb)
-        y = wr * tr + wg * tg + wb * tb
-        ok = (tr > 0.0) & (tr > min_th * ssum) & (tr - wht > min_delta_th * ssum) & \
-            (y > alpha * wht)
-        m = mi[j]
-        clipped = xr >= sat_dn
-        sat[j] = m & clipped
-        v = y if ok else -1.0
-        v = tr if clipped else v
-        score[j] = v if m else -1.0
+    return MAD_TO_SIGMA * np.median(buf[:m])
 
 
 @njit(cache=True, nogil=True)
-def _clutter(score: np.ndarray, sat: np.ndarray, mask: np.ndarray, i: int, centre: float,
-             run_n: int, amp: float, sigma: float) -> float:  # pragma: no cover
-    """Share of the positive evidence within ``CLUTTER_HALF`` rows (the candidate's
-    core left out) that comes within ``MIN_CLUTTER_RATIO`` of the amplitude ``amp``
-    (in quadrature with the noise): texture of a red surface, which colour cannot
-    tell from the laser, makes it large."""
-    n = score.shape[0]
-    c = int(centre + 0.5)
-    hw = max(CLUTTER_CORE, run_n // 2 + 2)
-    lim = amp / MIN_CLUTTER_RATIO
-    lim = math.sqrt(max(lim * lim - sigma * sigma, 0.0))
-    nn = 0
-    above = 0
-    # the rows above the core, then below it (counts without branches)
-    for jj in range(max(c - CLUTTER_HALF, 0), min(c - hw, n)):
-        use = mask[i, jj] & (not sat[jj])
-        nn += use
-        above += use & (score[jj] > lim)
-    for jj in range(max(c + hw + 1, 0), min(c + CLUTTER_HALF + 1, n)):
-        use = mask[i, jj] & (not sat[jj])
-        nn += use
-        above += use & (score[jj] > lim)
-    return above / nn if nn > 0 else 0.0
-
-
-@njit(cache=True, nogil=True)
-def column_candidates(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
-                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
-                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
-                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
-                      out: np.ndarray, out_avg: np.ndarray) -> None:  # pragma: no cover
-    """The ``K = out.shape[1]`` strongest candidate crossings of every column, fitted.
-
-    Candidates are local maxima (within ``NMS_HALF``) of the :func:`evidence` of at
-    least ``seed_dn``, and saturated red plateaus with red pixels on both sides (a white
-    highlight's fringe is white). A candidate's extent is the stretch around it where the
-    evidence stays above ``CORE_SHARE`` of its peak (so a stripe crossing a red
-    surface is cut out of the surface's texture); longer than ``max_run_px``, it is
-    a red object. Seeds rank by their evidence peak (a clipped plateau by its
-    brightest flank where that is higher: on a red surface the clipped pixels keep
-    only ``255`` less the surface's red). Each is fitted by :func:`fit_profile`
-    (widths beyond ``s_max`` px are not refined), with ``C_CLUT`` from
-    :func:`_clutter`. ``bg`` is the background as :func:`evidence` takes it. A
-    candidate of significance in ``[support_z, z_strong)`` (a
-    faint stripe, or noise) is fitted again on the column averaged with its
-    neighbours (noise ``sigma_avg``) into ``out_avg``. With ``sheet_m > 0`` the
-    width of the sheet there (``g_map`` (W, H), rows per metre, times ``sheet_m``)
-    is the fits' prior. ``out`` and ``out_avg`` have shape (W, K, N_FIELDS); NaN
-    where none.
-    """
-    n_lines = img.shape[0]
-    out[:] = np.nan
-    out_avg[:] = np.nan
-    _candidates_range(img, bg, mask, sigma, sigma_avg, seed_dn, min_th, min_delta_th, alpha,
-                      sat_dn, max_run_px, s_max, support_z, z_strong, g_map, sheet_m, 0,
-                      n_lines, out, out_avg)
-
-
-@njit(cache=True, nogil=True)
-def _candidates_range(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sigma: float,
-                      sigma_avg: float, seed_dn: float, min_th: float, min_delta_th: float,
-                      alpha: float, sat_dn: int, max_run_px: int, s_max: float,
-                      support_z: float, z_strong: float, g_map: np.ndarray, sheet_m: float,
-                      i0: int, i1: int, out: np.ndarray,
-                      out_avg: np.ndarray) -> None:  # pragma: no cover
-    """:func:`column_candidates` for columns ``i0 .. i1 - 1`` (own workspace)."""
-    n = img.shape[1]
-    k_best = out.shape[1]
-    res = np.empty(N_FIELDS)
-    ws = np.empty((8, N_WORK))
-    n_seeds = max(k_best, N_SEEDS)
-    rs = np.empty(n_seeds)
-    rc = np.empty(n_seeds)
-    rn = np.empty(n_seeds, np.int64)
-    score = np.empty(n)
-    sat = np.empty(n, np.bool_)
-    for i in range(i0, i1):
-        evidence(img, bg, mask, i, min_th, min_delta_th, alpha, sat_dn, score, sat)
-        nk = 0
-        j = 0
-        while j < n:
-            if score[j] < seed_dn:
+def _seeds(yi: np.ndarray, ci: np.ndarray, mi: np.ndarray, seed_dn: float, sigma_y: float,
+           max_run: int, rank: np.ndarray, centre: np.ndarray, run_a: np.ndarray,
+           run_b: np.ndarray, noise: np.ndarray, buf: np.ndarray) -> int:  # pragma: no cover
+    """The column's seeds, most significant first (module notes: against the local
+    noise, which ``noise`` gets); returns how many."""
+    n = yi.shape[0]
+    k = rank.shape[0]
+    nk = 0
+    j = 0
+    while j < n:
+        if not mi[j]:
+            j += 1
+            continue
+        r = -1.0
+        if ci[j]:
+            a = j
+            while j < n and ci[j] and mi[j]:
+                j += 1
+            b = j
+            if b - a > max_run:
+                continue
+            up = a == 0
+            for d in range(1, FLANK_ROWS + 1):
+                up = up or (a - d >= 0 and yi[a - d] >= seed_dn)
+            dn = b == n
+            for d in range(FLANK_ROWS):
+                dn = dn or (b + d < n and yi[b + d] >= seed_dn)
+            if not (up and dn):
+                continue
+            c = 0.5 * (a + b - 1)
+            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (b - a) + 1.0, buf))
+            r = 1e9 + (b - a)  # clipped cores rank first
+        else:
+            if yi[j] < seed_dn:
                 j += 1
                 continue
-            if sat[j]:
-                j0 = j
-                peak = score[j]
-                while j < n and sat[j] and score[j] >= seed_dn:
-                    peak = max(peak, score[j])
-                    j += 1
-                # a clipped laser core has red flanks on both sides (its light is red
-                # wherever it is not clipped); a white highlight's fringe is white, and
-                # noise or texture makes one side red only by chance
-                red_a = j0 == 0 or not mask[i, j0 - 1] or score[j0 - 1] >= seed_dn
-                red_b = j == n or not mask[i, j] or score[j] >= seed_dn
-                if not (red_a and red_b):
-                    continue
-                if nk == n_seeds and peak <= rs[nk - 1]:
-                    continue  # weaker than every kept seed: its extent does not matter
-                centre = 0.5 * (j0 + j - 1)
-                # the clipped pixels' contrast understates the core (its flanks can
-                # show more): the seed ranks by its brightest flank when that is higher
-                rank = max(peak, score[j0 - 1] if j0 > 0 else 0.0,
-                           score[j] if j < n else 0.0)
-                lim = max(seed_dn, CORE_SHARE * peak)
-                # the extent's walks stop once it is longer than max_run_px (then a red
-                # object, whatever its length): red surfaces hold many texture maxima
-                a = j0
-                while a > 0 and j - a <= max_run_px and score[a - 1] >= lim and \
-                        not sat[a - 1]:
-                    a -= 1
-                b = j
-                while b < n and b - a <= max_run_px and score[b] >= lim and not sat[b]:
-                    b += 1
-            else:
-                beaten = -1
-                for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
-                    if q != j and (score[q] > score[j] or (score[q] == score[j] and q < j)
-                                   or sat[q]):
-                        beaten = q
-                        break
-                if beaten >= 0:
-                    # the rows between j and a later row that beats it are no higher
-                    # than j and unsaturated: that row beats them too
-                    j = max(beaten, j + 1)
-                    continue
-                peak = score[j]
-                if nk == n_seeds and peak <= rs[nk - 1]:
-                    j += NMS_HALF + 1  # (the next NMS_HALF rows are below j: no maxima)
-                    continue
-                centre = float(j)
-                rank = peak
-                lim = max(seed_dn, CORE_SHARE * peak)
-                a = j
-                while a > 0 and j + 1 - a <= max_run_px and score[a - 1] >= lim and \
-                        not sat[a - 1]:
-                    a -= 1
-                b = j + 1
-                while b < n and b - a <= max_run_px and score[b] >= lim and not sat[b]:
-                    b += 1
-                j += NMS_HALF + 1
-            run_n = b - a
-            if run_n > max_run_px:
+            top = True
+            for q in range(max(j - NMS_HALF, 0), min(j + NMS_HALF + 1, n)):
+                if q != j and (yi[q] > yi[j] or (yi[q] == yi[j] and q < j) or ci[q]):
+                    top = False
+            if not top:
+                j += 1
                 continue
-            if nk < n_seeds:
-                slot = nk
-                nk += 1
-            elif rank > rs[nk - 1]:
-                slot = nk - 1
-            else:
-                continue
-            while slot > 0 and rs[slot - 1] < rank:
-                rs[slot] = rs[slot - 1]
-                rc[slot] = rc[slot - 1]
-                rn[slot] = rn[slot - 1]
-                slot -= 1
-            rs[slot] = rank
-            rc[slot] = centre
-            rn[slot] = run_n
-        p = 0  # slots filled
-        r0q = 0  # the seed in slot 0
+            a = j
+            b = j + 1
+            c = float(j)
+            # the core's extent: rows above half the peak
+            lo = j
+            while lo > 0 and yi[lo - 1] >= 0.5 * yi[j] and j - lo < max_run:
+                lo -= 1
+            hi = j
+            while hi < n - 1 and yi[hi + 1] >= 0.5 * yi[j] and hi - j < max_run:
+                hi += 1
+            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (hi - lo + 1) + 1.0, buf))
+            r = yi[j] / sig
+            j += NMS_HALF + 1
+        if nk < k:
+            slot = nk
+            nk += 1
+        elif r > rank[k - 1]:
+            slot = k - 1
+        else:
+            continue
+        while slot > 0 and rank[slot - 1] < r:
+            rank[slot] = rank[slot - 1]
+            noise[slot] = noise[slot - 1]
+            centre[slot] = centre[slot - 1]
+            run_a[slot] = run_a[slot - 1]
+            run_b[slot] = run_b[slot - 1]
+            slot -= 1
+        rank[slot] = r
+        noise[slot] = sig
+        centre[slot] = c
+        run_a[slot] = a
+        run_b[slot] = b
+    return nk
+
+
+@njit(cache=True, nogil=True)
+def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
+                      clipped: np.ndarray, mask: np.ndarray, sigma_y: float,
+                      sigma_avg: float, seed_dn: float, strong_z: float, sat_dn: int,
+                      s_max: float, shape_error: float, max_chi2: float,
+                      out: np.ndarray) -> None:  # pragma: no cover
+    """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
+
+    ``img`` (W, H, 3) BGR, ``bg`` its opening as (3 W, H), ``y`` and ``clipped`` (W, H)
+    from :func:`~.evidence.laser_evidence`, ``y_avg`` the evidence averaged along the
+    stripe over five columns (weights 1, 4, 6, 4, 1), ``mask`` (W, H) the searched
+    pixels, ``sigma_y`` and ``sigma_avg`` the image's noise of the two, ``s_max`` the
+    widest stripe's sigma, px. Seeds come from the averaged evidence (at least
+    ``seed_dn``); each is fitted on the column's own evidence, and where that fit is less than
+    ``strong_z`` significant also on the averaged one (noise about half, at the cost of
+    resolution along the stripe), the more significant fit kept. Fields: :mod:`.profile`'s
+    ``F_*`` (``F_T*`` the mean contrast of the core rows, ``F_K*`` the surface colour
+    there, RGB). Where the Gaussian's reduced chi-square exceeds ``max_chi2`` a flat top
+    is tried (:func:`~.profile.flat_top`; ``F_FLAT`` 1).
+    """
+    n_cols, n = y.shape
+    k_best = out.shape[1]
+    out[:] = np.nan
+    max_run = int(math.ceil(2.5 * s_max))
+    rank = np.empty(N_SEEDS)
+    noise = np.empty(N_SEEDS)
+    centre = np.empty(N_SEEDS)
+    run_a = np.empty(N_SEEDS, np.int64)
+    run_b = np.empty(N_SEEDS, np.int64)
+    buf = np.empty(n)
+    res = np.empty(6)
+    res_avg = np.empty(6)
+    use = np.empty(n, np.bool_)
+    red = np.empty(n)
+    for i in range(n_cols):
+        yi = y[i]
+        ya = y_avg[i]
+        ci = clipped[i]
+        mi = mask[i]
+        nk = _seeds(ya, ci, mi, seed_dn, sigma_avg, max_run, rank, centre, run_a,
+                    run_b, noise, buf)
+        p = 0
         for q in range(nk):
             if p == k_best:
                 break
-            if p > 0 and out[i, 0, C_Z] >= z_strong and rs[q] < SECONDARY_SHARE * rs[r0q]:
-                break  # Eq. 4 cannot prefer it to a strong first candidate
-            s_core = 0.0
-            if sheet_m > 0.0:
-                gpx = g_map[i, min(max(int(rc[q] + 0.5), 0), n - 1)]
-                if np.isfinite(gpx):
-                    s_core = gpx * sheet_m
-            # on an edge between surfaces (never the stripe) a seed is not fitted
-            # while another is left to take the slot
-            if not fit_profile(img, i, rc[q], rn[q], sigma, sat_dn, s_max, s_core, 0.0, False,
-                               False, MAX_EDGE if q + 1 < nk else 0.0, ws, res):
+            a, b = run_a[q], run_b[q]
+            sat = ci[a]
+            if sat:
+                s0 = max(0.5 * (b - a), 0.8)
+            else:
+                half = 0.5 * ya[a]
+                lo = a
+                while lo > 0 and ya[lo - 1] >= half and mi[lo - 1]:
+                    lo -= 1
+                hi = a
+                while hi < n - 1 and ya[hi + 1] >= half and mi[hi + 1]:
+                    hi += 1
+                s0 = max((hi - lo + 1) / 2.355, 0.6)
+            s0 = min(s0, s_max)
+            w_half = int(math.ceil(3.0 * s0 + 3.0)) + (b - a) // 2
+            j0 = max(int(centre[q]) - w_half, 0)
+            j1 = min(int(centre[q]) + w_half + 2, n)
+            m = j1 - j0
+            for jj in range(m):
+                use[jj] = mi[j0 + jj] and not ci[j0 + jj]
+            core = 3.0 * s0 + 0.5 * (b - a)
+            sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, buf))
+            ok = fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig, shape_error,
+                              s_max, res)
+            if not sat and (not ok or res[3] < strong_z):
+                if fit_gaussian(ya[j0:j1], use[:m], j0, centre[q], s0, noise[q], shape_error,
+                                s_max, res_avg) and (not ok or res_avg[3] > res[3]):
+                    res[:] = res_avg
+                    sig = noise[q]
+                    ok = True
+            flat = False
+            if not sat and ok and res[5] > max_chi2:
+                base = 1e300
+                for jj in range(m):
+                    if use[jj]:
+                        base = min(base, yi[j0 + jj])
+                if flat_top(yi[j0:j1], use[:m], j0, centre[q], base, sig, res_avg):
+                    res[:] = res_avg
+                    flat = True
+            if sat:
+                for jj in range(n):
+                    red[jj] = img[i, jj, 2]
+                v_plateau = a - 0.5 <= res[0] <= b - 0.5 if ok else False
+                if not ok or not v_plateau or res[2] < 0.5:
+                    lvl = 0.5 * (bg[3 * i + 2, int(centre[q])] + sat_dn)
+                    res[0] = plateau_centre(red, a, b, lvl)
+                    res[2] = max(0.5 * (b - a), s0) if not ok else res[2]
+                    res[4] = 0.25
+                    res[5] = 0.0
+                    if not ok:
+                        res[1] = sat_dn - bg[3 * i + 2, int(centre[q])]
+                res[3] = max(res[3] if ok else 0.0,
+                             (sat_dn - bg[3 * i + 2, int(centre[q])]) / sig)
+            elif not ok:
                 continue
-            if p == 0:
-                r0q = q
-            for f in range(N_FIELDS):
-                out[i, p, f] = res[f]
-            if np.isfinite(res[C_CHI2]):  # (a quick look's noise bump needs no clutter)
-                out[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q], res[C_AMP],
-                                             sigma)
-            # a faint candidate, in a column without a strong one, is fitted again on
-            # the column averaged with its neighbours
-            strong = p > 0 and out[i, 0, C_Z] >= z_strong
-            if not strong and support_z <= res[C_Z] < z_strong and \
-                    fit_profile(img, i, rc[q], rn[q], sigma_avg, sat_dn, s_max, s_core, 0.0, True,
-                                False, 0.0, ws, res):
-                for f in range(N_FIELDS):
-                    out_avg[i, p, f] = res[f]
-                out_avg[i, p, C_CLUT] = _clutter(score, sat, mask, i, rc[q], rn[q],
-                                                 res[C_AMP], sigma)
+            # one fit per crossing: a second seed converging on a kept one is dropped
+            dup = False
+            for r in range(p):
+                if abs(out[i, r, F_POS] - res[0]) < 1.0:
+                    dup = True
+            if dup:
+                continue
+            o = out[i, p]
+            o[F_POS] = res[0]
+            o[F_AMP] = res[1]
+            o[F_WIDTH] = res[2]
+            o[F_Z] = res[3]
+            o[F_SE_POS] = res[4]
+            o[F_CHI2] = res[5]
+            o[F_SAT] = 1.0 if sat else 0.0
+            o[F_NOISE] = sig
+            o[F_FLAT] = 1.0 if flat else 0.0
+            # the light the core adds, and the surface colour there (RGB)
+            tr = tg = tb = kr = kg = kb = 0.0
+            nc = 0
+            reach = max(res[2], 1.0)
+            for j in range(max(int(res[0] - reach), 0), min(int(res[0] + reach) + 2, n)):
+                if abs(j - res[0]) > reach or ci[j]:
+                    continue
+                br, bgg, bb = bg[3 * i + 2, j], bg[3 * i + 1, j], bg[3 * i, j]
+                tr += img[i, j, 2] - br
+                tg += img[i, j, 1] - bgg
+                tb += img[i, j, 0] - bb
+                kr += br + 0.5
+                kg += bgg + 0.5
+                kb += bb + 0.5
+                nc += 1
+            o[F_NCORE] = nc
+            if nc > 0:
+                o[F_TR], o[F_TG], o[F_TB] = tr / nc, tg / nc, tb / nc
+                o[F_KR], o[F_KG], o[F_KB] = kr / nc, kg / nc, kb / nc
             p += 1
-
-

@@ -1,30 +1,22 @@
-"""Laser slit extraction from one colour image (paper §2.1.1, Eqs. 1-4).
+"""Laser stripe extraction from one colour image (paper §2.1.1, Eqs. 1-4).
 
-Pipeline (docs/laser.md, "How the stripe is found"); every loop over pixels or
-columns is compiled (:mod:`slitcli.laser.candidates`, :mod:`slitcli.laser.fit`,
-:mod:`slitcli.laser.track`, :mod:`slitcli.laser.select`):
+The stripe model (docs/laser.md, "How the stripe is found"), its terms estimated on
+each image, in the paper's steps:
 
-1. Background: a vertical morphological opening per channel (compiled,
-   :func:`slitcli.laser.candidates.vertical_opening`); the contrast
-   ``x - opening`` is the light a pixel adds above its surroundings. Noise sigma
-   from the colour orthogonal to the surface's (texture cancels there).
-2. Evidence per pixel (Eqs. 1-3) on the contrast: red chromaticity (Eq. 2), white
-   rejection (Eq. 3), and the laser estimate with the surface colour removed.
-3. Candidates per column: local maxima of the evidence and saturated red plateaus,
-   each fitted with a Gaussian on the texture-cancelled red signal (generalised least
-   squares over the colour channels, saturated samples left out, the sheet's width
-   as a prior); faint ones again on the column averaged with its neighbours.
-4. Eq. 4: per column the best valid candidate by red peak, continuity with the
-   neighbouring columns and the previous frame, and narrowness; valid candidates
-   are Gaussians of the laser's sheet thickness, above the clutter of their
-   surroundings, not on an edge between two surfaces.
-5. Segments: columns joined by small row steps (or along a steep stripe); short
-   segments and columns whose running median brightness is below ``min_peak_dn``
-   are dropped, dim end columns too; gaps are filled and fading ends carried on by
-   fits at the rows the segment predicts; each row is finally smoothed along its
-   segment (weighted quadratic over nine columns).
+1. Evidence (:mod:`.evidence`): background by a vertical opening, the laser evidence
+   of every pixel with the surface colour removed, the noise of the evidence and of
+   each channel measured robustly on the image.
+2. Profile (:mod:`.profile`): a Gaussian across the column with a relative model
+   error; clipped cores fitted on their flanks or centred on their plateau.
+3. Candidates (:mod:`.candidates`): seeds per column (evidence maxima, clipped runs
+   with red flanks), fitted, judged against the local noise.
+4. Choice along the stripe (:mod:`.choose`): the tests of the model (width, shape,
+   significance, the laser's colour estimated on the frame, the sheet's thickness),
+   Eq. 4 per column, segments, rows smoothed along them.
+5. Geometry (:mod:`.frame`): triangulation.
 
-The kernels walk image columns (transposed views of the arrays).
+``method="paper"`` replaces steps 1-4 by the paper's literal per-pixel rules
+(:mod:`.paper`).
 """
 
 from __future__ import annotations
@@ -35,21 +27,19 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slitcli.laser import candidates, finish, fit, select, sheet
+from slitcli.laser import candidates, choose, evidence, paper
 from slitcli.laser.params import LaserParams
+from slitcli.laser.profile import N_FIELDS
 
-#: candidates fitted per column
-K_BEST = 2
-#: every NOISE_STEP-th column estimates the noise
-NOISE_STEP = 32
-#: weak candidates (continuing a neighbour's row) need this share of noise_k
-WEAK_SHARE = 0.6
-#: columns a fading segment may be carried on past its end
-EXTEND_COLS = 4
-#: candidates are seeded at least this many noise sigmas of the evidence (whose noise
-#: is EVIDENCE_GAIN times the per-channel noise on a grey surface) above zero
-SEED_SIGMAS = 3.0
-EVIDENCE_GAIN = 1.4
+#: candidates kept per column
+K_BEST = 4
+#: a short segment's columns need this multiple of min_z each; a fit this significant
+#: on its own column is not replaced by one on the averaged columns
+STRONG_SHARE = 2.0
+#: weights of the average along the stripe (over columns; the transposed evidence's
+#: rows), and the noise it leaves of white noise: sqrt(70) / 16
+AVG_KERNEL = (np.array([1.0, 4.0, 6.0, 4.0, 1.0], np.float32) / 16.0)[:, None]
+AVG_NOISE = math.sqrt(70.0) / 16.0
 
 
 @dataclass(frozen=True)
@@ -61,15 +51,17 @@ class StripeColumns:
     v_px : ndarray, shape (W,)
         Sub-pixel stripe row (pixel centres at integers); NaN where there is no stripe.
     strength_dn : ndarray, shape (W,)
-        Fitted peak of the stripe's red light above the surface (texture-cancelled),
-        DN; NaN where none.
+        Fitted peak of the laser evidence above the surface, DN; NaN where none.
     saturated : ndarray, shape (W,) bool
-        The stripe's red core is clipped (the fit used its flanks).
+        The stripe's core is clipped (centred on its flanks or plateau).
     noise_sigma_dn : float
-        Image noise standard deviation per channel, estimated from the image, DN.
+        Noise sigma of the laser evidence, measured on the image, DN.
     threshold_dn : float
-        The acceptance level ``max(min_peak_dn, noise_k x noise)`` whose
-        ``seed_fraction`` seeds candidates, DN.
+        Seed level ``seed_z x noise_sigma_dn``, DN.
+    channel_sigma_dn : ndarray, shape (3,)
+        Noise sigma of the red, green and blue channels, DN.
+    laser_rgb : ndarray, shape (3,) or None
+        The laser's colour (red 1) as the frame shows it, when enough columns show it.
     """
 
     v_px: np.ndarray
@@ -77,6 +69,8 @@ class StripeColumns:
     saturated: np.ndarray
     noise_sigma_dn: float
     threshold_dn: float
+    channel_sigma_dn: np.ndarray
+    laser_rgb: np.ndarray | None = None
 
 
 def chromaticity(bgr: np.ndarray) -> np.ndarray:
@@ -97,52 +91,11 @@ def chromaticity(bgr: np.ndarray) -> np.ndarray:
     return np.divide(x, s, out=np.zeros_like(x), where=s > 0)
 
 
-def candidate_mask(bgr: np.ndarray, background_bgr: np.ndarray,
-                   params: LaserParams) -> tuple[np.ndarray, np.ndarray]:
-    """Paper Eqs. 1-3 per pixel, on the light it adds above its background (numpy form).
-
-    The compiled extractor applies exactly these tests
-    (:func:`slitcli.laser.candidates.evidence`); this form documents them and serves
-    tests and users who want the mask.
-
-    Parameters
-    ----------
-    bgr : ndarray, shape (..., 3), uint8, BGR
-        The image.
-    background_bgr : ndarray, shape (..., 3), uint8, BGR
-        Its local background (the extractor uses a vertical morphological opening of
-        ``background_window_px`` rows); at most ``bgr``.
-    params : LaserParams
-
-    Returns
-    -------
-    red : ndarray of bool, shape (...)
-        On the contrast ``t = bgr - background``: Eq. 2 on its chromaticity (Eq. 1),
-        ``R > min_th`` and ``R - max(G, B) > min_delta_th`` (false where ``sum(t) <=
-        0``), and Eq. 3, white rejection, ``y > alpha max(t_g, t_b)`` with ``y`` the
-        laser estimate: the contrast's red less the part its green and blue explain
-        along the background's colour (:data:`slitcli.laser.candidates.LAM_DETECT` of it),
-        scaled so that laser light ``(1, XT, XT)`` gives its red.
-    saturated : ndarray of bool, shape (...)
-        Red at or above ``saturation_dn``: exempt from Eqs. 2-3 (a clipped core turns
-        white); the extractor needs a red neighbour to take such a pixel.
-    """
-    x = np.asarray(bgr, dtype=np.float64)
-    b = np.asarray(background_bgr, dtype=np.float64)
-    t = x - b
-    c = chromaticity(t)
-    red_c, wht_c = c[..., 0], np.maximum(c[..., 1], c[..., 2])
-    eq2 = (red_c > params.min_th) & (red_c - wht_c > params.min_delta_th)
-    k = b[..., ::-1] + 0.5  # background colour, RGB
-    k2 = (k * k).sum(axis=-1)
-    kl = k[..., 0] + fit.XT * (k[..., 1] + k[..., 2])
-    lq = candidates.LAM_DETECT * kl
-    inv = 1.0 / (fit.A_LASER * k2 - lq * kl)
-    y = ((k2 - lq * k[..., 0]) * inv * t[..., 2] + (fit.XT * k2 - lq * k[..., 1]) * inv * t[..., 1]
-         + (fit.XT * k2 - lq * k[..., 2]) * inv * t[..., 0])
-    eq3 = y > params.alpha * np.maximum(t[..., 1], t[..., 0])
-    saturated = np.asarray(bgr)[..., 2] >= params.saturation_dn
-    return eq2 & eq3 & ~saturated, saturated
+def background_window_px(params: LaserParams, height_px: int) -> int:
+    """Rows of the vertical opening: odd, more than twice the widest stripe (so that the
+    stripe never survives it), at least 21."""
+    w = max(21, 2 * math.ceil(params.max_width_px(height_px)) + 1)
+    return w | 1
 
 
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
@@ -157,14 +110,14 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         The (rectified) left image.
     params : LaserParams
     search_mask : ndarray, shape (H, W) bool, optional
-        Pixels where the stripe may lie (from the rig geometry,
-        :class:`slitcli.laser.frame.LaserGeometry`); default everywhere.
+        Pixels where the stripe may lie (:class:`~slitcli.laser.frame.LaserGeometry`);
+        default everywhere.
     previous_v_px : ndarray, shape (W,), optional
-        The previous frame's stripe rows (NaN none), for the continuity term.
+        The previous frame's stripe rows (NaN none), for the continuity term of Eq. 4.
     px_per_m : ndarray, shape (H, W), optional
         Image rows per metre of height on an upright surface where each pixel's ray
-        meets the laser plane (:class:`~slitcli.laser.frame.LaserGeometry`); with it,
-        candidates must match the laser's sheet thickness ``params.sheet_sigma_mm``.
+        meets the laser plane; with it, candidates must match the sheet's thickness
+        ``params.sheet_sigma_mm``.
 
     Returns
     -------
@@ -178,68 +131,71 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         np.asarray(search_mask, dtype=bool)
     if mask.shape != (h, w):
         raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
-    # rows above the search region (and the reach of the opening and of a fit window
-    # beyond it) are left out
-    first_row = finish.first_search_row(mask.T)
-    if first_row < 0:
-        nan = np.full(w, np.nan)
-        return StripeColumns(nan, nan.copy(), np.zeros(w, bool), 0.0, params.min_peak_dn)
-    r0 = max(first_row - params.background_window_px - fit.FIT_HALF, 0)
-    # the kernels walk image columns: transposed, contiguous (W, H, 3) copies (one
-    # column is one contiguous run of memory); the opening runs along the columns
-    sub = img[r0:]
-    img_t = cv2.transpose(sub)
-    # (a vertical window mixes no channels: on the (rows, 3 W) one-channel view of the
-    # image it is the same opening; along whole image rows at once it is vectorised,
-    # and min and max are exact. Its one-channel transpose, (3 W, rows), holds each
-    # column's channels as separate runs: half the time of the three-channel
-    # transpose, and the evidence loads them without shuffles)
-    flat = np.ascontiguousarray(sub.reshape(sub.shape[0], 3 * w))
-    opened = np.empty_like(flat)
-    candidates.vertical_opening(flat, params.background_window_px, opened)
-    bg_t = cv2.transpose(opened)
-    mask_t = mask.T[:, r0:]  # contiguous rows for LaserGeometry's (Fortran-order) masks
-    sigma = candidates.noise_sigma(img_t, bg_t, NOISE_STEP)
-    thr = max(params.min_peak_dn, params.noise_k * sigma)
-    seed = max(params.seed_fraction * thr, SEED_SIGMAS * EVIDENCE_GAIN * sigma)
-    max_run = math.ceil(3.0 * params.max_width_px)
-    z_strong = params.noise_k
-    # faint candidates are fitted again over three columns averaged (1, 2, 1) / 4:
-    # noise 0.61 sigma
-    sigma_avg = math.sqrt(0.375) * sigma
-    use_sheet = px_per_m is not None and params.sheet_sigma_mm > 0
-    sheet_m = params.sheet_sigma_mm * 1e-3 if use_sheet else 0.0
-    g_map = np.asarray(px_per_m, dtype=np.float64)[r0:] if use_sheet else \
-        np.full((1, 1), np.nan)
-    g_map_t = g_map.T
-    cand = np.empty((w, K_BEST, fit.N_FIELDS))
-    cand_avg = np.empty_like(cand)
-    args = (img_t, bg_t, mask_t, sigma, sigma_avg, seed, params.min_th, params.min_delta_th,
-            params.alpha, params.saturation_dn, max_run, params.max_width_px / select.EQ_WIDTH,
-            select.SUPPORT_Z, z_strong, g_map_t)
-    candidates.column_candidates(*args, sheet_m, cand, cand_avg)
-    if use_sheet:
-        # the sheet's thickness is the rig's; where the frame shows it clearly (many
-        # clean, strong columns agreeing) that value replaces the parameter
-        mode_m, support, voters = sheet.sheet_mode(cand, g_map_t, params.max_width_px)
-        if support >= sheet.MODE_SUPPORT and 2 * support >= voters and \
-                abs(math.log(mode_m / sheet_m)) > math.log(1.0 + sheet.MODE_WINDOW):
-            sheet_m = mode_m
-            candidates.column_candidates(*args, sheet_m, cand, cand_avg)
     prev = np.empty(0) if previous_v_px is None else \
-        np.asarray(previous_v_px, dtype=np.float64) - r0
+        np.asarray(previous_v_px, dtype=np.float64)
     if prev.size not in (0, w):
         raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
-    # Eq. 4 per column, then the segments: joined, tracked past their ends where the
-    # stripe fades (far or grazing surfaces), faint and dim-end columns dropped, gaps
-    # filled by fits at the interpolated rows, rows smoothed; one compiled call
-    v_px = np.empty(w)
-    strength = np.empty(w)
-    saturated = np.empty(w, bool)
-    finish.finish_stripe(img_t, cand, cand_avg, prev, g_map, g_map_t, sheet_m, sigma,
-                         sigma_avg, params.saturation_dn, params.max_width_px,
-                         params.max_width_px / select.EQ_WIDTH, params.beta, params.gamma,
-                         params.continuity_px, params.max_jump_px, z_strong,
-                         WEAK_SHARE * z_strong, params.min_segment_cols, params.min_peak_dn,
-                         r0, v_px, strength, saturated)
-    return StripeColumns(v_px, strength, saturated, float(sigma), float(thr))
+    nan = np.full(w, np.nan)
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return StripeColumns(nan, nan.copy(), np.zeros(w, bool), 0.0, 0.0, np.zeros(3))
+    max_w = params.max_width_px(h)
+    win = background_window_px(params, h)
+    # rows above the search region, beyond the reach of the opening, are left out
+    r0 = max(int(rows[0]) - win, 0)
+    sub = img[r0:]
+    img_t = cv2.transpose(sub)  # (W, h, 3): one image column per array row
+    mask_t = np.ascontiguousarray(mask[r0:].T)
+    chan = evidence.channel_sigma(img_t, evidence.NOISE_STEP)
+    if params.method == "paper":
+        v = np.empty(w)
+        amp = np.empty(w)
+        paper.paper_columns(img_t, mask_t, params.min_th, params.min_delta_th, params.alpha,
+                            params.beta, params.gamma, params.continuity_px, max_w, v, amp)
+        return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
+    # the opening along the columns: on the (rows, 3 W) one-channel view a vertical
+    # window mixes no channels; its transpose holds each column's channels as runs
+    flat = np.ascontiguousarray(sub.reshape(sub.shape[0], 3 * w))
+    opened = np.empty_like(flat)
+    evidence.vertical_opening(flat, win, opened)
+    bg_t = cv2.transpose(opened)
+    y = np.empty((w, sub.shape[0]), np.float32)
+    clipped = np.empty((w, sub.shape[0]), bool)
+    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, y, clipped)
+    # the stripe runs along the image rows: the evidence averaged over five columns
+    # (1, 4, 6, 4, 1) / 16 has about half the noise (its own is measured below)
+    y_avg = cv2.filter2D(y, -1, AVG_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    # two noise levels of each: the pixel noise (lag-2 residuals) seeds candidates; the
+    # spread of the evidence over the image (noise and the clutter it does not cancel)
+    # judges them, where it is larger
+    noise_avg = max(evidence.robust_sigma(y_avg, mask_t, evidence.NOISE_STEP),
+                    AVG_NOISE * params.noise_floor_dn)
+    sigma_y = max(evidence.robust_sigma(y, mask_t, evidence.NOISE_STEP),
+                  evidence.spread_sigma(y, mask_t, evidence.NOISE_STEP), params.noise_floor_dn)
+    sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, mask_t, evidence.NOISE_STEP))
+    chan = np.maximum(chan, params.noise_floor_dn)
+    seed = params.seed_z * noise_avg
+    s_max = max_w / choose.EQ_WIDTH
+    cand = np.empty((w, K_BEST, N_FIELDS))
+    candidates.column_candidates(img_t, bg_t, y, y_avg, clipped, mask_t, sigma_y, sigma_avg,
+                                 seed, STRONG_SHARE * params.min_z,
+                                 params.saturation_dn, s_max, params.shape_error,
+                                 params.max_chi2, cand)
+    cand[..., 0] += r0
+    sheet_px = None
+    if px_per_m is not None and params.sheet_sigma_mm > 0:
+        g = np.asarray(px_per_m, dtype=np.float64)
+        rr = np.clip(np.rint(np.nan_to_num(cand[..., 0], nan=0.0)).astype(int), 0, h - 1)
+        sheet_px = g[rr, np.arange(w)[:, None]] * params.sheet_sigma_mm * 1e-3
+    ok, laser = choose.valid_candidates(
+        cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
+        min_th=params.min_th, min_delta_th=params.min_delta_th,
+        colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
+        sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance)
+    v = np.empty(w)
+    amp = np.empty(w)
+    sat = np.empty(w, bool)
+    choose.choose_stripe(cand, ok, prev, params.beta, params.weak_z, params.continuity_px,
+                         params.max_jump_px, params.min_segment_cols(w), params.min_z,
+                         STRONG_SHARE * params.min_z, v, amp, sat)
+    return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)

@@ -26,11 +26,13 @@ class LaserGeometry:
     ----------
     search_mask : ndarray, shape (H, W) bool
         Pixels whose ray meets the laser plane in front of the camera at a
-        horizontal range (sensor frame) of at most ``max_search_range_m``.
+        horizontal range (sensor frame) of at most ``max_search_range_m``; every pixel
+        with ``search="full"``.
     px_per_m : ndarray, shape (H, W) float
         Image rows per metre of height on an upright surface at the point where each
         pixel's ray meets the laser plane (the scale of the sheet's thickness in the
-        image); NaN where the ray misses the plane.
+        image); NaN where the ray misses the plane or lies beyond
+        ``max_search_range_m``.
     ray_x : ndarray, shape (W,)
         ``(u - cx) / fx`` of every column: the x of its rays ``K^-1 (u, v, 1)``.
     ray_y_coeffs : ndarray, shape (2,)
@@ -59,7 +61,8 @@ class LaserGeometry:
         pts = rig.cam_to_sensor(rig.intersect_laser_plane(rig.pixel_rays_cam(u, v)))
         rng = np.hypot(pts[..., 0], pts[..., 1])
         with np.errstate(invalid="ignore"):
-            mask = np.isfinite(rng) & (rng <= params.max_search_range_m)
+            in_range = np.isfinite(rng) & (rng <= params.max_search_range_m)
+        mask = np.ones((h, w), bool) if params.search == "full" else in_range
         # rows of the points 1 mm above and below on the vertical through each point
         step = np.array([0.0, 0.0, 1e-3])
         _, v_up = rig.project_cam(rig.sensor_to_cam(pts + step))
@@ -70,7 +73,7 @@ class LaserGeometry:
         # these are contiguous
         cam = rig.left
         return cls(search_mask=np.asfortranarray(mask),
-                   px_per_m=np.asfortranarray(np.where(mask, px_per_m, np.nan)),
+                   px_per_m=np.asfortranarray(np.where(in_range, px_per_m, np.nan)),
                    ray_x=(np.arange(w, dtype=np.float64) - cam.cx_px) / cam.fx_px,
                    ray_y_coeffs=np.array([1.0 / cam.fy_px, -cam.cy_px / cam.fy_px]),
                    plane_cam=np.append(rig.laser.unit_normal, rig.laser.unit_offset_m),

@@ -1,4 +1,4 @@
-"""Parameters of the laser slit extraction (paper Eqs. 1-4) with the paper's defaults."""
+"""Parameters of the laser stripe extraction (paper Eqs. 1-4) and their defaults."""
 
 from __future__ import annotations
 
@@ -6,131 +6,167 @@ from dataclasses import dataclass, fields
 
 from slitcli.errors import SlitcliError
 
+METHODS = ("model", "paper")
+SEARCHES = ("rig", "full")
+
 
 @dataclass(frozen=True, kw_only=True)
 class LaserParams:
-    """Thresholds and weights of the stripe extractor (see docs/laser.md).
+    """How the stripe is found (docs/laser.md, "How the stripe is found").
 
     Attributes
     ----------
-    min_th : float
-        Eq. 2: minimum red chromaticity ``R = r / (r + g + b)`` of the light a pixel
-        adds above its background (its contrast; unitless, 1/3 is grey). The paper
-        gives no value; 0.35.
-    min_delta_th : float
-        Eq. 2: minimum ``R - max(G, B)`` of the contrast (unitless). The paper gives no
-        value; 0.02.
+    method : {"model", "paper"}
+        ``model``: the stripe model with its terms estimated from each image (default);
+        ``paper``: the paper's Eqs. 1-4 taken literally, per pixel on the raw image (a
+        baseline for comparison).
+    search : {"rig", "full"}
+        ``rig``: only rows whose ray meets the laser plane within
+        ``max_search_range_m`` (the rig's geometry); ``full``: every row (a camera whose
+        geometry is unknown or differs from the rig).
+    min_th, min_delta_th : float
+        Eq. 2: minimum red chromaticity ``R = r / (r + g + b)`` and minimum
+        ``R - max(G, B)`` (unitless; grey is 1/3, 0). The model method applies them to
+        the light a candidate adds above the surface; the paper method to raw pixels.
     alpha : float
-        Eq. 3 white-brightness rejection, paper value 0.32: the laser estimate of a
-        pixel (its red contrast less what its green and blue explain along the
-        surface's colour) must exceed ``alpha`` times its white contrast
-        ``max(t_g, t_b)``.
-    beta : float
-        Eq. 4 weight of the continuity term f(y) (paper 0.25).
-    gamma : float
-        Eq. 4 weight of the narrowness term g(I) (paper 0.25).
-    max_width_px : float
-        Widest stripe: its equivalent width (2.5 fitted Gaussian sigmas) may not
-        exceed this, and a candidate run longer than three times it is an object,
-        pixels.
-    background_window_px : int
-        Length of the vertical window of the morphological opening that estimates
-        the background under the stripe, pixels (odd; narrower features are "contrast").
-    min_peak_dn : float
-        Minimum peak brightness of a stripe (the red light it adds, before the pixels'
-        blur), as the running median along its segment, DN. The renderer's truth calls
-        a stripe visible from an expected peak of 20 DN.
-    noise_k : float
-        Significance (fitted amplitude over its standard error) of a strong candidate;
-        weak ones, which need an agreeing neighbour, 0.6 of it (unitless).
-    seed_fraction : float
-        Candidates are seeded where the laser evidence exceeds this fraction of
-        ``max(min_peak_dn, noise_k x noise sigma)`` (and three noise sigmas of the
-        evidence) (unitless).
+        Eq. 3, white rejection (paper 0.32): red must exceed ``alpha`` times the white
+        brightness ``max(g, b)`` (paper method; the model method cancels white light).
+    beta, gamma : float
+        Eq. 4 weights of the continuity term f(y) and the narrowness term g(I)
+        (paper 0.25 each).
+    max_width_share : float
+        Widest stripe as a share of the image height: its equivalent width (2.5 fitted
+        Gaussian sigmas) may not exceed ``max_width_share x height`` pixels (8 px at
+        240 rows, 32 px at 960).
+    seed_z : float
+        Candidates are seeded at local maxima of the laser evidence at least this many
+        of its noise sigmas high (the noise measured on the image, unitless).
+    min_z : float
+        Root mean square significance (fitted peak over its standard error, against the
+        local noise) of a segment's columns (unitless).
+    weak_z : float
+        Least significance of one column of a segment (unitless).
+    shape_error : float
+        Relative error of the Gaussian profile model (speckle, demosaicing, JPEG): the
+        fit's residual variance per row is ``noise^2 + (shape_error x profile)^2``.
+    max_chi2 : float
+        Largest reduced chi-square of the profile fit under that variance.
+    colour_error : float
+        Relative error of the laser colour: the light a candidate adds may differ from
+        the laser's colour (estimated on the frame) across it and the surface colour by
+        this share of its size plus three noise sigmas.
+    noise_floor_dn : float
+        Smallest noise sigma of the laser evidence, DN: quantisation (0.35 DN for the
+        evidence's weights) and compression leave at least this much.
     saturation_dn : int
-        Values at or above this are saturated (DN); a saturated red core is exempt
-        from Eqs. 2-3 when a red pixel borders it, and is fitted on its flanks.
+        Values at or above this are clipped (DN).
     continuity_px : float
-        Scale of the continuity term: f(y) = exp(-dv^2 / (2 continuity_px^2)), pixels.
+        Scale of f(y): ``exp(-dv^2 / (2 continuity_px^2))``, pixels.
     max_jump_px : float
-        Largest row change between neighbouring columns of one stripe segment, pixels
-        (along a steep stripe the profile's own width allows more).
-    min_segment_cols : int
-        Stripe segments shorter than this many columns are dropped unless each of
-        their columns is 1.6 ``noise_k`` significant.
+        Largest row step between neighbouring columns of one segment, pixels (a steep
+        stripe's own width allows more).
+    min_segment_share : float
+        Segments shorter than this share of the image width (8 columns at 320) are
+        dropped unless each column is twice ``min_z`` significant.
     max_search_range_m : float
-        Only rows whose laser-plane intersection lies within this horizontal range
-        are searched, metres.
+        ``search="rig"``: rows whose laser-plane point lies within this horizontal
+        range, metres.
     sheet_sigma_mm : float
-        Thickness of the laser sheet (Gaussian sigma across the plane), millimetres.
-        With the rig geometry, a candidate whose fitted width implies a sheet more
-        than 1.6 times thicker or thinner is not the laser (a frame that shows its own
-        thickness clearly uses that); 0 turns the test off.
+        ``search="rig"``: the sheet's thickness (Gaussian sigma across the plane), mm; a
+        candidate whose width implies a sheet ``sheet_tolerance`` times thicker or
+        thinner is not the laser. 0 turns the test off.
+    sheet_tolerance : float
+        Factor of that test (> 1).
     """
 
+    method: str = "model"
+    search: str = "rig"
     min_th: float = 0.35
     min_delta_th: float = 0.02
     alpha: float = 0.32
     beta: float = 0.25
     gamma: float = 0.25
-    max_width_px: float = 8.0
-    background_window_px: int = 21
-    min_peak_dn: float = 19.0
-    noise_k: float = 5.0
-    seed_fraction: float = 0.35
+    max_width_share: float = 1.0 / 30.0
+    seed_z: float = 4.0
+    min_z: float = 5.0
+    weak_z: float = 3.0
+    shape_error: float = 0.1
+    max_chi2: float = 4.0
+    colour_error: float = 0.2
+    noise_floor_dn: float = 0.5
     saturation_dn: int = 250
     continuity_px: float = 2.0
     max_jump_px: float = 3.0
-    min_segment_cols: int = 8
+    min_segment_share: float = 0.025
     max_search_range_m: float = 3.0
     sheet_sigma_mm: float = 4.0
+    sheet_tolerance: float = 1.6
 
     def __post_init__(self) -> None:
         checks = {
+            "method": self.method in METHODS,
+            "search": self.search in SEARCHES,
             "min_th": 0.0 <= self.min_th < 1.0,
             "min_delta_th": -1.0 < self.min_delta_th < 1.0,
             "alpha": 0.0 <= self.alpha < 1.0,
             "beta": self.beta >= 0.0,
             "gamma": self.gamma >= 0.0,
-            "max_width_px": self.max_width_px >= 1.0,
-            "background_window_px": (self.background_window_px >= 3
-                                     and self.background_window_px % 2 == 1
-                                     and self.background_window_px > 2 * self.max_width_px),
-            "min_peak_dn": 0.0 < self.min_peak_dn < 255.0,
-            "noise_k": self.noise_k >= 0.0,
-            "seed_fraction": 0.0 < self.seed_fraction <= 1.0,
+            "max_width_share": 0.0 < self.max_width_share <= 0.25,
+            "seed_z": self.seed_z > 0.0,
+            "min_z": self.min_z > 0.0,
+            "weak_z": 0.0 < self.weak_z <= self.min_z,
+            "shape_error": 0.0 <= self.shape_error < 1.0,
+            "max_chi2": self.max_chi2 > 0.0,
+            "colour_error": 0.0 <= self.colour_error < 1.0,
+            "noise_floor_dn": self.noise_floor_dn > 0.0,
             "saturation_dn": 1 <= self.saturation_dn <= 255,
             "continuity_px": self.continuity_px > 0.0,
             "max_jump_px": self.max_jump_px > 0.0,
-            "min_segment_cols": self.min_segment_cols >= 1,
+            "min_segment_share": 0.0 <= self.min_segment_share < 1.0,
             "max_search_range_m": self.max_search_range_m > 0.0,
             "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
+            "sheet_tolerance": self.sheet_tolerance > 1.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise SlitcliError(f"laser parameter {name} = {getattr(self, name)!r} is out of "
                                    f"range; {_RANGES[name]}")
 
-    def as_dict(self) -> dict[str, float]:
+    def max_width_px(self, height_px: int) -> float:
+        """Widest stripe's equivalent width in an image of ``height_px`` rows, pixels
+        (at least 4)."""
+        return max(4.0, self.max_width_share * height_px)
+
+    def min_segment_cols(self, width_px: int) -> int:
+        """Shortest segment kept without strong columns, in an image ``width_px`` wide."""
+        return max(2, round(self.min_segment_share * width_px))
+
+    def as_dict(self) -> dict[str, float | str]:
         """The parameters as a plain mapping (for logs and docs)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 _RANGES = {
+    "method": "give one of " + ", ".join(METHODS),
+    "search": "give one of " + ", ".join(SEARCHES),
     "min_th": "give a chromaticity in [0, 1)",
     "min_delta_th": "give a chromaticity difference in (-1, 1)",
     "alpha": "give a fraction in [0, 1)",
     "beta": "give a weight >= 0",
     "gamma": "give a weight >= 0",
-    "max_width_px": "give a width >= 1 px",
-    "background_window_px": "give an odd length >= 3 px and more than twice max_width_px",
-    "min_peak_dn": "give a contrast in (0, 255) DN",
-    "noise_k": "give a factor >= 0",
-    "seed_fraction": "give a fraction in (0, 1]",
+    "max_width_share": "give a share of the image height in (0, 0.25]",
+    "seed_z": "give a significance > 0",
+    "min_z": "give a significance > 0",
+    "weak_z": "give a significance in (0, min_z]",
+    "shape_error": "give a relative error in [0, 1)",
+    "max_chi2": "give a reduced chi-square > 0",
+    "colour_error": "give a relative error in [0, 1)",
+    "noise_floor_dn": "give a noise level > 0 DN",
     "saturation_dn": "give a level in 1..255 DN",
     "continuity_px": "give a scale > 0 px",
     "max_jump_px": "give a row step > 0 px",
-    "min_segment_cols": "give a whole number of columns >= 1",
+    "min_segment_share": "give a share of the image width in [0, 1)",
     "max_search_range_m": "give a range > 0 m",
     "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
+    "sheet_tolerance": "give a factor > 1",
 }

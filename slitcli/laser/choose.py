@@ -1,0 +1,333 @@
+"""Steps 4-5 of the stripe model: which candidates can be the laser, and the choice
+along the stripe (paper Eq. 4, segments, rows smoothed along them).
+
+:func:`valid_candidates` applies the tests that follow from the model (width, shape,
+significance, colour, the sheet's thickness); :func:`choose_stripe` is Eq. 4 per column
+followed by the segments (compiled).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from slitcli.laser.profile import (
+    F_AMP,
+    F_CHI2,
+    F_FLAT,
+    F_KB,
+    F_KG,
+    F_KR,
+    F_NCORE,
+    F_POS,
+    F_SAT,
+    F_SE_POS,
+    F_TB,
+    F_TG,
+    F_TR,
+    F_WIDTH,
+    F_Z,
+    MIN_SIGMA_PX,
+)
+
+#: a Gaussian's equivalent width (sum over peak) in sigmas, rounded
+EQ_WIDTH = 2.5
+#: a pixel integrates the profile over its extent: variance 1/12 px^2
+PIXEL_VAR = 1.0 / 12.0
+#: candidates this many times min_z significant (unclipped) estimate the laser colour;
+#: at least COLOUR_SUPPORT of them are needed
+COLOUR_Z = 2.0
+COLOUR_SUPPORT = 8
+#: the laser is red: its green and blue response at most this share of its red
+MAX_LASER_GB = 0.6
+#: colour residual allowed for noise alone, in noise sigmas of the core's mean
+COLOUR_SIGMAS = 3.0
+#: found columns of one segment may be this many columns apart
+MAX_GAP = 2
+#: rows are smoothed along a segment over this many columns either side
+SMOOTH_HALF = 4
+#: a second difference of the rows beyond this (and four times its noise) is a corner
+SMOOTH_CORNER_PX = 0.5
+
+
+def laser_colour(cand: np.ndarray, ok: np.ndarray, min_z: float) -> np.ndarray | None:
+    """The laser's colour (RGB, red 1) from the frame's strong unclipped candidates
+    (median of their core contrast over its red), or None with fewer than
+    ``COLOUR_SUPPORT`` of them."""
+    strong = ok & (cand[..., F_Z] >= COLOUR_Z * min_z) & (cand[..., F_SAT] == 0) & \
+        (cand[..., F_NCORE] > 0) & (cand[..., F_TR] > 0)
+    if strong.sum() < COLOUR_SUPPORT:
+        return None
+    t = cand[strong][:, [F_TR, F_TG, F_TB]]
+    gb = np.clip(np.median(t[:, 1:] / t[:, :1], axis=0), 0.0, MAX_LASER_GB)
+    return np.array([1.0, gb[0], gb[1]])
+
+
+def colour_residual(cand: np.ndarray, laser_rgb: np.ndarray) -> np.ndarray:
+    """Size of each candidate's core contrast across the plane of the laser colour and
+    the surface colour (DN; texture and shading move the surface along its colour, the
+    laser adds along its own); shape (W, K)."""
+    t = cand[..., [F_TR, F_TG, F_TB]]
+    k = cand[..., [F_KR, F_KG, F_KB]]
+    e1 = laser_rgb / np.linalg.norm(laser_rgb)
+    e2 = k - (k @ e1)[..., None] * e1
+    n2 = np.linalg.norm(e2, axis=-1, keepdims=True)
+    e2 = np.divide(e2, n2, out=np.zeros_like(e2), where=n2 > 1e-6 * np.linalg.norm(k, axis=-1,
+                                                                                   keepdims=True))
+    q = t - (t @ e1)[..., None] * e1 - np.sum(t * e2, axis=-1, keepdims=True) * e2
+    return np.linalg.norm(q, axis=-1)
+
+
+def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: float,
+                     max_chi2: float, min_th: float, min_delta_th: float,
+                     colour_error: float, channel_sigma_dn: float,
+                     sheet_px: np.ndarray | None,
+                     sheet_tolerance: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which candidates (W, K) can be the laser, and the laser colour used.
+
+    Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
+    unclipped one a Gaussian within the model error (reduced chi-square ``max_chi2``);
+    the light its core adds passes Eq. 2 (red chromaticity ``min_th``, ``min_delta_th``)
+    and, where the frame shows the laser's colour (:func:`laser_colour`), lies in the
+    plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
+    ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
+    candidate's row, px, NaN unknown) a width that implies a sheet at most
+    ``sheet_tolerance`` times thicker or (unclipped) thinner.
+    """
+    pos = cand[..., F_POS]
+    s = cand[..., F_WIDTH]
+    sat = cand[..., F_SAT] > 0
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(pos) & (pos >= -0.5) & (pos <= height_px - 0.5)
+        ok &= (s >= MIN_SIGMA_PX) & (s <= s_max)
+        ok &= sat | (cand[..., F_FLAT] > 0) | (cand[..., F_CHI2] <= max_chi2)
+        t = cand[..., [F_TR, F_TG, F_TB]]
+        tot = t.sum(axis=-1)
+        rc = t[..., 0] / tot
+        eq2 = (tot > 0) & (rc > min_th) & (rc - np.maximum(t[..., 1], t[..., 2]) / tot
+                                           > min_delta_th)
+        has_core = cand[..., F_NCORE] > 0
+        ok &= eq2 | (sat & ~has_core)
+        if sheet_px is not None:
+            core = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01))
+            ok &= ~(core > sheet_tolerance * sheet_px)
+            ok &= sat | ~(core < sheet_px / sheet_tolerance)
+        laser = laser_colour(cand, ok, min_z)
+        if laser is not None:
+            q = colour_residual(cand, laser)
+            n = np.maximum(cand[..., F_NCORE], 1.0)
+            lim = COLOUR_SIGMAS * channel_sigma_dn / np.sqrt(n) + \
+                colour_error * np.linalg.norm(t, axis=-1)
+            ok &= ~has_core | (q <= lim)
+    return ok, laser
+
+
+@njit(cache=True, nogil=True)
+def _closeness(v: float, ref: float, scale: float) -> float:  # pragma: no cover
+    if not np.isfinite(ref):
+        return 0.0
+    d = (v - ref) / scale
+    return math.exp(-0.5 * d * d)
+
+
+@njit(cache=True, nogil=True)
+def links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pragma: no cover
+    """Rows of neighbouring columns on one stripe: a step of at most ``max_jump_px``, or
+    on a steep stripe (whose profile across a column widens to ``slope / sqrt(12)``) of
+    at most ``sqrt(3)`` times the sum of the two widths."""
+    dv = abs(dv)
+    return dv <= max_jump_px or dv <= math.sqrt(3.0) * (w_a + w_b)
+
+
+@njit(cache=True, nogil=True)
+def _gain(cand: np.ndarray, u: int, q: int, prev_v: np.ndarray, z_weak: float, beta: float,
+          continuity_px: float) -> float:  # pragma: no cover
+    """Log-likelihood ratio of candidate ``q`` of column ``u`` being the stripe (its
+    significance ``z``: ``(z^2 - z_weak^2) / 2``), plus ``beta z_weak^2`` times its
+    closeness to the previous frame's row (Eq. 4's f(y) over time)."""
+    z = cand[u, q, F_Z]
+    g = 0.5 * (z * z - z_weak * z_weak)
+    if prev_v.shape[0] == cand.shape[0] and np.isfinite(prev_v[u]):
+        g += beta * z_weak * z_weak * _closeness(cand[u, q, F_POS], prev_v[u], continuity_px)
+    return g
+
+
+@njit(cache=True, nogil=True)
+def best_path(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, z_weak: float,
+              beta: float, continuity_px: float, max_jump_px: float,
+              pick: np.ndarray) -> None:  # pragma: no cover
+    """Eq. 4 along the stripe: the choice of one candidate or none per column that
+    maximises the summed evidence (:func:`_gain`) less the continuity cost
+    ``(dv / continuity_px)^2 / 2`` between chosen neighbours whose rows link
+    (:func:`links`; others are separated by a column without a stripe). Dynamic
+    programming over the columns (Viterbi); ``pick[u]`` the chosen index or -1."""
+    w_cols, k = cand.shape[0], cand.shape[1]
+    score = np.full((w_cols, k), -1e300)
+    back = np.full((w_cols, k), -1, np.int64)  # -1: from "none"
+    none = np.zeros(w_cols)
+    none_back = np.full(w_cols, -1, np.int64)  # -1: from "none", else the candidate
+    for u in range(w_cols):
+        prev_none = none[u - 1] if u > 0 else 0.0
+        best_prev = prev_none
+        best_q = -1
+        if u > 0:
+            for r in range(k):
+                if score[u - 1, r] > best_prev:
+                    best_prev = score[u - 1, r]
+                    best_q = r
+        none[u] = best_prev
+        none_back[u] = best_q
+        for q in range(k):
+            if not ok[u, q] or cand[u, q, F_Z] < z_weak:
+                continue
+            g = _gain(cand, u, q, prev_v, z_weak, beta, continuity_px)
+            best = prev_none
+            arg = -1
+            if u > 0:
+                for r in range(k):
+                    if score[u - 1, r] <= -1e299:
+                        continue
+                    dv = cand[u, q, F_POS] - cand[u - 1, r, F_POS]
+                    if not links(dv, cand[u, q, F_WIDTH], cand[u - 1, r, F_WIDTH],
+                                 max_jump_px):
+                        continue
+                    d = dv / continuity_px
+                    sc = score[u - 1, r] - 0.5 * d * d
+                    if sc > best:
+                        best = sc
+                        arg = r
+            score[u, q] = best + g
+            back[u, q] = arg
+    # backtrack from the best final state
+    state = -1
+    best = none[w_cols - 1]
+    for q in range(k):
+        if score[w_cols - 1, q] > best:
+            best = score[w_cols - 1, q]
+            state = q
+    for u in range(w_cols - 1, -1, -1):
+        pick[u] = state
+        state = back[u, state] if state >= 0 else none_back[u]
+
+
+@njit(cache=True, nogil=True)
+def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: float,
+                  z_weak: float, continuity_px: float, max_jump_px: float,
+                  min_segment_cols: int, min_z: float, strong_z: float,
+                  v_out: np.ndarray, amp_out: np.ndarray,
+                  sat_out: np.ndarray) -> None:  # pragma: no cover
+    """The choice along the stripe (:func:`best_path`), then the segments; writes the
+    rows (NaN none), peaks and clipped flags (W,).
+
+    Chosen columns join into a segment when their rows link (:func:`links`), across a
+    gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
+    column. A segment stays when it has ``min_segment_cols`` columns whose root mean
+    square significance is ``min_z``, or at least two, each ``strong_z`` significant
+    (a thin object). Rows are then smoothed along the segment (:func:`smooth_rows`).
+    """
+    w_cols = cand.shape[0]
+    pick = np.empty(w_cols, np.int64)
+    best_path(cand, ok, prev_v, z_weak, beta, continuity_px, max_jump_px, pick)
+    v = np.full(w_cols, np.nan)
+    wid = np.full(w_cols, np.nan)
+    for u in range(w_cols):
+        if pick[u] >= 0:
+            v[u] = cand[u, pick[u], F_POS]
+            wid[u] = cand[u, pick[u], F_WIDTH]
+    keep = np.zeros(w_cols, np.bool_)
+    idx = np.empty(w_cols, np.int64)
+    u = 0
+    while u < w_cols:
+        if pick[u] < 0:
+            u += 1
+            continue
+        cnt = 1
+        idx[0] = u
+        last = u
+        x = u + 1
+        while x < w_cols and x - last <= MAX_GAP + 1:
+            if pick[x] >= 0:
+                dv = v[x] - v[last]
+                if (x == last + 1 and links(dv, wid[x], wid[last], max_jump_px)) or \
+                        abs(dv) <= max_jump_px * (x - last):
+                    idx[cnt] = x
+                    cnt += 1
+                    last = x
+                else:
+                    break
+            x += 1
+        strong = cnt >= 2
+        z2 = 0.0
+        for r in range(cnt):
+            z = cand[idx[r], pick[idx[r]], F_Z]
+            strong = strong and z >= strong_z
+            z2 += z * z
+        if (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong:
+            for r in range(cnt):
+                keep[idx[r]] = True
+        u = last + 1
+    se = np.full(w_cols, np.nan)
+    for u in range(w_cols):
+        amp_out[u] = np.nan
+        sat_out[u] = False
+        if keep[u]:
+            q = pick[u]
+            se[u] = cand[u, q, F_SE_POS]
+            amp_out[u] = cand[u, q, F_AMP]
+            sat_out[u] = cand[u, q, F_SAT] > 0
+    smooth_rows(v, se, wid, keep, max_jump_px, v_out)
+
+
+@njit(cache=True, nogil=True)
+def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarray,
+                max_jump_px: float, out: np.ndarray) -> None:  # pragma: no cover
+    """Each kept column's row from a weighted quadratic through its segment's rows.
+
+    A stripe on a surface is a smooth image curve and the columns' fits carry
+    independent noise: the least-squares quadratic through the rows of up to
+    ``SMOOTH_HALF`` linked kept columns either side (weights ``1 / se^2``) estimates
+    the row with less noise. Windows stop at corners (second difference beyond
+    ``SMOOTH_CORNER_PX`` and four times its noise); a column with fewer than two linked
+    neighbours on either side keeps its own row. ``out`` (W,): NaN where not kept.
+    """
+    n = v.shape[0]
+    corner = np.zeros(n, np.bool_)
+    for x in range(1, n - 1):
+        if keep[x - 1] and keep[x] and keep[x + 1]:
+            d2 = v[x + 1] - 2.0 * v[x] + v[x - 1]
+            noise = math.sqrt(se[x - 1] ** 2 + 4.0 * se[x] ** 2 + se[x + 1] ** 2)
+            corner[x] = abs(d2) > max(SMOOTH_CORNER_PX, 4.0 * noise)
+    mom = np.empty((5, 3))
+    for u in range(n):
+        out[u] = v[u] if keep[u] else np.nan
+        if not keep[u] or corner[u]:
+            continue
+        lo = u
+        while lo > 0 and u - lo < SMOOTH_HALF and keep[lo - 1] and not corner[lo - 1] and \
+                links(v[lo] - v[lo - 1], width[lo], width[lo - 1], max_jump_px):
+            lo -= 1
+        hi = u
+        while hi < n - 1 and hi - u < SMOOTH_HALF and keep[hi + 1] and not corner[hi + 1] \
+                and links(v[hi + 1] - v[hi], width[hi + 1], width[hi], max_jump_px):
+            hi += 1
+        if u - lo < 2 or hi - u < 2:
+            continue
+        mom[:] = 0.0
+        for x in range(lo, hi + 1):
+            e = max(se[x], 0.02)
+            wt = 1.0 / (e * e)
+            d = float(x - u)
+            yv = v[x] - v[u]
+            for p in range(5):
+                mom[p, 0] += wt * d ** p
+            for p in range(3):
+                mom[p, 1] += wt * d ** p * yv
+        s0, s1, s2, s3, s4 = mom[0, 0], mom[1, 0], mom[2, 0], mom[3, 0], mom[4, 0]
+        t0, t1, t2 = mom[0, 1], mom[1, 1], mom[2, 1]
+        det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s2 * s3) + s2 * (s1 * s3 - s2 * s2)
+        if abs(det) < 1e-12 * s0 * s2 * s4:
+            continue
+        num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
+        out[u] = v[u] + num / det

@@ -1,0 +1,252 @@
+"""Step 2 of the stripe model: the profile across one column, fitted (numba).
+
+A stripe crossing a column is a Gaussian of the laser evidence (:mod:`.evidence`),
+``y(v) = c + A exp(-(v - v0)^2 / (2 s^2))`` (``c`` what the opening leaves of the
+surface's texture), with noise ``sigma`` per row and a model error proportional to the
+profile (speckle, demosaicing and compression make real profiles only roughly
+Gaussian): row variance ``sigma^2 + (shape_error A p(v))^2``. Clipped rows carry no
+shape and are left out; a clipped core is fitted on its flanks. Rows are pixel centres
+at integers.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+MAX_ITER = 10
+CONVERGED_PX = 0.005
+MIN_SIGMA_PX = 0.3  # a pixel's own extent gives any profile sqrt(1/12) = 0.29 px
+MIN_ROWS = 5
+
+#: fields of one fit (last axis of the candidate table)
+(F_POS, F_AMP, F_WIDTH, F_Z, F_SE_POS, F_CHI2, F_SAT, F_NOISE, F_TR, F_TG, F_TB, F_KR, F_KG,
+ F_KB, F_NCORE, F_FLAT) = range(16)
+N_FIELDS = 16
+#: a flat top: rows within this share of the peak's height (or three noise sigmas) of
+#: the peak, at least FLAT_ROWS of them
+FLAT_SHARE = 0.15
+FLAT_ROWS = 3
+#: and its flanks cross half its height at least this share of the height per row
+#: (steeper than any Gaussian wider than 1.8 px: the edges of a sharp beam, blurred
+#: only by the optics)
+FLAT_SLOPE = 1.0 / 3.0
+
+
+@njit(cache=True, nogil=True)
+def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
+    """Solve the 4x4 system ``a x = b`` in place (Gaussian elimination with partial
+    pivoting; ``a`` and ``b`` are overwritten); False if singular."""
+    for col in range(4):
+        piv = col
+        for r in range(col + 1, 4):
+            if abs(a[r, col]) > abs(a[piv, col]):
+                piv = r
+        if abs(a[piv, col]) < 1e-300:
+            return False
+        if piv != col:
+            for c in range(4):
+                a[col, c], a[piv, c] = a[piv, c], a[col, c]
+            b[col], b[piv] = b[piv], b[col]
+        for r in range(col + 1, 4):
+            f = a[r, col] / a[col, col]
+            for c in range(col, 4):
+                a[r, c] -= f * a[col, c]
+            b[r] -= f * b[col]
+    for r in range(3, -1, -1):
+        s = b[r]
+        for c in range(r + 1, 4):
+            s -= a[r, c] * x[c]
+        x[r] = s / a[r, r]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _normal(y: np.ndarray, use: np.ndarray, j0: int, m: int, p: np.ndarray, sigma: float,
+            shape_error: float, h: np.ndarray, g: np.ndarray) -> tuple[float, int]:  # pragma: no cover
+    """Weighted chi-square of the model at ``p = (c, A, v0, s)`` and the Gauss-Newton
+    normal equations ``h = J' W J``, ``g = J' W r`` there; also the rows used."""
+    h[:] = 0.0
+    g[:] = 0.0
+    chi = 0.0
+    n = 0
+    c, a, v0, s = p[0], p[1], p[2], p[3]
+    jac = np.empty(4)
+    for jj in range(m):
+        if not use[jj]:
+            continue
+        t = (j0 + jj - v0) / s
+        e = math.exp(-0.5 * t * t)
+        model = a * e
+        var = sigma * sigma + (shape_error * model) ** 2
+        wt = 1.0 / var
+        r = y[jj] - (c + model)
+        chi += wt * r * r
+        n += 1
+        jac[0] = 1.0
+        jac[1] = e
+        jac[2] = model * t / s
+        jac[3] = model * t * t / s
+        for q in range(4):
+            g[q] += wt * jac[q] * r
+            for k in range(q, 4):
+                h[q, k] += wt * jac[q] * jac[k]
+    for q in range(4):
+        for k in range(q):
+            h[q, k] = h[k, q]
+    return chi, n
+
+
+@njit(cache=True, nogil=True)
+def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_start: float,
+                 sigma: float, shape_error: float, s_max: float,
+                 out: np.ndarray) -> bool:  # pragma: no cover
+    """Fit ``c + A exp(-(v - v0)^2 / 2 s^2)`` to ``y`` (rows ``j0 ..``) where ``use``.
+
+    Gauss-Newton from ``v_start``, ``s_start`` with a damped step; ``out`` gets
+    ``(v0, A, s, z, se_v0, chi2)``: ``z`` is ``A`` over its standard error, ``chi2``
+    the reduced chi-square (module notes). False when fewer than ``MIN_ROWS`` rows, no
+    convergence to a positive peak inside the window, or a width beyond ``s_max``.
+    """
+    m = y.shape[0]
+    p = np.empty(4)
+    # start: offset the lowest used value, amplitude the peak near the start row
+    lo = 1e300
+    pk = -1e300
+    for jj in range(m):
+        if use[jj]:
+            lo = min(lo, y[jj])
+            if abs(j0 + jj - v_start) <= max(1.5, s_start):
+                pk = max(pk, y[jj])
+    if lo == 1e300:
+        return False
+    p[0] = lo
+    p[1] = max(pk - lo, 1e-3)
+    p[2] = v_start
+    p[3] = s_start
+    h = np.empty((4, 4))
+    g = np.empty(4)
+    dx = np.empty(4)
+    n_use = 0
+    chi = 0.0
+    for _ in range(MAX_ITER):
+        chi, n_use = _normal(y, use, j0, m, p, sigma, shape_error, h, g)
+        if n_use < MIN_ROWS:
+            return False
+        for q in range(4):
+            h[q, q] *= 1.0 + 1e-6
+        if not _solve4(h, g, dx):
+            return False
+        # keep the step sane: the centre moves at most a width, the width changes by at
+        # most half of itself
+        lim_v = max(p[3], 0.5)
+        dx[2] = min(max(dx[2], -lim_v), lim_v)
+        dx[3] = min(max(dx[3], -0.5 * p[3]), 0.5 * p[3])
+        p += dx
+        p[3] = max(p[3], 0.5 * MIN_SIGMA_PX)
+        if p[3] > 2.0 * s_max or not (j0 - 0.5 <= p[2] <= j0 + m - 0.5):
+            return False
+        if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 0.01 * p[3]:
+            break
+    chi, n_use = _normal(y, use, j0, m, p, sigma, shape_error, h, g)
+    if p[1] <= 0.0 or n_use < MIN_ROWS:
+        return False
+    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0)
+    var = np.empty(2)
+    for k, idx in enumerate((1, 2)):
+        hh = h.copy()
+        e = np.zeros(4)
+        e[idx] = 1.0
+        col = np.empty(4)
+        if not _solve4(hh, e, col):
+            return False
+        var[k] = col[idx]
+    if not (var[0] > 0.0 and var[1] > 0.0):
+        return False
+    out[0] = p[2]
+    out[1] = p[1]
+    out[2] = p[3]
+    out[3] = p[1] / math.sqrt(var[0])
+    out[4] = math.sqrt(var[1])
+    out[5] = chi / max(n_use - 4, 1)
+    return True
+
+
+@njit(cache=True, nogil=True)
+def plateau_centre(red: np.ndarray, a: int, b: int, level: float) -> float:  # pragma: no cover
+    """Centre of a clipped run ``a .. b - 1`` of the red profile ``red``: the midpoint of
+    where the profile crosses ``level`` on either side (linear interpolation; a side cut
+    off by the border takes the run's own end)."""
+    n = red.shape[0]
+    j = a
+    while j > 0 and red[j - 1] >= level:
+        j -= 1
+    up = j - 0.5
+    if j > 0:
+        lo_v, hi_v = red[j - 1], red[j]
+        up = j - 1 + (level - lo_v) / max(hi_v - lo_v, 1e-9)
+    j = b - 1
+    while j < n - 1 and red[j + 1] >= level:
+        j += 1
+    dn = j + 0.5
+    if j < n - 1:
+        hi_v, lo_v = red[j], red[j + 1]
+        dn = j + (hi_v - level) / max(hi_v - lo_v, 1e-9)
+    return 0.5 * (up + dn)
+
+
+@njit(cache=True, nogil=True)
+def flat_top(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, base: float,
+             sigma: float, out: np.ndarray) -> bool:  # pragma: no cover
+    """A flat-topped profile near ``v_start`` (a strong stripe through a camera's
+    compressive tone curve, or a wide beam): where the Gaussian does not fit, a
+    symmetric hump is centred by the midpoint of its half-height crossings.
+
+    The peak is the largest used ``y`` within 2 rows of ``v_start``; the top, the rows
+    within ``max(3 sigma, FLAT_SHARE x height)`` of it, must span at least
+    ``FLAT_ROWS`` rows, and both flanks must be steep (``FLAT_SLOPE``). ``out`` gets ``(v0, height, s, z, se_v0, chi2)`` with ``s`` the
+    half-height width over 2.355 and ``se_v0`` from the noise over the flanks' slope.
+    """
+    m = y.shape[0]
+    kp = -1
+    for jj in range(m):
+        if use[jj] and abs(j0 + jj - v_start) <= 2.0 and (kp < 0 or y[jj] > y[kp]):
+            kp = jj
+    if kp < 0:
+        return False
+    height = y[kp] - base
+    if height <= 0.0:
+        return False
+    top = y[kp] - max(3.0 * sigma, FLAT_SHARE * height)
+    a = kp
+    while a > 0 and use[a - 1] and y[a - 1] >= top:
+        a -= 1
+    b = kp
+    while b < m - 1 and use[b + 1] and y[b + 1] >= top:
+        b += 1
+    if b - a + 1 < FLAT_ROWS:
+        return False
+    level = base + 0.5 * height
+    a2 = a
+    while a2 > 0 and use[a2 - 1] and y[a2 - 1] >= level:
+        a2 -= 1
+    b2 = b
+    while b2 < m - 1 and use[b2 + 1] and y[b2 + 1] >= level:
+        b2 += 1
+    if a2 == 0 or b2 == m - 1 or not (use[a2 - 1] and use[b2 + 1]):
+        return False  # a flank cut off: no crossing on that side
+    d_up = max(y[a2] - y[a2 - 1], 1e-9)
+    d_dn = max(y[b2] - y[b2 + 1], 1e-9)
+    if min(d_up, d_dn) < FLAT_SLOPE * height:
+        return False  # a gentle hump, not a top with sharp edges
+    up = a2 - 1 + (level - y[a2 - 1]) / d_up
+    dn = b2 + (y[b2] - level) / d_dn
+    out[0] = j0 + 0.5 * (up + dn)
+    out[1] = height
+    out[2] = (dn - up) / 2.355
+    out[3] = height / sigma
+    out[4] = 0.5 * sigma * math.sqrt(1.0 / (d_up * d_up) + 1.0 / (d_dn * d_dn))
+    out[5] = 0.0
+    return True
