@@ -224,8 +224,8 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
     Chosen columns join into a segment when their rows link (:func:`links`), across a
     gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
     column. A segment stays when it has ``min_segment_cols`` columns whose root mean
-    square significance is ``min_z``, or at least two, each ``strong_z`` significant
-    (a thin object). Rows are then smoothed along the segment (:func:`smooth_rows`).
+    square significance is ``min_z``, or a quarter of that (at least two), each
+    ``strong_z`` significant (a thin object). Rows are then smoothed along the segment (:func:`smooth_rows`).
     """
     w_cols = cand.shape[0]
     pick = np.empty(w_cols, np.int64)
@@ -258,7 +258,7 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
                 else:
                     break
             x += 1
-        strong = cnt >= 2
+        strong = cnt >= max(2, min_segment_cols // 4)
         z2 = 0.0
         for r in range(cnt):
             z = cand[idx[r], pick[idx[r]], F_Z]

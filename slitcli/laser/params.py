@@ -90,7 +90,7 @@ class LaserParams:
     seed_z: float = 4.0
     min_z: float = 5.0
     weak_z: float = 3.0
-    shape_error: float = 0.1
+    shape_error: float = 0.25
     max_chi2: float = 4.0
     colour_error: float = 0.2
     noise_floor_dn: float = 0.5

@@ -1,10 +1,10 @@
 """Step 2 of the stripe model: the profile across one column, fitted (numba).
 
-A stripe crossing a column is a Gaussian of the laser evidence (:mod:`.evidence`),
-``y(v) = c + A exp(-(v - v0)^2 / (2 s^2))`` (``c`` what the opening leaves of the
-surface's texture), with noise ``sigma`` per row and a model error proportional to the
+A stripe crossing a column is a Gaussian of the laser evidence (:mod:`.evidence`) on a
+straight background, ``y(v) = c + b (v - v_s) + A exp(-(v - v0)^2 / (2 s^2))`` (the line
+what the opening leaves of the surface's texture and shading), with noise ``sigma`` per row and a model error proportional to the
 profile (speckle, demosaicing and compression make real profiles only roughly
-Gaussian): row variance ``sigma^2 + (shape_error A p(v))^2``. Clipped rows carry no
+Gaussian): the shape test allows a row variance ``sigma^2 + (shape_error A p(v))^2``. Clipped rows carry no
 shape and are left out; a clipped core is fitted on its flanks. Rows are pixel centres
 at integers.
 """
@@ -19,7 +19,8 @@ from numba import njit
 MAX_ITER = 10
 CONVERGED_PX = 0.005
 MIN_SIGMA_PX = 0.3  # a pixel's own extent gives any profile sqrt(1/12) = 0.29 px
-MIN_ROWS = 5
+MIN_ROWS = 6
+N_PAR = 5  # offset, peak, centre, width, background slope
 
 #: fields of one fit (last axis of the candidate table)
 (F_POS, F_AMP, F_WIDTH, F_Z, F_SE_POS, F_CHI2, F_SAT, F_NOISE, F_TR, F_TG, F_TB, F_KR, F_KG,
@@ -36,64 +37,70 @@ FLAT_SLOPE = 1.0 / 3.0
 
 
 @njit(cache=True, nogil=True)
-def _solve4(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
-    """Solve the 4x4 system ``a x = b`` in place (Gaussian elimination with partial
+def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
+    """Solve the small system ``a x = b`` in place (Gaussian elimination with partial
     pivoting; ``a`` and ``b`` are overwritten); False if singular."""
-    for col in range(4):
+    n = b.shape[0]
+    for col in range(n):
         piv = col
-        for r in range(col + 1, 4):
+        for r in range(col + 1, n):
             if abs(a[r, col]) > abs(a[piv, col]):
                 piv = r
         if abs(a[piv, col]) < 1e-300:
             return False
         if piv != col:
-            for c in range(4):
+            for c in range(n):
                 a[col, c], a[piv, c] = a[piv, c], a[col, c]
             b[col], b[piv] = b[piv], b[col]
-        for r in range(col + 1, 4):
+        for r in range(col + 1, n):
             f = a[r, col] / a[col, col]
-            for c in range(col, 4):
+            for c in range(col, n):
                 a[r, c] -= f * a[col, c]
             b[r] -= f * b[col]
-    for r in range(3, -1, -1):
+    for r in range(n - 1, -1, -1):
         s = b[r]
-        for c in range(r + 1, 4):
+        for c in range(r + 1, n):
             s -= a[r, c] * x[c]
         x[r] = s / a[r, r]
     return True
 
 
 @njit(cache=True, nogil=True)
-def _normal(y: np.ndarray, use: np.ndarray, j0: int, m: int, p: np.ndarray, sigma: float,
-            shape_error: float, h: np.ndarray, g: np.ndarray) -> tuple[float, int]:  # pragma: no cover
-    """Weighted chi-square of the model at ``p = (c, A, v0, s)`` and the Gauss-Newton
-    normal equations ``h = J' W J``, ``g = J' W r`` there; also the rows used."""
+def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
+            sigma: float, shape_error: float, h: np.ndarray,
+            g: np.ndarray) -> tuple[float, int]:  # pragma: no cover
+    """Chi-square of the model at ``p = (c, A, v0, s, b)`` under the row variance with
+    the model error, and the Gauss-Newton normal equations ``h = J' J / sigma^2``,
+    ``g = J' r / sigma^2`` there (the noise alone weighs the rows: the model error is
+    no evidence against the stripe's presence); also the rows used. The background is
+    the line ``c + b (v - ref)``."""
     h[:] = 0.0
     g[:] = 0.0
     chi = 0.0
     n = 0
-    c, a, v0, s = p[0], p[1], p[2], p[3]
-    jac = np.empty(4)
-    for jj in range(m):
+    c, a, v0, s, sl = p[0], p[1], p[2], p[3], p[4]
+    jac = np.empty(N_PAR)
+    wt = 1.0 / (sigma * sigma)
+    for jj in range(y.shape[0]):
         if not use[jj]:
             continue
         t = (j0 + jj - v0) / s
         e = math.exp(-0.5 * t * t)
         model = a * e
-        var = sigma * sigma + (shape_error * model) ** 2
-        wt = 1.0 / var
-        r = y[jj] - (c + model)
-        chi += wt * r * r
+        d = j0 + jj - ref
+        r = y[jj] - (c + sl * d + model)
+        chi += r * r / (sigma * sigma + (shape_error * model) ** 2)
         n += 1
         jac[0] = 1.0
         jac[1] = e
         jac[2] = model * t / s
         jac[3] = model * t * t / s
-        for q in range(4):
+        jac[4] = d
+        for q in range(N_PAR):
             g[q] += wt * jac[q] * r
-            for k in range(q, 4):
+            for k in range(q, N_PAR):
                 h[q, k] += wt * jac[q] * jac[k]
-    for q in range(4):
+    for q in range(N_PAR):
         for k in range(q):
             h[q, k] = h[k, q]
     return chi, n
@@ -103,16 +110,16 @@ def _normal(y: np.ndarray, use: np.ndarray, j0: int, m: int, p: np.ndarray, sigm
 def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_start: float,
                  sigma: float, shape_error: float, s_max: float,
                  out: np.ndarray) -> bool:  # pragma: no cover
-    """Fit ``c + A exp(-(v - v0)^2 / 2 s^2)`` to ``y`` (rows ``j0 ..``) where ``use``.
+    """Fit ``c + b (v - v_start) + A exp(-(v - v0)^2 / 2 s^2)`` to ``y`` (rows ``j0 ..``)
+    where ``use``.
 
-    Gauss-Newton from ``v_start``, ``s_start`` with a damped step; ``out`` gets
+    Gauss-Newton from ``v_start``, ``s_start`` with a bounded step; ``out`` gets
     ``(v0, A, s, z, se_v0, chi2)``: ``z`` is ``A`` over its standard error, ``chi2``
     the reduced chi-square (module notes). False when fewer than ``MIN_ROWS`` rows, no
-    convergence to a positive peak inside the window, or a width beyond ``s_max``.
+    convergence to a positive peak inside the window, or a width beyond ``2 s_max``.
     """
     m = y.shape[0]
-    p = np.empty(4)
-    # start: offset the lowest used value, amplitude the peak near the start row
+    p = np.zeros(N_PAR)
     lo = 1e300
     pk = -1e300
     for jj in range(m):
@@ -126,18 +133,18 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     p[1] = max(pk - lo, 1e-3)
     p[2] = v_start
     p[3] = s_start
-    h = np.empty((4, 4))
-    g = np.empty(4)
-    dx = np.empty(4)
+    h = np.empty((N_PAR, N_PAR))
+    g = np.empty(N_PAR)
+    dx = np.empty(N_PAR)
     n_use = 0
     chi = 0.0
     for _ in range(MAX_ITER):
-        chi, n_use = _normal(y, use, j0, m, p, sigma, shape_error, h, g)
+        chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g)
         if n_use < MIN_ROWS:
             return False
-        for q in range(4):
+        for q in range(N_PAR):
             h[q, q] *= 1.0 + 1e-6
-        if not _solve4(h, g, dx):
+        if not _solve(h, g, dx):
             return False
         # keep the step sane: the centre moves at most a width, the width changes by at
         # most half of itself
@@ -150,17 +157,17 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
             return False
         if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 0.01 * p[3]:
             break
-    chi, n_use = _normal(y, use, j0, m, p, sigma, shape_error, h, g)
+    chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g)
     if p[1] <= 0.0 or n_use < MIN_ROWS:
         return False
     # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0)
     var = np.empty(2)
     for k, idx in enumerate((1, 2)):
         hh = h.copy()
-        e = np.zeros(4)
+        e = np.zeros(N_PAR)
         e[idx] = 1.0
-        col = np.empty(4)
-        if not _solve4(hh, e, col):
+        col = np.empty(N_PAR)
+        if not _solve(hh, e, col):
             return False
         var[k] = col[idx]
     if not (var[0] > 0.0 and var[1] > 0.0):
@@ -170,7 +177,7 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     out[2] = p[3]
     out[3] = p[1] / math.sqrt(var[0])
     out[4] = math.sqrt(var[1])
-    out[5] = chi / max(n_use - 4, 1)
+    out[5] = chi / max(n_use - N_PAR, 1)
     return True
 
 
