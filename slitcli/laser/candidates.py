@@ -4,10 +4,10 @@ Seeds of column ``i`` are
 
 * local maxima (within ``NMS_HALF`` rows) of the laser evidence ``y`` at least
   ``seed_dn`` high (``seed_z`` noise sigmas), and
-* clipped runs (red at the saturation level) at most ``max_run`` rows long with laser
-  light on both sides (``y >= seed_dn`` within ``FLANK_ROWS`` rows beyond each end):
-  a clipped laser core, red or turned white, keeps red flanks, a white highlight's
-  fringe is white.
+* clipped runs (red at the saturation level) at most ``max_run`` rows long with red
+  light on both sides (the contrast's ``t_r - max(t_g, t_b) >= seed_dn`` within
+  ``FLANK_ROWS`` rows beyond each end): a clipped laser core, red or turned white,
+  keeps red flanks, a white highlight's fringe is white.
 
 The ``K`` strongest (clipped cores first) are fitted (:func:`~.profile.fit_gaussian`)
 on the evidence in a window of ``3 s + 3`` rows either side (``s`` the seed's half-
@@ -52,7 +52,7 @@ from slitcli.laser.profile import (
 NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
 FLANK_ROWS = 2  # rows beyond a clipped run that must show laser light
 NOISE_HALF = 24  # rows either side whose evidence gives a candidate's local noise
-N_SEEDS = 6  # seeds fitted per column, at most
+N_SEEDS = 10  # seeds fitted per column, at most
 
 
 @njit(cache=True, nogil=True)
@@ -75,7 +75,17 @@ def _local_sigma(yi: np.ndarray, mi: np.ndarray, c: float, core: float,
 
 
 @njit(cache=True, nogil=True)
-def _seeds(yi: np.ndarray, ci: np.ndarray, mi: np.ndarray, seed_dn: float, sigma_y: float,
+def _red_excess(img: np.ndarray, bg: np.ndarray, i: int, j: int) -> float:  # pragma: no cover
+    """Red excess ``t_r - max(t_g, t_b)`` of the contrast of pixel ``j`` of column ``i``."""
+    tr = float(img[i, j, 2]) - bg[3 * i + 2, j]
+    tg = float(img[i, j, 1]) - bg[3 * i + 1, j]
+    tb = float(img[i, j, 0]) - bg[3 * i, j]
+    return tr - max(tg, tb)
+
+
+@njit(cache=True, nogil=True)
+def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarray,
+           mi: np.ndarray, seed_dn: float, sigma_y: float,
            max_run: int, rank: np.ndarray, centre: np.ndarray, run_a: np.ndarray,
            run_b: np.ndarray, noise: np.ndarray, buf: np.ndarray) -> int:  # pragma: no cover
     """The column's seeds, most significant first (module notes: against the local
@@ -98,10 +108,10 @@ def _seeds(yi: np.ndarray, ci: np.ndarray, mi: np.ndarray, seed_dn: float, sigma
                 continue
             up = a == 0
             for d in range(1, FLANK_ROWS + 1):
-                up = up or (a - d >= 0 and yi[a - d] >= seed_dn)
+                up = up or (a - d >= 0 and _red_excess(img, bg, i, a - d) >= seed_dn)
             dn = b == n
             for d in range(FLANK_ROWS):
-                dn = dn or (b + d < n and yi[b + d] >= seed_dn)
+                dn = dn or (b + d < n and _red_excess(img, bg, i, b + d) >= seed_dn)
             if not (up and dn):
                 continue
             c = 0.5 * (a + b - 1)
@@ -192,7 +202,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
         ya = y_avg[i]
         ci = clipped[i]
         mi = mask[i]
-        nk = _seeds(ya, ci, mi, seed_dn, sigma_avg, max_run, rank, centre, run_a,
+        nk = _seeds(img, bg, i, ya, ci, mi, seed_dn, sigma_avg, max_run, rank, centre, run_a,
                     run_b, noise, buf)
         p = 0
         for q in range(nk):
@@ -244,11 +254,10 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                 if not ok or not v_plateau or res[2] < 0.5:
                     lvl = 0.5 * (bg[3 * i + 2, int(centre[q])] + sat_dn)
                     res[0] = plateau_centre(red, a, b, lvl)
-                    res[2] = max(0.5 * (b - a), s0) if not ok else res[2]
+                    res[2] = max(0.5 * (b - a), s0)
                     res[4] = 0.25
                     res[5] = 0.0
-                    if not ok:
-                        res[1] = sat_dn - bg[3 * i + 2, int(centre[q])]
+                    res[1] = sat_dn - bg[3 * i + 2, int(centre[q])]
                 res[3] = max(res[3] if ok else 0.0,
                              (sat_dn - bg[3 * i + 2, int(centre[q])]) / sig)
             elif not ok:

@@ -94,7 +94,7 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
     ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
-    ``sheet_tolerance`` times thicker or (unclipped) thinner.
+    ``sheet_tolerance`` times thicker or thinner (unclipped ones).
     """
     pos = cand[..., F_POS]
     s = cand[..., F_WIDTH]
@@ -112,8 +112,9 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
         ok &= eq2 | (sat & ~has_core)
         if sheet_px is not None:
             core = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01))
-            ok &= ~(core > sheet_tolerance * sheet_px)
-            ok &= sat | ~(core < sheet_px / sheet_tolerance)
+            # a clipped core's width rests on its flanks alone: not judged
+            ok &= sat | ~((core > sheet_tolerance * sheet_px)
+                          | (core < sheet_px / sheet_tolerance))
         laser = laser_colour(cand, ok, min_z)
         if laser is not None:
             q = colour_residual(cand, laser)
