@@ -44,6 +44,9 @@ COLOUR_SUPPORT = 8
 MAX_LASER_GB = 0.6
 #: colour residual allowed for noise alone, in noise sigmas of the core's mean
 COLOUR_SIGMAS = 3.0
+#: an unclipped candidate may be this many times wider than the median width of the
+#: frame's strong columns (the sheet's width changes with range and incidence)
+WIDTH_SPREAD = 2.5
 #: found columns of one segment may be this many columns apart
 MAX_GAP = 2
 #: rows are smoothed along a segment over this many columns either side
@@ -94,7 +97,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
     ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
-    ``sheet_tolerance`` times thicker or thinner (unclipped ones).
+    ``sheet_tolerance`` times thicker or thinner (unclipped ones); and at most
+    ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
     """
     pos = cand[..., F_POS]
     s = cand[..., F_WIDTH]
@@ -115,6 +119,10 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             # a clipped core's width rests on its flanks alone: not judged
             ok &= sat | ~((core > sheet_tolerance * sheet_px)
                           | (core < sheet_px / sheet_tolerance))
+        # the sheet's width as the frame shows it: its strong unclipped columns
+        strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z)
+        if strong.sum() >= COLOUR_SUPPORT:
+            ok &= sat | (s <= WIDTH_SPREAD * np.median(s[strong]))
         laser = laser_colour(cand, ok, min_z)
         if laser is not None:
             q = colour_residual(cand, laser)
@@ -217,7 +225,7 @@ def best_path(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, z_weak: floa
 def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: float,
                   z_weak: float, continuity_px: float, max_jump_px: float,
                   min_segment_cols: int, min_z: float, strong_z: float,
-                  v_out: np.ndarray, amp_out: np.ndarray,
+                  min_stripe_cols: int, v_out: np.ndarray, amp_out: np.ndarray,
                   sat_out: np.ndarray) -> None:  # pragma: no cover
     """The choice along the stripe (:func:`best_path`), then the segments; writes the
     rows (NaN none), peaks and clipped flags (W,).
@@ -239,6 +247,7 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
             wid[u] = cand[u, pick[u], F_WIDTH]
     keep = np.zeros(w_cols, np.bool_)
     idx = np.empty(w_cols, np.int64)
+    longest = 0
     u = 0
     while u < w_cols:
         if pick[u] < 0:
@@ -268,7 +277,10 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
         if (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong:
             for r in range(cnt):
                 keep[idx[r]] = True
+            longest = max(longest, idx[cnt - 1] - idx[0] + 1)
         u = last + 1
+    if longest < min_stripe_cols:
+        keep[:] = False
     se = np.full(w_cols, np.nan)
     for u in range(w_cols):
         amp_out[u] = np.nan

@@ -197,5 +197,6 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sat = np.empty(w, bool)
     choose.choose_stripe(cand, ok, prev, params.beta, params.weak_z, params.continuity_px,
                          params.max_jump_px, params.min_segment_cols(w), params.min_z,
-                         STRONG_SHARE * params.min_z, v, amp, sat)
+                         STRONG_SHARE * params.min_z, round(params.min_stripe_share * w),
+                         v, amp, sat)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)

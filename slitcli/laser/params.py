@@ -68,6 +68,9 @@ class LaserParams:
     min_segment_share : float
         Segments shorter than this share of the image width (8 columns at 320) are
         dropped unless each column is twice ``min_z`` significant.
+    min_stripe_share : float
+        A frame whose longest segment spans less than this share of the image width
+        shows no stripe (32 columns at 320).
     max_search_range_m : float
         ``search="rig"``: rows whose laser-plane point lies within this horizontal
         range, metres.
@@ -98,6 +101,7 @@ class LaserParams:
     continuity_px: float = 2.0
     max_jump_px: float = 3.0
     min_segment_share: float = 0.025
+    min_stripe_share: float = 0.1
     max_search_range_m: float = 3.0
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
@@ -123,6 +127,7 @@ class LaserParams:
             "continuity_px": self.continuity_px > 0.0,
             "max_jump_px": self.max_jump_px > 0.0,
             "min_segment_share": 0.0 <= self.min_segment_share < 1.0,
+            "min_stripe_share": 0.0 <= self.min_stripe_share < 1.0,
             "max_search_range_m": self.max_search_range_m > 0.0,
             "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
             "sheet_tolerance": self.sheet_tolerance > 1.0,
@@ -166,6 +171,7 @@ _RANGES = {
     "continuity_px": "give a scale > 0 px",
     "max_jump_px": "give a row step > 0 px",
     "min_segment_share": "give a share of the image width in [0, 1)",
+    "min_stripe_share": "give a share of the image width in [0, 1)",
     "max_search_range_m": "give a range > 0 m",
     "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
     "sheet_tolerance": "give a factor > 1",
