@@ -42,6 +42,7 @@ from slitcli.laser.profile import (
     F_TR,
     F_WIDTH,
     F_FLAT,
+    F_GNOISE,
     F_Z,
     N_FIELDS,
     fit_gaussian,
@@ -230,6 +231,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                 use[jj] = mi[j0 + jj] and not ci[j0 + jj]
             core = 3.0 * s0 + 0.5 * (b - a)
             sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, buf))
+            gsig = sigma_y
             ok = fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig, shape_error,
                               s_max, res)
             if not sat and (not ok or res[3] < strong_z):
@@ -237,6 +239,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                                 s_max, res_avg) and (not ok or res_avg[3] > res[3]):
                     res[:] = res_avg
                     sig = noise[q]
+                    gsig = sigma_avg
                     ok = True
             flat = False
             if not sat and ok and res[5] > max_chi2:
@@ -278,6 +281,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
             o[F_CHI2] = res[5]
             o[F_SAT] = 1.0 if sat else 0.0
             o[F_NOISE] = sig
+            o[F_GNOISE] = gsig
             o[F_FLAT] = 1.0 if flat else 0.0
             # the light the core adds, and the surface colour there (RGB)
             tr = tg = tb = kr = kg = kb = 0.0

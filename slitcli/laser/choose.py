@@ -21,6 +21,8 @@ from slitcli.laser.profile import (
     F_KG,
     F_KR,
     F_NCORE,
+    F_GNOISE,
+    F_NOISE,
     F_POS,
     F_SAT,
     F_SE_POS,
@@ -156,7 +158,10 @@ def _gain(cand: np.ndarray, u: int, q: int, prev_v: np.ndarray, z_weak: float, b
     """Log-likelihood ratio of candidate ``q`` of column ``u`` being the stripe (its
     significance ``z``: ``(z^2 - z_weak^2) / 2``), plus ``beta z_weak^2`` times its
     closeness to the previous frame's row (Eq. 4's f(y) over time)."""
-    z = cand[u, q, F_Z]
+    # the choice weighs candidates by their significance against the image's noise (the
+    # local noise, which also holds the stripe's own irregular surroundings, only
+    # judges whether a candidate can be the stripe at all)
+    z = cand[u, q, F_Z] * cand[u, q, F_NOISE] / cand[u, q, F_GNOISE]
     g = 0.5 * (z * z - z_weak * z_weak)
     if prev_v.shape[0] == cand.shape[0] and np.isfinite(prev_v[u]):
         g += beta * z_weak * z_weak * _closeness(cand[u, q, F_POS], prev_v[u], continuity_px)

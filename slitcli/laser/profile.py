@@ -24,16 +24,8 @@ N_PAR = 5  # offset, peak, centre, width, background slope
 
 #: fields of one fit (last axis of the candidate table)
 (F_POS, F_AMP, F_WIDTH, F_Z, F_SE_POS, F_CHI2, F_SAT, F_NOISE, F_TR, F_TG, F_TB, F_KR, F_KG,
- F_KB, F_NCORE, F_FLAT) = range(16)
-N_FIELDS = 16
-#: a flat top: rows within this share of the peak's height (or three noise sigmas) of
-#: the peak, at least FLAT_ROWS of them
-FLAT_SHARE = 0.15
-FLAT_ROWS = 3
-#: and its flanks cross half its height at least this share of the height per row
-#: (steeper than any Gaussian wider than 1.8 px: the edges of a sharp beam, blurred
-#: only by the optics)
-FLAT_SLOPE = 1.0 / 3.0
+ F_KB, F_NCORE, F_FLAT, F_GNOISE) = range(17)
+N_FIELDS = 17
 
 
 @njit(cache=True, nogil=True)
@@ -207,14 +199,15 @@ def plateau_centre(red: np.ndarray, a: int, b: int, level: float) -> float:  # p
 @njit(cache=True, nogil=True)
 def flat_top(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, base: float,
              sigma: float, out: np.ndarray) -> bool:  # pragma: no cover
-    """A flat-topped profile near ``v_start`` (a strong stripe through a camera's
-    compressive tone curve, or a wide beam): where the Gaussian does not fit, a
-    symmetric hump is centred by the midpoint of its half-height crossings.
+    """A hump that is no Gaussian (a flat or skewed top: a strong stripe through a
+    camera's compressive tone curve, a wide beam, a cut-off flank), centred without a
+    shape model: the centre of gravity of its upper half.
 
-    The peak is the largest used ``y`` within 2 rows of ``v_start``; the top, the rows
-    within ``max(3 sigma, FLAT_SHARE x height)`` of it, must span at least
-    ``FLAT_ROWS`` rows, and both flanks must be steep (``FLAT_SLOPE``). ``out`` gets ``(v0, height, s, z, se_v0, chi2)`` with ``s`` the
-    half-height width over 2.355 and ``se_v0`` from the noise over the flanks' slope.
+    The peak is the largest used ``y`` within 2 rows of ``v_start``; the hump is the
+    run of rows above half its height over ``base``, which must end inside the window
+    on both sides. ``out`` gets ``(v0, height, s, z, se_v0, chi2)`` with ``s`` the
+    half-height width over 2.355, ``z`` the height over ``sigma`` and ``se_v0`` the
+    centre of gravity's noise.
     """
     m = y.shape[0]
     kp = -1
@@ -226,34 +219,29 @@ def flat_top(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, base: floa
     height = y[kp] - base
     if height <= 0.0:
         return False
-    top = y[kp] - max(3.0 * sigma, FLAT_SHARE * height)
+    level = base + 0.5 * height
     a = kp
-    while a > 0 and use[a - 1] and y[a - 1] >= top:
+    while a > 0 and use[a - 1] and y[a - 1] >= level:
         a -= 1
     b = kp
-    while b < m - 1 and use[b + 1] and y[b + 1] >= top:
+    while b < m - 1 and use[b + 1] and y[b + 1] >= level:
         b += 1
-    if b - a + 1 < FLAT_ROWS:
-        return False
-    level = base + 0.5 * height
-    a2 = a
-    while a2 > 0 and use[a2 - 1] and y[a2 - 1] >= level:
-        a2 -= 1
-    b2 = b
-    while b2 < m - 1 and use[b2 + 1] and y[b2 + 1] >= level:
-        b2 += 1
-    if a2 == 0 or b2 == m - 1 or not (use[a2 - 1] and use[b2 + 1]):
+    if a == 0 or b == m - 1 or not (use[a - 1] and use[b + 1]):
         return False  # a flank cut off: no crossing on that side
-    d_up = max(y[a2] - y[a2 - 1], 1e-9)
-    d_dn = max(y[b2] - y[b2 + 1], 1e-9)
-    if min(d_up, d_dn) < FLAT_SLOPE * height:
-        return False  # a gentle hump, not a top with sharp edges
-    up = a2 - 1 + (level - y[a2 - 1]) / d_up
-    dn = b2 + (y[b2] - level) / d_dn
-    out[0] = j0 + 0.5 * (up + dn)
+    sw = 0.0
+    sv = 0.0
+    for jj in range(a, b + 1):
+        wgt = y[jj] - level
+        sw += wgt
+        sv += wgt * jj
+    v0 = sv / sw
+    var = 0.0
+    for jj in range(a, b + 1):
+        var += (jj - v0) ** 2
+    out[0] = j0 + v0
     out[1] = height
-    out[2] = (dn - up) / 2.355
+    out[2] = (b - a + 1) / 2.355
     out[3] = height / sigma
-    out[4] = 0.5 * sigma * math.sqrt(1.0 / (d_up * d_up) + 1.0 / (d_dn * d_dn))
+    out[4] = sigma * math.sqrt(var) / sw
     out[5] = 0.0
     return True
