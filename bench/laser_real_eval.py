@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
               "photographs with truth", file=sys.stderr)
         return 2
     names = ["laser", "paper"] if a.method == "all" else [a.method]
-    ex = make_extractors(names + ["argmax", "run-cog"], a.search)
+    ex = make_extractors([*names, "argmax", "run-cog"], a.search)
     out = report(evaluate(a.folder, ex))
     if a.json:
         a.json.write_text(json.dumps(out, indent=1))

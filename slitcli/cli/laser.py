@@ -30,50 +30,78 @@ _LD = _laser_defaults()
 @click.option("--overlay", is_flag=True,
               help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
                    "(paper Fig. 4 style).")
+@click.option("--method", type=click.Choice(["model", "paper"]), default=_LD["method"],
+              show_default=True,
+              help="model: the stripe model with noise, width, profile and laser colour "
+                   "measured on each image; paper: the paper's Eqs. 1-4 taken literally per "
+                   "pixel (a baseline for comparison).")
+@click.option("--search", type=click.Choice(["rig", "full"]), default=_LD["search"],
+              show_default=True,
+              help="rig: only rows where the rig's laser plane lies within "
+                   "--max-search-range-m; full: every row (a camera whose geometry is "
+                   "unknown or differs from the rig).")
 @click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
-              help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a pixel adds "
-                   "above its background (unitless; grey is 0.333).")
+              help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a stripe adds "
+                   "above the surface (unitless; grey is 0.333).")
 @click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
               help="Eq. 2: minimum R - max(G, B) of that added light (unitless).")
 @click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
-              help="Eq. 3 white-brightness rejection (paper 0.32): a pixel's laser estimate "
-                   "(red contrast less what green and blue explain along the surface's "
-                   "colour) must exceed alpha x its white contrast max(t_g, t_b) (unitless).")
+              help="Eq. 3 white rejection (paper 0.32), --method paper: red must exceed "
+                   "alpha x max(g, b) (unitless).")
 @click.option("--beta", type=float, default=_LD["beta"], show_default=True,
-              help="Eq. 4 weight of the continuity term f(y) (paper 0.25).")
+              help="Eq. 4 weight of the continuity term f(y) (paper 0.25); the model "
+                   "method weighs the previous frame's row with it.")
 @click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
-              help="Eq. 4 weight of the narrowness term g(I) (paper 0.25).")
-@click.option("--max-width-px", type=float, default=_LD["max_width_px"], show_default=True,
-              help="Widest stripe: equivalent width (2.5 fitted Gaussian sigmas) at most "
-                   "this; a candidate run over 3x this is an object, px.")
-@click.option("--background-window-px", type=int, default=_LD["background_window_px"],
+              help="Eq. 4 weight of the narrowness term g(I) (paper 0.25), --method paper.")
+@click.option("--max-width-share", type=float, default=_LD["max_width_share"],
               show_default=True,
-              help="Vertical window of the background estimate (odd, > 2 x max width), px.")
-@click.option("--min-peak-dn", type=float, default=_LD["min_peak_dn"], show_default=True,
-              help="Minimum peak brightness the stripe adds (before pixel blur), as the "
-                   "running median along its segment, DN.")
-@click.option("--noise-k", type=float, default=_LD["noise_k"], show_default=True,
-              help="Significance (fitted amplitude / its standard error) of a strong "
-                   "candidate; a weak one needs 0.6 of it and an agreeing neighbour "
-                   "(unitless).")
-@click.option("--seed-fraction", type=float, default=_LD["seed_fraction"], show_default=True,
-              help="Candidates are seeded where the laser evidence exceeds this fraction "
-                   "of max(min-peak-dn, noise-k x noise sigma) (unitless).")
+              help="Widest stripe (equivalent width, 2.5 Gaussian sigmas) as a share of the "
+                   "image height: 8 px at 240 rows, 32 px at 960 (unitless).")
+@click.option("--seed-z", type=float, default=_LD["seed_z"], show_default=True,
+              help="Candidates start where the laser evidence is this many noise sigmas "
+                   "high (noise measured on each image; unitless).")
+@click.option("--min-z", type=float, default=_LD["min_z"], show_default=True,
+              help="Root mean square significance (peak over its standard error) of a "
+                   "segment's columns (unitless).")
+@click.option("--weak-z", type=float, default=_LD["weak_z"], show_default=True,
+              help="Least significance of one column of a segment (unitless, <= --min-z).")
+@click.option("--shape-error", type=float, default=_LD["shape_error"], show_default=True,
+              help="Relative error of the Gaussian profile (speckle, demosaicing, JPEG) "
+                   "allowed by the shape test (unitless).")
+@click.option("--max-chi2", type=float, default=_LD["max_chi2"], show_default=True,
+              help="Largest reduced chi-square of a Gaussian profile; a worse fit is "
+                   "centred by its upper half instead (unitless).")
+@click.option("--colour-error", type=float, default=_LD["colour_error"], show_default=True,
+              help="Share by which a candidate's colour may leave the plane of the laser's "
+                   "colour (measured on the frame) and the surface's (unitless).")
+@click.option("--noise-floor-dn", type=float, default=_LD["noise_floor_dn"],
+              show_default=True,
+              help="Smallest noise sigma of the laser evidence (quantisation and "
+                   "compression), DN.")
 @click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
-              help="Red level from which a pixel counts as saturated, DN.")
+              help="Level from which a pixel counts as clipped, DN.")
 @click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
-              help="Scale of the continuity term f(y), px.")
+              help="Scale of the row change between neighbouring columns, px.")
 @click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
               help="Largest row step between neighbouring columns of one segment, px.")
-@click.option("--min-segment-cols", type=int, default=_LD["min_segment_cols"],
-              show_default=True, help="Shorter stripe segments are dropped, columns.")
+@click.option("--min-segment-share", type=float, default=_LD["min_segment_share"],
+              show_default=True,
+              help="Shorter segments (share of the image width; 8 columns at 320) are "
+                   "dropped unless their columns are strong (unitless).")
+@click.option("--min-stripe-share", type=float, default=_LD["min_stripe_share"],
+              show_default=True,
+              help="A frame whose longest segment spans less than this share of the width "
+                   "shows no stripe (unitless).")
 @click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
               show_default=True,
-              help="Search only rows whose laser-plane range is at most this, m.")
+              help="--search rig: rows whose laser-plane range is at most this, m.")
 @click.option("--sheet-sigma-mm", type=float, default=_LD["sheet_sigma_mm"], show_default=True,
-              help="Laser sheet thickness (Gaussian sigma across the plane), mm; a candidate "
-                   "whose fitted width implies a sheet 1.6x thicker or thinner is rejected; "
-                   "0 = off.")
+              help="--search rig: laser sheet thickness (Gaussian sigma across the plane), "
+                   "mm; 0 = no thickness test.")
+@click.option("--sheet-tolerance", type=float, default=_LD["sheet_tolerance"],
+              show_default=True,
+              help="A candidate whose width implies a sheet this many times thicker or "
+                   "thinner is rejected (> 1).")
 def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
               **tuning: Any) -> None:
     """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
@@ -83,7 +111,7 @@ def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
     y_m, range_m, bearing_deg in the sensor frame, in_band = 1 inside the rig's
     laser band). Points outside the band stay in the table, flagged in_band = 0.
 
-    Example: slitcli laser out/corridor -o out/laser --overlay
+    Example: slitcli laser out/corridor -o out/laser --overlay --search full
     """
     from slitcli.laser.batch import run_laser
     from slitcli.laser.params import LaserParams

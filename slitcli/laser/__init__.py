@@ -7,6 +7,7 @@ nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_lase
 
 from slitcli.laser import candidates, choose, evidence, paper, profile
 from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
+from slitcli.laser.diagnose import StripeAbsence, is_grey, stripe_absence
 from slitcli.laser.extract import StripeColumns, chromaticity, extract_stripe
 from slitcli.laser.frame import (
     LaserBins,
@@ -28,6 +29,7 @@ __all__ = [
     "LaserFrame",
     "LaserGeometry",
     "LaserParams",
+    "StripeAbsence",
     "StripeColumns",
     "bearing_bin_centres_deg",
     "bin_boundary_points",
@@ -38,11 +40,13 @@ __all__ = [
     "draw_overlay",
     "evidence",
     "extract_stripe",
+    "is_grey",
     "laser_sight_range_m",
     "laser_table",
     "nearest_range_per_bin",
-    "run_laser",
     "paper",
     "profile",
+    "run_laser",
+    "stripe_absence",
     "triangulate_stripe",
 ]

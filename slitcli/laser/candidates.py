@@ -29,6 +29,8 @@ from slitcli.laser.evidence import MAD_TO_SIGMA
 from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
+    F_FLAT,
+    F_GNOISE,
     F_KB,
     F_KG,
     F_KR,
@@ -41,10 +43,7 @@ from slitcli.laser.profile import (
     F_TG,
     F_TR,
     F_WIDTH,
-    F_FLAT,
-    F_GNOISE,
     F_Z,
-    N_FIELDS,
     fit_gaussian,
     flat_top,
     plateau_centre,
@@ -187,7 +186,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
     n_cols, n = y.shape
     k_best = out.shape[1]
     out[:] = np.nan
-    max_run = int(math.ceil(2.5 * s_max))
+    max_run = math.ceil(2.5 * s_max)
     rank = np.empty(N_SEEDS)
     noise = np.empty(N_SEEDS)
     centre = np.empty(N_SEEDS)
@@ -223,7 +222,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                     hi += 1
                 s0 = max((hi - lo + 1) / 2.355, 0.6)
             s0 = min(s0, s_max)
-            w_half = int(math.ceil(3.0 * s0 + 3.0)) + (b - a) // 2
+            w_half = math.ceil(3.0 * s0 + 3.0) + (b - a) // 2
             j0 = max(int(centre[q]) - w_half, 0)
             j1 = min(int(centre[q]) + w_half + 2, n)
             m = j1 - j0

@@ -17,11 +17,11 @@ from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
     F_FLAT,
+    F_GNOISE,
     F_KB,
     F_KG,
     F_KR,
     F_NCORE,
-    F_GNOISE,
     F_NOISE,
     F_POS,
     F_SAT,
@@ -239,7 +239,10 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
     gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
     column. A segment stays when it has ``min_segment_cols`` columns whose root mean
     square significance is ``min_z``, or a quarter of that (at least two), each
-    ``strong_z`` significant (a thin object). Rows are then smoothed along the segment (:func:`smooth_rows`).
+    ``strong_z`` significant (a thin object). One laser lights one sheet across the
+    view: a frame whose longest kept segment spans fewer than ``min_stripe_cols``
+    columns shows no stripe (clutter makes short segments, the sheet long ones). Rows
+    are then smoothed along the segment (:func:`smooth_rows`).
     """
     w_cols = cand.shape[0]
     pick = np.empty(w_cols, np.int64)

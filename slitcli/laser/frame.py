@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from slitcli.laser.diagnose import is_grey
 from slitcli.laser.extract import extract_stripe
 from slitcli.laser.params import LaserParams
 from slitcli.rig import Rig
@@ -101,8 +102,10 @@ class LaserFrame:
     bearing_deg : ``atan2(y, x)`` in degrees.
     in_band : the range lies in the rig's trusted laser band
         ``[laser.min_range_m, laser.max_range_m]``.
-    noise_sigma_dn, threshold_dn : estimated image noise and the acceptance
-        threshold used, DN.
+    noise_sigma_dn, threshold_dn : noise of the laser evidence measured on the image and
+        the seed level used, DN.
+    grey_image : the image is grey (red, green and blue equal): it cannot carry a red
+        stripe (:func:`slitcli.laser.diagnose.stripe_absence`).
     """
 
     u_px: np.ndarray
@@ -116,6 +119,7 @@ class LaserFrame:
     in_band: np.ndarray
     noise_sigma_dn: float
     threshold_dn: float
+    grey_image: bool = False
 
     @property
     def found(self) -> np.ndarray:
@@ -222,7 +226,8 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,
                       saturated=stripe.saturated, x_m=x, y_m=y, range_m=rng,
                       bearing_deg=bearing, in_band=in_band,
-                      noise_sigma_dn=stripe.noise_sigma_dn, threshold_dn=stripe.threshold_dn)
+                      noise_sigma_dn=stripe.noise_sigma_dn, threshold_dn=stripe.threshold_dn,
+                      grey_image=is_grey(img))
 
 
 def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:

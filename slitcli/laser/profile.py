@@ -1,12 +1,13 @@
 """Step 2 of the stripe model: the profile across one column, fitted (numba).
 
 A stripe crossing a column is a Gaussian of the laser evidence (:mod:`.evidence`) on a
-straight background, ``y(v) = c + b (v - v_s) + A exp(-(v - v0)^2 / (2 s^2))`` (the line
-what the opening leaves of the surface's texture and shading), with noise ``sigma`` per row and a model error proportional to the
-profile (speckle, demosaicing and compression make real profiles only roughly
-Gaussian): the shape test allows a row variance ``sigma^2 + (shape_error A p(v))^2``. Clipped rows carry no
-shape and are left out; a clipped core is fitted on its flanks. Rows are pixel centres
-at integers.
+straight background, ``y(v) = c + b (v - v_s) + A exp(-(v - v0)^2 / (2 s^2))`` (the line:
+what the opening leaves of the surface's texture and shading), with noise ``sigma`` per
+row and a model error proportional to the profile (speckle, demosaicing and compression
+make real profiles only roughly Gaussian): the shape test allows a row variance
+``sigma^2 + (shape_error A p(v))^2``. A hump that fails it (a flat or skewed top) is
+centred by its upper half (:func:`flat_top`). Clipped rows carry no shape and are left
+out; a clipped core is fitted on its flanks. Rows are pixel centres at integers.
 """
 
 from __future__ import annotations

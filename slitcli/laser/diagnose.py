@@ -1,0 +1,97 @@
+"""Why a run found no stripe: the warning ``laser`` and ``detect`` print (stderr, exit 0).
+
+:func:`stripe_absence` looks at the frames of a run; when most of them show no stripe it
+says so and, where the frames tell, why: grey images (red, green and blue equal: a grey
+or infrared stream) cannot carry a red stripe; otherwise no red line stood out of the
+measured noise, so the laser may be off, blocked or too weak for the exposure, or its
+light falls outside the searched rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+#: a pixel whose channels differ by at most this much is grey (DN; JPEG and
+#: demosaicing of a grey stream leave a little)
+GREY_DN = 2
+#: an image is grey when this share of its (sampled) pixels is
+GREY_SHARE = 0.999
+#: every GREY_STEP-th row and column is sampled
+GREY_STEP = 4
+
+
+def is_grey(bgr: np.ndarray) -> bool:
+    """Whether an image (H, W, 3) uint8 is grey: its channels equal within ``GREY_DN``
+    on ``GREY_SHARE`` of its pixels (every ``GREY_STEP``-th row and column)."""
+    x = np.asarray(bgr)[::GREY_STEP, ::GREY_STEP].astype(np.int16)
+    d = np.maximum(np.abs(x[..., 2] - x[..., 1]), np.abs(x[..., 2] - x[..., 0]))
+    return bool(np.mean(d <= GREY_DN) >= GREY_SHARE)
+
+
+@dataclass(frozen=True)
+class StripeAbsence:
+    """The frames of a run without a stripe.
+
+    Attributes
+    ----------
+    frames : int
+        Frames in the run.
+    without_stripe : int
+        Frames in which no column has a stripe.
+    grey : int
+        Of those, frames whose image is grey (:func:`is_grey`).
+    message : str
+        One line for the user: how many frames, and why where the frames tell.
+    """
+
+    frames: int
+    without_stripe: int
+    grey: int
+    message: str
+
+
+def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
+                   search: str = "rig", min_share: float = 0.5) -> StripeAbsence | None:
+    """Say whether most frames of a run had no stripe, and why where it can tell.
+
+    Parameters
+    ----------
+    found_columns : sequence of int
+        Per frame, the number of columns with a stripe (``LaserFrame.found.sum()``).
+    grey : sequence of bool
+        Per frame, whether its image is grey (``LaserFrame.grey_image``).
+    search : {"rig", "full"}
+        The rows searched (``LaserParams.search``), for the advice.
+    min_share : float
+        The warning is given when more than this share of the frames has no stripe.
+
+    Returns
+    -------
+    StripeAbsence or None
+        None when the run is empty or most frames show a stripe.
+    """
+    found = np.asarray(found_columns, dtype=np.int64)
+    g = np.asarray(grey, dtype=bool)
+    if found.shape != g.shape:
+        raise ValueError("found_columns and grey must have one entry per frame")
+    n = int(found.size)
+    none = found == 0
+    k = int(none.sum())
+    if n == 0 or k <= min_share * n:
+        return None
+    k_grey = int((none & g).sum())
+    head = f"no laser stripe in {k} of {n} frames"
+    if 2 * k_grey > k:
+        why = (f"{k_grey} of them are grey images (red = green = blue), which cannot carry a "
+               "red stripe: give the colour camera's images, not a grey or infrared stream")
+    else:
+        where = ("the rows where the rig's laser plane lies within max_search_range_m"
+                 if search == "rig" else "every row")
+        why = ("no red line stood out of the noise measured on the images: the laser may be "
+               "off or blocked, or too weak for the exposure; " + where + " was searched" +
+               (" (search full searches every row: a camera whose geometry differs from "
+                "the rig)" if search == "rig" else ""))
+    return StripeAbsence(frames=n, without_stripe=k, grey=k_grey, message=f"{head}: {why}")
