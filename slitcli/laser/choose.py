@@ -99,7 +99,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
     ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
-    ``sheet_tolerance`` times thicker or thinner (unclipped ones); and at most
+    ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
+    strong columns do (or, without enough of them, the parameter); and at most
     ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
     """
     pos = cand[..., F_POS]
@@ -117,10 +118,13 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
         has_core = cand[..., F_NCORE] > 0
         ok &= eq2 | (sat & ~has_core)
         if sheet_px is not None:
-            core = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01))
+            # the sheet's thickness relative to the parameter's; where the frame shows
+            # its own clearly (its strong unclipped columns), that is the reference
+            ratio = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01)) / sheet_px
+            strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z) & np.isfinite(ratio)
+            ref = float(np.median(ratio[strong])) if strong.sum() >= COLOUR_SUPPORT else 1.0
             # a clipped core's width rests on its flanks alone: not judged
-            ok &= sat | ~((core > sheet_tolerance * sheet_px)
-                          | (core < sheet_px / sheet_tolerance))
+            ok &= sat | ~(np.abs(np.log(ratio / ref)) > np.log(sheet_tolerance))
         # the sheet's width as the frame shows it: its strong unclipped columns
         strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z)
         if strong.sum() >= COLOUR_SUPPORT:
@@ -156,16 +160,16 @@ def links(dv: float, w_a: float, w_b: float, max_jump_px: float) -> bool:  # pra
 def _gain(cand: np.ndarray, u: int, q: int, prev_v: np.ndarray, z_weak: float, beta: float,
           continuity_px: float) -> float:  # pragma: no cover
     """Log-likelihood ratio of candidate ``q`` of column ``u`` being the stripe (its
-    significance ``z``: ``(z^2 - z_weak^2) / 2``), plus ``beta z_weak^2`` times its
-    closeness to the previous frame's row (Eq. 4's f(y) over time)."""
+    significance ``z``: ``(z^2 - z_weak^2) / 2``), its ``z^2`` raised by ``beta`` times
+    its closeness to the previous frame's row (Eq. 4's f(y) over time)."""
     # the choice weighs candidates by their significance against the image's noise (the
     # local noise, which also holds the stripe's own irregular surroundings, only
     # judges whether a candidate can be the stripe at all)
     z = cand[u, q, F_Z] * cand[u, q, F_NOISE] / cand[u, q, F_GNOISE]
-    g = 0.5 * (z * z - z_weak * z_weak)
+    f = 0.0
     if prev_v.shape[0] == cand.shape[0] and np.isfinite(prev_v[u]):
-        g += beta * z_weak * z_weak * _closeness(cand[u, q, F_POS], prev_v[u], continuity_px)
-    return g
+        f = _closeness(cand[u, q, F_POS], prev_v[u], continuity_px)
+    return 0.5 * (z * z * (1.0 + beta * f) - z_weak * z_weak)
 
 
 @njit(cache=True, nogil=True)

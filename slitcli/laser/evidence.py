@@ -158,9 +158,25 @@ def robust_sigma(x: np.ndarray, mask: np.ndarray, step: int) -> float:  # pragma
 
 
 @njit(cache=True, nogil=True)
+def _grouped_median(v: np.ndarray, step: float) -> float:  # pragma: no cover
+    """Median of non-negative values on a grid of ``step`` (integer pixels give lag-2
+    residuals in halves), interpolated within its bin as for grouped data: the plain
+    median of such values moves in whole steps (a 2 DN noise reads 2.4)."""
+    x = np.sort(v)
+    n = x.shape[0]
+    med = x[n // 2]
+    lo = np.searchsorted(x, med - 0.25 * step)  # first value in the median's bin
+    hi = np.searchsorted(x, med + 0.25 * step)
+    width = step if med > 0.25 * step else 0.5 * step  # the bin at 0 is half wide
+    edge = med - 0.5 * step if med > 0.25 * step else 0.0
+    return edge + (0.5 * n - lo) / max(hi - lo, 1) * width
+
+
+@njit(cache=True, nogil=True)
 def channel_sigma(img: np.ndarray, step: int) -> np.ndarray:  # pragma: no cover
     """Per-channel noise sigma (R, G, B), DN, of ``img`` (W, H, 3) BGR: the median
-    absolute lag-2 residual down every ``step``-th column, unclipped pixels only."""
+    absolute lag-2 residual down every ``step``-th column (grouped: the residuals of
+    integers come in halves), unclipped pixels only."""
     n_cols, n = img.shape[0], img.shape[1]
     out = np.zeros(3)
     vals = np.empty(((n_cols + step - 1) // step) * max(n - 4, 0))
@@ -173,7 +189,7 @@ def channel_sigma(img: np.ndarray, step: int) -> np.ndarray:  # pragma: no cover
                     vals[m] = abs(float(b) - 0.5 * (float(a) + float(d)))
                     m += 1
         if m > 0:
-            out[2 - c] = MAD_TO_SIGMA * np.median(vals[:m])
+            out[2 - c] = MAD_TO_SIGMA * _grouped_median(vals[:m], 0.5)
     return out
 
 
