@@ -186,7 +186,8 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
     n_cols, n = y.shape
     k_best = out.shape[1]
     out[:] = np.nan
-    max_run = math.ceil(2.5 * s_max)
+    # a clipped core spans more than the stripe's width: 2 s sqrt(2 ln(peak / clip))
+    max_run = math.ceil(5.0 * s_max)
     rank = np.empty(N_SEEDS)
     noise = np.empty(N_SEEDS)
     centre = np.empty(N_SEEDS)
