@@ -216,6 +216,52 @@ def report(res: dict) -> dict:
     return out
 
 
+#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides or a
+#: module constant of slitcli.laser.choose
+ABLATIONS = {
+    "default": {},
+    "no one-sheet rule (min_stripe_share 0)": {"min_stripe_share": 0.0},
+    "no segment length (min_segment_share 0)": {"min_segment_share": 0.0},
+    "no shape test / flat tops (max_chi2 1e9)": {"max_chi2": 1e9},
+    "no laser-colour test (colour_error 0.99)": {"colour_error": 0.99},
+    "no frame width test (WIDTH_SPREAD inf)": {"WIDTH_SPREAD": float("inf")},
+    "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
+    "paper method": {"method": "paper"},
+}
+
+
+def ablation_extractors(search: str = "full") -> dict:
+    """One extractor per entry of ``ABLATIONS`` (each sets its switch while it runs)."""
+    from slitcli.laser import LaserParams, choose, extract_stripe
+
+    ex = {}
+    for name, over in ABLATIONS.items():
+        def run(bgr, over=over):
+            kw = {k: v for k, v in over.items() if k != "WIDTH_SPREAD"}
+            if "max_width_share" in kw:
+                kw["max_width_share"] = 8.0 / bgr.shape[0]
+            keep = choose.WIDTH_SPREAD
+            choose.WIDTH_SPREAD = over.get("WIDTH_SPREAD", keep)
+            try:
+                return extract_stripe(bgr, LaserParams(search=search, **kw)).v_px
+            finally:
+                choose.WIDTH_SPREAD = keep
+        ex[name] = run
+    return ex
+
+
+def ablation_report(res: dict) -> None:
+    """One line per ablation: pooled found, false, median, and laser-off columns."""
+    print(f"{'rule switched off':<46}{'found %':>9}{'false %':>9}{'median px':>11}"
+          f"{'off cols':>10}")
+    imgs = list(next(iter(res["per"].values())))
+    for n, per in res["per"].items():
+        p = _summary(_pool([per[i] for i in imgs if i not in res["off"]]))
+        off = max([per[i]["reported"] for i in res["off"]], default=0)
+        print(f"{n:<46}{100 * p['found_share']:9.1f}{100 * p['false_share']:9.2f}"
+              f"{p['median_err_px']:11.3f}{off:10d}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", type=Path, help="folder with images/, truth/ and truthlib.py")
@@ -225,11 +271,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--search", default="full", choices=["full"],
                     help="rows searched: every row (no rig is known for photographs)")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument("--ablate", action="store_true",
+                    help="score the extractor with each rule switched off in turn")
     a = ap.parse_args(argv)
     if not a.folder.is_dir():
         print(f"laser_real_eval: {a.folder} is not a folder; give the folder of "
               "photographs with truth", file=sys.stderr)
         return 2
+    if a.ablate:
+        ablation_report(evaluate(a.folder, ablation_extractors(a.search)))
+        return 0
     names = ["laser", "paper"] if a.method == "all" else [a.method]
     ex = make_extractors([*names, "argmax", "run-cog"], a.search)
     out = report(evaluate(a.folder, ex))

@@ -303,3 +303,33 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                 o[F_TR], o[F_TG], o[F_TB] = tr / nc, tg / nc, tb / nc
                 o[F_KR], o[F_KG], o[F_KB] = kr / nc, kg / nc, kb / nc
             p += 1
+
+
+@njit(cache=True, nogil=True)
+def fit_gaps(y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, cols: np.ndarray,
+             rows: np.ndarray, widths: np.ndarray, sigma_avg: float, z_min: float,
+             shape_error: float, s_max: float, out: np.ndarray) -> None:  # pragma: no cover
+    """Columns left empty inside a segment, fitted where the stripe must pass: the
+    averaged evidence of column ``cols[k]`` near the row ``rows[k]`` interpolated
+    across the gap, starting at the neighbours' width ``widths[k]``. ``out[k]`` gets the
+    fitted row, or NaN where the fit is not within a pixel of the interpolated row or
+    less than ``z_min`` significant (against ``sigma_avg``)."""
+    n = y_avg.shape[1]
+    res = np.empty(6)
+    use = np.empty(n, np.bool_)
+    for k in range(cols.shape[0]):
+        out[k] = np.nan
+        i = cols[k]
+        s0 = min(max(widths[k], 0.6), s_max)
+        w_half = math.ceil(3.0 * s0 + 3.0)
+        c = int(rows[k] + 0.5)
+        j0 = max(c - w_half, 0)
+        j1 = min(c + w_half + 1, n)
+        m = j1 - j0
+        if m < 6:
+            continue
+        for jj in range(m):
+            use[jj] = mask[i, j0 + jj] and not clipped[i, j0 + jj]
+        if fit_gaussian(y_avg[i, j0:j1], use[:m], j0, rows[k], s0, sigma_avg, shape_error,
+                        s_max, res) and abs(res[0] - rows[k]) <= 1.0 and res[3] >= z_min:
+            out[k] = res[0]

@@ -35,7 +35,7 @@ from numba import njit
 #: evidence's weights assume: the share of the surface colour removed is
 #: TEXTURE_RATIO^2 / (TEXTURE_RATIO^2 + 1) = 0.99 (1 would amplify noise without bound on
 #: surfaces of the laser's colour)
-TEXTURE_RATIO = 3.0
+TEXTURE_RATIO = 5.0
 LAM = TEXTURE_RATIO ** 2 / (TEXTURE_RATIO ** 2 + 1.0)
 #: a MAD of a Gaussian is 0.6745 sigma; the lag-2 residual has variance 1.5 sigma^2
 MAD_TO_SIGMA = 1.0 / (0.6745 * math.sqrt(1.5))

@@ -199,4 +199,37 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          params.max_jump_px, params.min_segment_cols(w), params.min_z,
                          STRONG_SHARE * params.min_z, round(params.min_stripe_share * w),
                          v, amp, sat)
+    _fill_gaps(v, amp, cand, y_avg, clipped, mask_t, sigma_avg, r0, params, s_max)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)
+
+
+def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y_avg: np.ndarray,
+               clipped: np.ndarray, mask_t: np.ndarray, sigma_avg: float, r0: int,
+               params: LaserParams, s_max: float) -> None:
+    """Columns without a stripe between two found ones at most ``choose.MAX_GAP + 1``
+    apart whose rows link: the stripe passes there, so the averaged evidence is fitted
+    at the interpolated row (:func:`~.candidates.fit_gaps`); ``v`` and ``amp`` (W,)
+    updated where that fit holds."""
+    found = np.flatnonzero(np.isfinite(v))
+    if found.size < 2:
+        return
+    gap = np.diff(found)
+    step = np.abs(np.diff(v[found]))
+    pair = (gap > 1) & (gap <= choose.MAX_GAP + 1) & (step <= params.max_jump_px * gap)
+    a, b = found[:-1][pair], found[1:][pair]
+    if a.size == 0:
+        return
+    n = b - a - 1
+    cols = np.repeat(a, n) + np.concatenate([np.arange(1, k + 1) for k in n])
+    left = np.repeat(a, n)
+    right = np.repeat(b, n)
+    t = (cols - left) / (right - left)
+    rows = v[left] + t * (v[right] - v[left])
+    k_idx = np.nanargmin(np.abs(cand[left, :, 0] - v[left][:, None]), axis=1)
+    widths = cand[left, k_idx, 2]
+    out = np.empty(cols.size)
+    candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
+                        sigma_avg, params.weak_z, params.shape_error, s_max, out)
+    ok = np.isfinite(out)
+    v[cols[ok]] = out[ok] + r0
+    amp[cols[ok]] = np.nan_to_num(amp[left[ok]])

@@ -90,7 +90,7 @@ class LaserParams:
     beta: float = 0.25
     gamma: float = 0.25
     max_width_share: float = 1.0 / 30.0
-    seed_z: float = 4.0
+    seed_z: float = 3.0
     min_z: float = 5.0
     weak_z: float = 3.0
     shape_error: float = 0.25
