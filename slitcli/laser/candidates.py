@@ -257,7 +257,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                 if not ok or not v_plateau or res[2] < 0.5:
                     lvl = 0.5 * (bg[3 * i + 2, int(centre[q])] + sat_dn)
                     res[0] = plateau_centre(red, a, b, lvl)
-                    res[2] = max(0.5 * (b - a), s0)
+                    res[2] = s0  # (the run's half length, at most the widest stripe)
                     res[4] = 0.25
                     res[5] = 0.0
                     res[1] = sat_dn - bg[3 * i + 2, int(centre[q])]
