@@ -253,10 +253,11 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
             if sat:
                 for jj in range(n):
                     red[jj] = img[i, jj, 2]
-                v_plateau = a - 0.5 <= res[0] <= b - 0.5 if ok else False
-                if not ok or not v_plateau or res[2] < 0.5:
-                    lvl = 0.5 * (bg[3 * i + 2, int(centre[q])] + sat_dn)
-                    res[0] = plateau_centre(red, a, b, lvl)
+                lvl = 0.5 * (bg[3 * i + 2, int(centre[q])] + sat_dn)
+                pc = plateau_centre(red, a, b, lvl)
+                # the flank fit refines the plateau's centre where it agrees with it
+                if not ok or abs(res[0] - pc) > 0.5 or res[2] < 0.5:
+                    res[0] = pc
                     res[2] = s0  # (the run's half length, at most the widest stripe)
                     res[4] = 0.25
                     res[5] = 0.0
