@@ -25,7 +25,6 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.evidence import MAD_TO_SIGMA
 from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
@@ -52,26 +51,34 @@ from slitcli.laser.profile import (
 NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
 FLANK_ROWS = 2  # rows beyond a clipped run that must show laser light
 NOISE_HALF = 24  # rows either side whose evidence gives a candidate's local noise
-N_SEEDS = 10  # seeds fitted per column, at most
+N_SEEDS = 5  # seeds fitted per column, at most
+#: mean absolute deviation of a Gaussian is sqrt(2 / pi) sigma; the lag-2 residual's
+#: sigma is sqrt(1.5) sigma
+MEAN_TO_SIGMA = math.sqrt(math.pi / 2.0) / math.sqrt(1.5)
+#: residuals beyond this many global noise sigmas count as that many (an edge)
+CLIP_SIGMAS = 5.0
 
 
 @njit(cache=True, nogil=True)
 def _local_sigma(yi: np.ndarray, mi: np.ndarray, c: float, core: float,
-                 buf: np.ndarray) -> float:  # pragma: no cover
-    """Robust noise of the evidence ``yi`` within ``NOISE_HALF + core`` rows of ``c``, the
-    rows within ``core`` left out (lag-2 residuals, as the image's estimate)."""
+                 clip: float) -> float:  # pragma: no cover
+    """Noise of the evidence ``yi`` within ``NOISE_HALF + core`` rows of ``c``, the rows
+    within ``core`` left out: the mean absolute lag-2 residual (each clipped at ``clip``,
+    so that an edge or a second stripe counts as no more than that), scaled to a
+    Gaussian's sigma (``sqrt(pi / 2)`` over the residual's ``sqrt(1.5)``)."""
     n = yi.shape[0]
     lo = max(int(c - core - NOISE_HALF), 2)
     hi = min(int(c + core + NOISE_HALF) + 1, n - 2)
     m = 0
+    acc = 0.0
     for j in range(lo, hi):
         if abs(j - c) <= core + 2.0 or not (mi[j - 2] and mi[j + 2]):
             continue
-        buf[m] = abs(yi[j] - 0.5 * (yi[j - 2] + yi[j + 2]))
+        acc += min(abs(yi[j] - 0.5 * (yi[j - 2] + yi[j + 2])), clip)
         m += 1
     if m < 8:
         return 0.0
-    return MAD_TO_SIGMA * np.median(buf[:m])
+    return MEAN_TO_SIGMA * acc / m
 
 
 @njit(cache=True, nogil=True)
@@ -90,6 +97,7 @@ def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarr
            run_b: np.ndarray, noise: np.ndarray, buf: np.ndarray) -> int:  # pragma: no cover
     """The column's seeds, most significant first (module notes: against the local
     noise, which ``noise`` gets); returns how many."""
+    clip = CLIP_SIGMAS * 1.2 * sigma_y  # (1.2 ~ sqrt(1.5): the residual's own scale)
     n = yi.shape[0]
     k = rank.shape[0]
     nk = 0
@@ -115,7 +123,7 @@ def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarr
             if not (up and dn):
                 continue
             c = 0.5 * (a + b - 1)
-            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (b - a) + 1.0, buf))
+            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (b - a) + 1.0, clip))
             r = 1e9 + (b - a)  # clipped cores rank first
         else:
             if yi[j] < seed_dn:
@@ -138,7 +146,7 @@ def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarr
             hi = j
             while hi < n - 1 and yi[hi + 1] >= 0.5 * yi[j] and hi - j < max_run:
                 hi += 1
-            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (hi - lo + 1) + 1.0, buf))
+            sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (hi - lo + 1) + 1.0, clip))
             r = yi[j] / sig
             j += NMS_HALF + 1
         if nk < k:
@@ -230,7 +238,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
             for jj in range(m):
                 use[jj] = mi[j0 + jj] and not ci[j0 + jj]
             core = 3.0 * s0 + 0.5 * (b - a)
-            sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, buf))
+            sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, CLIP_SIGMAS * 1.2 * sigma_y))
             gsig = sigma_y
             ok = fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig, shape_error,
                               s_max, res)

@@ -32,7 +32,7 @@ from slitcli.laser.params import LaserParams
 from slitcli.laser.profile import N_FIELDS
 
 #: candidates kept per column
-K_BEST = 6
+K_BEST = 3
 #: a short segment's columns need this multiple of min_z each; a fit this significant
 #: on its own column is not replaced by one on the averaged columns
 STRONG_SHARE = 2.0

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-MAX_ITER = 10
+MAX_ITER = 6
 CONVERGED_PX = 0.005
 MIN_SIGMA_PX = 0.3  # a pixel's own extent gives any profile sqrt(1/12) = 0.29 px
 MIN_ROWS = 6
