@@ -36,6 +36,9 @@ K_BEST = 3
 #: a short segment's columns need this multiple of min_z each; a fit this significant
 #: on its own column is not replaced by one on the averaged columns
 STRONG_SHARE = 2.0
+#: a gap column's fit, where the segment says the stripe passes (one place tried, not
+#: every row), needs this share of weak_z
+GAP_Z_SHARE = 2.0 / 3.0
 #: weights of the average along the stripe (over columns; the transposed evidence's
 #: rows), and the noise it leaves of white noise: sqrt(70) / 16
 AVG_KERNEL = (np.array([1.0, 4.0, 6.0, 4.0, 1.0], np.float32) / 16.0)[:, None]
@@ -229,7 +232,7 @@ def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y_avg: np.ndarr
     widths = cand[left, k_idx, 2]
     out = np.empty(cols.size)
     candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
-                        sigma_avg, params.weak_z, params.shape_error, s_max, out)
+                        sigma_avg, GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, out)
     ok = np.isfinite(out)
     v[cols[ok]] = out[ok] + r0
     amp[cols[ok]] = np.nan_to_num(amp[left[ok]])
