@@ -69,8 +69,9 @@ class LaserParams:
         Segments shorter than this share of the image width (8 columns at 320) are
         dropped unless each column is twice ``min_z`` significant.
     min_stripe_share : float
-        A frame whose longest segment spans less than this share of the image width
-        shows no stripe (32 columns at 320).
+        A frame whose longest segment spans less than this share of the searched
+        columns (the image width, or the columns a search mask reaches) shows no stripe
+        (32 columns at 320).
     max_search_range_m : float
         ``search="rig"``: rows whose laser-plane point lies within this horizontal
         range, metres.
