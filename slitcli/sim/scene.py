@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from slitcli.errors import SlitcliError
+from slitcli.sim.camera import CameraModel, camera_from_scene
 
 SCHEMA_VERSION = 1
 
@@ -124,13 +125,18 @@ class LaserLook:
 
 @dataclass(frozen=True)
 class ImageLook:
-    """Camera and lighting: sensor noise, anti-aliasing, exposure and light direction."""
+    """Camera and lighting: sensor noise, anti-aliasing, exposure and light direction.
+
+    ``camera`` (None: the plain Gaussian ``noise_sigma_dn``) is a physical camera model
+    (:mod:`slitcli.sim.camera`) that replaces that noise.
+    """
 
     noise_sigma_dn: float = 2.0
     supersample: int = 3
     exposure: float = 0.85
     ambient: float = 0.55
     light_dir_xyz: tuple[float, float, float] = (0.3, 0.2, 1.0)
+    camera: CameraModel | None = None
 
 
 @dataclass(frozen=True)
@@ -401,6 +407,7 @@ def scene_from_dict(data: Any, source: str = "scene") -> Scene:
         exposure=r.num(im, "exposure", "image", di.exposure, low=0.0, strict=True),
         ambient=r.num(im, "ambient", "image", di.ambient, low=0.0, high=1.0),
         light_dir_xyz=r.vec(im, "light_dir_xyz", "image", 3, di.light_dir_xyz),
+        camera=camera_from_scene(im.get("camera"), "image.camera", r),
     )
     robot = _robot(r, data.get("robot"))
     goal = None

@@ -30,6 +30,7 @@ import yaml
 
 from slitcli.io.atomic import atomic_directory, write_png_atomic
 from slitcli.rig import Rig
+from slitcli.sim.camera import camera_to_scene
 from slitcli.sim.render import FrameTruth, render_frame
 from slitcli.sim.scene import Box, Cylinder, Scene, Wall
 
@@ -88,11 +89,20 @@ def scene_to_dict(scene: Scene) -> dict:
         "highlights": [{"position_xyz_m": list(h.position_xyz_m), "radius_m": h.radius_m,
                         "brightness": h.brightness} for h in scene.highlights],
         "laser": asdict(scene.laser),
-        "image": {**asdict(scene.image), "light_dir_xyz": list(scene.image.light_dir_xyz)},
+        "image": _image_dict(scene),
         "robot": robot, "max_range_m": scene.max_range_m,
     }
     if scene.goal_xy_m is not None:
         out["goal_xy_m"] = list(scene.goal_xy_m)
+    return out
+
+
+def _image_dict(scene: Scene) -> dict:
+    """``image:`` keys as plain YAML; ``camera`` only when the scene has one."""
+    out = {**asdict(scene.image), "light_dir_xyz": list(scene.image.light_dir_xyz)}
+    del out["camera"]
+    if scene.image.camera is not None:
+        out["camera"] = camera_to_scene(scene.image.camera)
     return out
 
 
