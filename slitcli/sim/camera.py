@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+from numba import njit
 
 from slitcli.errors import SlitcliError
 
@@ -81,10 +82,11 @@ class CameraModel:
         ``bilinear``, ``edge_aware`` or ``vng`` (OpenCV's demosaicing; VNG works on 8-bit
         data, so with it white balance and the tone curve are applied before it).
     channel_response_rgb : (3,) float
-        Relative response 0-1 of the R, G, B filters (quantum efficiency; 1 = green's).
+        Relative response of the R, G, B filters (quantum efficiency): a channel of
+        response 1 collects ``electrons_at_white`` at linear 255, one of 0.5 half of that.
     white_balance_rgb : (3,) float or None
-        Gains applied to the raw channels; None: neutral (1 / ``channel_response_rgb``,
-        green 1). Gains that differ from neutral give a colour cast.
+        Gains applied to the raw channels; None: neutral, ``1 / channel_response_rgb``.
+        Other gains give a colour cast.
     vignetting_corner_loss : float
         Share 0-0.95 of the light lost in the image corner; the fall-off is the cos^4 law
         of a lens whose corner field angle gives that loss.
@@ -151,8 +153,7 @@ class CameraModel:
         """White balance gains applied to the raw R, G, B channels."""
         if self.white_balance_rgb is not None:
             return np.asarray(self.white_balance_rgb, dtype=float)
-        resp = np.asarray(self.channel_response_rgb, dtype=float)
-        return resp[1] / resp
+        return 1.0 / np.asarray(self.channel_response_rgb, dtype=float)
 
 
 def camera_problems(m: CameraModel) -> list[tuple[str, str, str]]:
@@ -300,14 +301,46 @@ def cfa_channel(shape_hw: tuple[int, int], bayer: str) -> np.ndarray:
     return np.tile(tile, ((h + 1) // 2, (w + 1) // 2))[:h, :w]
 
 
+@njit(cache=True, nogil=True)
+def _bloom_kernel(e: np.ndarray, full_well_e: float, share: float,
+                  column_share: float) -> np.ndarray:
+    h, w = e.shape
+    out = np.minimum(e, full_well_e)
+    dys = (-1, 1, 0, 0)
+    dxs = (0, 0, -1, 1)
+    fracs = (0.5 * column_share, 0.5 * column_share, 0.5 * (1.0 - column_share),
+             0.5 * (1.0 - column_share))
+    for y in range(h):
+        for x in range(w):
+            excess = e[y, x] - full_well_e
+            if excess <= 0.0:
+                continue
+            for k in range(4):
+                q = share * excess * fracs[k]
+                yy, xx = y + dys[k], x + dxs[k]
+                while q > 0.0 and 0 <= yy < h and 0 <= xx < w:
+                    room = full_well_e - out[yy, xx]
+                    if room >= q:
+                        out[yy, xx] += q
+                        q = 0.0
+                    else:  # fill it; it passes on `share` of the rest, drains the remainder
+                        out[yy, xx] = full_well_e
+                        q = share * (q - room)
+                        yy += dys[k]
+                        xx += dxs[k]
+    return out
+
+
 def bloom(electrons: np.ndarray, full_well_e: float, share: float,
           column_share: float) -> np.ndarray:
     """Clip charge at the full well; ``share`` of each full pixel's excess spills over.
 
-    Of the spilled charge, ``column_share / 2`` goes to each neighbour in the column and
-    ``(1 - column_share) / 2`` to each in the row; a neighbour that overflows in turn
-    passes on ``share`` of its own excess, until the spill is absorbed (a vertical streak
-    from a strongly over-exposed spot). Charge spilled past the border is lost.
+    Of the spilled charge, ``column_share / 2`` flows up and down the column and
+    ``(1 - column_share) / 2`` left and right. Flowing away from its pixel it fills the
+    next pixel; once that is full, it passes on ``share`` of what is left (its own
+    anti-blooming drain takes the rest), so a strongly over-exposed spot draws a vertical
+    streak. Charge that flows past the border is lost. With ``share = 1`` and no border in
+    reach every electron is kept.
 
     Parameters
     ----------
@@ -318,23 +351,8 @@ def bloom(electrons: np.ndarray, full_well_e: float, share: float,
     -------
     (H, W) float, electrons, every value <= ``full_well_e``.
     """
-    e = np.asarray(electrons, dtype=float)
-    excess = np.maximum(e - full_well_e, 0.0)
-    out = np.minimum(e, full_well_e)
-    spill = share * excess
-    h, w = out.shape
-    for _ in range(h + w):  # a streak grows at most one pixel per generation
-        if not np.any(spill > 1e-3):
-            break
-        col, row = 0.5 * column_share * spill, 0.5 * (1.0 - column_share) * spill
-        out[1:] += col[:-1]
-        out[:-1] += col[1:]
-        out[:, 1:] += row[:, :-1]
-        out[:, :-1] += row[:, 1:]
-        excess = np.maximum(out - full_well_e, 0.0)
-        out -= excess
-        spill = share * excess
-    return out
+    e = np.ascontiguousarray(electrons, dtype=np.float64)
+    return _bloom_kernel(e, float(full_well_e), float(share), float(column_share))
 
 
 def read_out(electrons_mean: np.ndarray, model: CameraModel,
