@@ -277,20 +277,42 @@ def _add_laser(scene: Scene, rig: Rig, pose: Pose2D, hits: Hits, points: np.ndar
     return out
 
 
-def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
-                   rng: np.random.Generator) -> np.ndarray:
-    ss = scene.image.supersample
-    w, h = rig.image_size_px
-    hits, dirs = _cast_grid(scene, rig, cam, ss)
+def _cast_and_shade(scene: Scene, rig: Rig, cam: CameraPose
+                    ) -> tuple[Hits, np.ndarray, np.ndarray]:
+    hits, dirs = _cast_grid(scene, rig, cam, scene.image.supersample)
     t = np.where(np.isfinite(hits.t), hits.t, 0.0)
     points = cam.origin_xyz + t[:, None] * dirs
-    rgb = _shade(scene, hits, points)
+    return hits, points, _shade(scene, hits, points)
+
+
+def linear_radiance(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The light reaching one camera, before any camera model: the scene's and the laser's.
+
+    Returns
+    -------
+    scene_rgb_dn, laser_rgb_dn : (H, W, 3) float
+        Linear radiance per pixel (box filter of the supersampled rays), RGB, DN (255 =
+        white level), without and of the laser sheet. ``apply_camera`` turns the pair
+        into an image (:mod:`slitcli.sim.camera`).
+    """
+    ss = scene.image.supersample
+    w, h = rig.image_size_px
+    hits, points, rgb = _cast_and_shade(scene, rig, cam)
+    laser = _add_laser(scene, rig, pose, hits, points, np.zeros_like(rgb))
+    return (rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)),
+            laser.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)))
+
+
+def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
+                   rng: np.random.Generator) -> np.ndarray:
     if scene.image.camera is not None:
         # the camera model needs the laser's light apart (speckle is on it alone)
-        laser = _add_laser(scene, rig, pose, hits, points, np.zeros_like(rgb))
-        return apply_camera(rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)),
-                            scene.image.camera, rng,
-                            laser_rgb_dn=laser.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)))
+        scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, cam)
+        return apply_camera(scene_rgb, scene.image.camera, rng, laser_rgb_dn=laser_rgb)
+    ss = scene.image.supersample
+    w, h = rig.image_size_px
+    hits, points, rgb = _cast_and_shade(scene, rig, cam)
     rgb = _add_laser(scene, rig, pose, hits, points, rgb)
     img = rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3))
     if scene.image.noise_sigma_dn > 0:
