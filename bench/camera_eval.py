@@ -4,7 +4,8 @@ Part 1 renders a scene's left view once as linear light (``linear_radiance``), t
 images from it: ``clean`` (the renderer's look without a camera: Gaussian noise of the
 scene's ``noise_sigma_dn``, rounding), the ``webcam`` and ``robot`` presets, and each
 camera stage alone. For every variant and seed it runs ``detect_laser`` and scores it
-against the renderer's stripe truth: found = truth columns with an estimate within 2 px,
+against the renderer's stripe truth (and reports the extractor's own noise estimate,
+``sigma``): found = truth columns with an estimate within 2 px,
 false = estimates in columns without a stripe or more than 3 px off (share of the
 columns the truth judges: all columns), median and RMS |row error| of the found columns.
 
@@ -37,20 +38,26 @@ from slitcli.sim.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 
+# each stage is added to the webcam's sensor noise (about 2 DN in the mid-tones, like the
+# clean look's 2 DN), so that a stage is not confused with the absence of noise
+_SENSOR = {"gain_dn_per_e": 0.25, "read_noise_e": 4.0, "adc_bits": 10}
 STAGES: dict[str, CameraModel | None] = {
     "clean": None,
     "webcam": camera_preset("webcam"),
     "robot": camera_preset("robot"),
-    "noise (robot sensor)": CameraModel(gain_dn_per_e=1.0, read_noise_e=3.0, adc_bits=10),
-    "bayer RGGB edge-aware": CameraModel(bayer="RGGB", demosaic="edge_aware"),
-    "bayer RGGB bilinear": CameraModel(bayer="RGGB", demosaic="bilinear"),
-    "JPEG 85 4:2:0": CameraModel(jpeg_quality=85),
-    "JPEG 85 4:4:4": CameraModel(jpeg_quality=85, jpeg_chroma="444"),
-    "speckle 0.5 / 2 px": CameraModel(speckle_contrast=0.5, speckle_grain_px=2.0),
-    "exposure 0.5 + gamma 2.2": CameraModel(exposure_scale=0.5, tone_curve="gamma"),
-    "full well + blooming 0.5": CameraModel(gain_dn_per_e=0.1, full_well_e=9000.0,
-                                            blooming_share=0.5, adc_bits=12),
-    "vignetting 0.35": CameraModel(vignetting_corner_loss=0.35),
+    "sensor noise (webcam)": CameraModel(**_SENSOR),
+    "sensor noise (robot)": CameraModel(gain_dn_per_e=4.0, read_noise_e=3.0, adc_bits=10),
+    "+ bayer RGGB edge-aware": CameraModel(**_SENSOR, bayer="RGGB", demosaic="edge_aware"),
+    "+ bayer BGGR bilinear": CameraModel(**_SENSOR, bayer="BGGR", demosaic="bilinear"),
+    "+ JPEG 85 4:2:0": CameraModel(**_SENSOR, jpeg_quality=85),
+    "+ JPEG 85 4:4:4": CameraModel(**_SENSOR, jpeg_quality=85, jpeg_chroma="444"),
+    "+ speckle 0.4 / 1.5 px": CameraModel(**_SENSOR, speckle_contrast=0.4,
+                                          speckle_grain_px=1.5),
+    "+ exposure 0.5, sRGB": CameraModel(**_SENSOR, exposure_scale=0.5, tone_curve="srgb"),
+    "+ full well, blooming 0.3": CameraModel(**_SENSOR, full_well_e=3000.0,
+                                             blooming_share=0.3),
+    "+ vignetting 0.35": CameraModel(**_SENSOR, vignetting_corner_loss=0.35),
+    "+ response [.55 1 .7]": CameraModel(**_SENSOR, channel_response_rgb=(0.55, 1.0, 0.7)),
 }
 
 
@@ -85,6 +92,7 @@ def laser_study(scene_path: Path, seeds: int, preview: Path | None) -> dict[str,
     out = {}
     for name, model in STAGES.items():
         tot = {"truth_cols": 0, "found": 0, "false": 0, "cols": 0, "err": []}
+        sigmas: list[float] = []
         for seed in range(seeds):
             rng = np.random.default_rng([scene.seed, seed])
             img = make_image(scene_rgb, laser_rgb, model, scene.image.noise_sigma_dn, rng)
@@ -93,6 +101,7 @@ def laser_study(scene_path: Path, seeds: int, preview: Path | None) -> dict[str,
                 slug = "".join(c if c.isalnum() else "_" for c in name)
                 cv2.imwrite(str(preview / f"{scene.name}_{slug}.png"), img)
             fr = detect_laser(img, rig, params, geometry=geometry)
+            sigmas.append(fr.noise_sigma_dn)
             s = score(fr.v_px, truth.stripe_v_px)
             for k in ("truth_cols", "found", "false", "cols"):
                 tot[k] += s[k]
@@ -101,7 +110,7 @@ def laser_study(scene_path: Path, seeds: int, preview: Path | None) -> dict[str,
         out[name] = {"found": tot["found"] / tot["truth_cols"], "false": tot["false"] / tot["cols"],
                      "median_err_px": float(np.median(err)) if len(err) else float("nan"),
                      "rms_err_px": float(np.sqrt(np.mean(err ** 2))) if len(err) else
-                     float("nan")}
+                     float("nan"), "extractor_noise_dn": float(np.median(sigmas))}
     return out
 
 
@@ -193,10 +202,12 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     a = ap.parse_args()
     res: dict[str, dict] = {"laser": laser_study(a.scene, a.seeds, a.preview)}
-    print(f"{'variant':28s} {'found':>7s} {'false':>7s} {'median':>7s} {'rms':>7s}")
+    print(f"{'variant':28s} {'found':>7s} {'false':>7s} {'median':>7s} {'rms':>7s} "
+          f"{'sigma':>6s}")
     for name, r in res["laser"].items():
         print(f"{name:28s} {100 * r['found']:6.1f}% {100 * r['false']:6.2f}% "
-              f"{r['median_err_px']:7.3f} {r['rms_err_px']:7.3f}")
+              f"{r['median_err_px']:7.3f} {r['rms_err_px']:7.3f} "
+              f"{r['extractor_noise_dn']:6.2f}")
     stats = render_stats(a.scene)
     if a.real is not None:
         stats.update(real_stats(a.real))

@@ -221,14 +221,15 @@ PRESETS: dict[str, dict[str, Any]] = {
                "channel_response_rgb": (0.55, 1.0, 0.7), "vignetting_corner_loss": 0.35,
                "speckle_contrast": 0.4, "speckle_grain_px": 1.5, "tone_curve": "srgb",
                "jpeg_quality": 80, "jpeg_chroma": "420"},
-    # a robot's low stereo camera in a dim room: high analog gain (about a thousand
-    # electrons at white, so strong shot noise), gamma 2.2, MJPEG at quality 85
-    "robot": {"exposure_scale": 0.5, "gain_dn_per_e": 1.0, "read_noise_e": 3.0,
+    # a robot's low stereo camera in a dim room: high analog gain (256 electrons at white,
+    # so strong shot noise: 3-4 DN after demosaicing and JPEG, as on the robot photographs
+    # of the dev set), gamma 2.2, MJPEG at quality 90
+    "robot": {"exposure_scale": 0.5, "gain_dn_per_e": 4.0, "read_noise_e": 3.0,
               "full_well_e": 9000.0, "adc_bits": 10, "blooming_share": 0.5,
               "bayer": "RGGB", "demosaic": "edge_aware",
               "channel_response_rgb": (0.6, 1.0, 0.75), "vignetting_corner_loss": 0.25,
               "speckle_contrast": 0.5, "speckle_grain_px": 2.0, "tone_curve": "gamma",
-              "gamma": 2.2, "jpeg_quality": 85, "jpeg_chroma": "420"},
+              "gamma": 2.2, "jpeg_quality": 90, "jpeg_chroma": "420"},
 }
 
 
