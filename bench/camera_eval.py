@@ -46,7 +46,7 @@ STAGES: dict[str, CameraModel | None] = {
     "webcam": camera_preset("webcam"),
     "robot": camera_preset("robot"),
     "sensor noise (webcam)": CameraModel(**_SENSOR),
-    "sensor noise (robot)": CameraModel(gain_dn_per_e=4.0, read_noise_e=3.0, adc_bits=10),
+    "sensor noise (robot)": CameraModel(gain_dn_per_e=2.0, read_noise_e=3.0, adc_bits=10),
     "+ bayer RGGB edge-aware": CameraModel(**_SENSOR, bayer="RGGB", demosaic="edge_aware"),
     "+ bayer BGGR bilinear": CameraModel(**_SENSOR, bayer="BGGR", demosaic="bilinear"),
     "+ JPEG 85 4:2:0": CameraModel(**_SENSOR, jpeg_quality=85),

@@ -104,6 +104,26 @@ def test_output_noise_per_channel_follows_the_filter_response(seed):
         assert abs(out[..., c].mean() - level) < 4 * math.sqrt(want / n) + 0.5
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_colour_matrix_amplifies_colour_noise(seed):
+    """Filter overlap x, undone by (I - x J) / (1 - 3x): each output channel's variance is
+    sum_j Minv_cj^2 var_j = ((1 - x)^2 + 2 x^2) / (1 - 3x)^2 times the raw channel's."""
+    x, level = 0.2, 100.0
+    model = CameraModel(gain_dn_per_e=1.0, adc_bits=10, colour_crosstalk=x)
+    out = apply_camera(np.full((160, 160, 3), level), model, np.random.default_rng(seed))
+    out = out.astype(float)
+    n = 160 * 160
+    per_raw = 255.0 * level / model.electrons_at_white  # a raw channel's 8-bit variance
+    want = per_raw * ((1 - x) ** 2 + 2 * x ** 2) / (1 - 3 * x) ** 2 + 1 / 12
+    assert want / per_raw > 4  # the test tells an amplified channel from a plain one
+    for c in range(3):
+        assert out[..., c].var(ddof=1) == pytest.approx(want, abs=4 * want * math.sqrt(2 / n))
+        assert out[..., c].mean() == pytest.approx(level, abs=4 * math.sqrt(want / n) + 0.5)
+    # grey stays grey: the luminance noise is the plain one (the matrix keeps J)
+    grey = out.mean(axis=2)
+    assert grey.var(ddof=1) == pytest.approx(per_raw / 3, rel=6 * math.sqrt(2 / n) + 0.02)
+
+
 # ------------------------------------------------------------------ full well, blooming
 @pytest.mark.parametrize("seed", SEEDS)
 def test_no_blooming_below_full_well(seed):
@@ -174,12 +194,15 @@ def test_demosaicing_a_flat_colour_returns_it(bayer, method, seed):
     rng = np.random.default_rng(seed)
     colour = rng.uniform(20, 240, 3)
     model = CameraModel(bayer=bayer, demosaic=method, adc_bits=12,
-                        channel_response_rgb=tuple(rng.uniform(0.4, 1.0, 3)))
+                        channel_response_rgb=tuple(rng.uniform(0.4, 1.0, 3)),
+                        colour_crosstalk=0.2 * (seed % 2))
     out = apply_camera(np.broadcast_to(colour, (24, 32, 3)), model, rng)[..., ::-1]
     inner = out[2:-2, 2:-2].reshape(-1, 3).astype(float)
-    # a raw step is 255 / 4095 / response of 8-bit DN; VNG rounds to 8 bits first
-    assert np.abs(inner - colour).max() <= 0.5 + 255 / 4095 / 0.4 + (1.0 if method == "vng"
-                                                                     else 0.0)
+    # a raw step is 255 / 4095 / response of 8-bit DN, times up to 1.4 + 2 x 0.5 through
+    # the colour matrix; VNG rounds to 8 bits first (and again around the colour matrix)
+    step = 255 / 4095 / 0.4 * (2.4 if model.colour_crosstalk else 1.0)
+    vng = (1.0 if not model.colour_crosstalk else 2.5) if method == "vng" else 0.0
+    assert np.abs(inner - colour).max() <= 0.5 + step + vng
 
 
 @pytest.mark.parametrize("bayer", ["RGGB", "BGGR", "GRBG", "GBRG"])
@@ -349,6 +372,7 @@ def test_scene_keys_presets_and_overrides():
     ({"vignetting_corner_loss": 1.0}, "image.camera.vignetting_corner_loss"),
     ({"speckle_grain_px": 0.2}, "image.camera.speckle_grain_px"),
     ({"white_balance_rgb": [1, 1]}, "image.camera.white_balance_rgb"),
+    ({"colour_crosstalk": 0.4}, "image.camera.colour_crosstalk"),
     ({"preset": "dslr"}, "image.camera.preset"),
     ("dslr", "image.camera"),
 ])

@@ -9,12 +9,13 @@ deliver, stage by stage, each stage optional and off in a default :class:`Camera
    ``speckle_contrast`` (std / mean) and grain ``speckle_grain_px``;
 2. vignetting: a cos^4 law whose strength is given by the light lost in the image corner;
 3. the colour filter array: each raw pixel sees one channel (``bayer``), with the filters'
-   relative response ``channel_response_rgb``;
+   relative response ``channel_response_rgb`` and spectral overlap ``colour_crosstalk``;
 4. the sensor: photo-electrons with shot noise (Poisson), a full well with blooming (the
    excess charge of a full pixel spills into its neighbours, mostly along its column), read
    noise, and the ADC (``gain_dn_per_e``, ``adc_bits``);
 5. the image processor: demosaicing (OpenCV's bilinear, edge-aware or VNG), white balance,
-   a tone curve (gamma or sRGB), 8-bit rounding, and JPEG with chroma subsampling.
+   the colour matrix that undoes the filters' overlap, a tone curve (gamma or sRGB), 8-bit
+   rounding, and JPEG with chroma subsampling.
 
 The exposure is tied to the sensor's white level: linear 255 on the green channel collects
 ``electrons_at_white`` = min(ADC full scale / gain, full well) electrons, so the gain sets
@@ -84,6 +85,10 @@ class CameraModel:
     channel_response_rgb : (3,) float
         Relative response of the R, G, B filters (quantum efficiency): a channel of
         response 1 collects ``electrons_at_white`` at linear 255, one of 0.5 half of that.
+    colour_crosstalk : float
+        Spectral overlap 0-0.3 of the colour filters: each filter also passes this share
+        of each other colour's light (raw colours come out washed out). The processor's
+        colour matrix undoes it, which amplifies colour noise by up to ``1 / (1 - 3 x)``.
     white_balance_rgb : (3,) float or None
         Gains applied to the raw channels; None: neutral, ``1 / channel_response_rgb``.
         Other gains give a colour cast.
@@ -114,6 +119,7 @@ class CameraModel:
     bayer: str = "none"
     demosaic: str = "bilinear"
     channel_response_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    colour_crosstalk: float = 0.0
     white_balance_rgb: tuple[float, float, float] | None = None
     vignetting_corner_loss: float = 0.0
     speckle_contrast: float = 0.0
@@ -180,6 +186,7 @@ def camera_problems(m: CameraModel) -> list[tuple[str, str, str]]:
     rng_check("adc_bits", m.adc_bits, 8, 16, integer=True)
     rng_check("blooming_share", m.blooming_share, 0.0, 1.0)
     rng_check("blooming_column_share", m.blooming_column_share, 0.0, 1.0)
+    rng_check("colour_crosstalk", m.colour_crosstalk, 0.0, 0.3)
     rng_check("vignetting_corner_loss", m.vignetting_corner_loss, 0.0, 0.95)
     rng_check("speckle_contrast", m.speckle_contrast, 0.0, 1.0)
     rng_check("speckle_grain_px", m.speckle_grain_px, 1.0, 50.0)
@@ -218,16 +225,18 @@ PRESETS: dict[str, dict[str, Any]] = {
     "webcam": {"exposure_scale": 0.5, "gain_dn_per_e": 0.25, "read_noise_e": 4.0,
                "full_well_e": 6000.0, "adc_bits": 10, "blooming_share": 0.3,
                "bayer": "BGGR", "demosaic": "bilinear",
-               "channel_response_rgb": (0.55, 1.0, 0.7), "vignetting_corner_loss": 0.35,
+               "channel_response_rgb": (0.55, 1.0, 0.7), "colour_crosstalk": 0.15,
+               "vignetting_corner_loss": 0.35,
                "speckle_contrast": 0.4, "speckle_grain_px": 1.5, "tone_curve": "srgb",
                "jpeg_quality": 80, "jpeg_chroma": "420"},
-    # a robot's low stereo camera in a dim room: high analog gain (256 electrons at white,
-    # so strong shot noise: 3-4 DN after demosaicing and JPEG, as on the robot photographs
-    # of the dev set), gamma 2.2, MJPEG at quality 90
-    "robot": {"exposure_scale": 0.5, "gain_dn_per_e": 4.0, "read_noise_e": 3.0,
+    # a robot's low stereo camera in a dim room: high analog gain (512 electrons at white,
+    # so strong shot noise, 4-5 DN of mostly colour noise after the colour matrix, as on the
+    # robot photographs of the dev set), gamma 2.2, MJPEG at quality 90
+    "robot": {"exposure_scale": 0.5, "gain_dn_per_e": 2.0, "read_noise_e": 3.0,
               "full_well_e": 9000.0, "adc_bits": 10, "blooming_share": 0.5,
               "bayer": "RGGB", "demosaic": "edge_aware",
-              "channel_response_rgb": (0.6, 1.0, 0.75), "vignetting_corner_loss": 0.25,
+              "channel_response_rgb": (0.6, 1.0, 0.75), "colour_crosstalk": 0.2,
+              "vignetting_corner_loss": 0.25,
               "speckle_contrast": 0.5, "speckle_grain_px": 2.0, "tone_curve": "gamma",
               "gamma": 2.2, "jpeg_quality": 90, "jpeg_chroma": "420"},
 }
@@ -396,6 +405,28 @@ def tone(x01: np.ndarray, model: CameraModel) -> np.ndarray:
     return x
 
 
+def colour_mixing(crosstalk: float) -> np.ndarray:
+    """Raw colour from true colour, (3, 3): ``(1 - 3 x) I + x J`` (rows sum to 1, so white
+    stays white); its inverse ``(I - x J) / (1 - 3 x)`` is the processor's colour matrix."""
+    return (1.0 - 3.0 * crosstalk) * np.eye(3) + crosstalk
+
+
+def untone(y01: np.ndarray, model: CameraModel) -> np.ndarray:
+    """Inverse of :func:`tone` on [0, 1]."""
+    y = np.clip(y01, 0.0, 1.0)
+    if model.tone_curve == "gamma":
+        return y ** model.gamma
+    if model.tone_curve == "srgb":
+        return np.where(y <= 0.04045, y / 12.92, ((y + 0.055) / 1.055) ** 2.4)
+    return y
+
+
+def _colour_matrix(rgb01: np.ndarray, model: CameraModel) -> np.ndarray:
+    if model.colour_crosstalk <= 0:
+        return rgb01
+    return np.clip(rgb01, 0.0, 1.0) @ np.linalg.inv(colour_mixing(model.colour_crosstalk)).T
+
+
 def jpeg_round_trip(bgr: np.ndarray, quality: int, chroma: str = "420") -> np.ndarray:
     """Encode and decode an 8-bit BGR image as JPEG (OpenCV/libjpeg)."""
     params = [cv2.IMWRITE_JPEG_QUALITY, int(quality),
@@ -411,17 +442,21 @@ def _to_8bit(x01: np.ndarray) -> np.ndarray:
 
 
 def _process(raw_dn: np.ndarray, model: CameraModel) -> np.ndarray:
-    """Image processor: demosaic, white balance, tone curve -> 8-bit RGB (H, W, 3)."""
+    """Image processor: demosaic, white balance (clipped at white, so saturated is white),
+    colour matrix, tone curve -> 8-bit RGB (H, W, 3)."""
     wb = model.wb_gains_rgb / model.white_level_dn
     if model.bayer == "none":
-        return _to_8bit(tone(raw_dn * wb, model))
+        return _to_8bit(tone(_colour_matrix(raw_dn * wb, model), model))
     code = f"COLOR_Bayer{_CV_BAYER[model.bayer]}2RGB{_CV_DEMOSAIC[model.demosaic]}"
-    if model.demosaic == "vng":  # OpenCV's VNG takes 8-bit data only
+    if model.demosaic == "vng":  # OpenCV's VNG takes 8-bit data only: tone curve first
         chan = cfa_channel(raw_dn.shape, model.bayer)
         encoded = _to_8bit(tone(raw_dn * wb[chan], model))
-        return cv2.cvtColor(encoded, getattr(cv2, code))
+        rgb8 = cv2.cvtColor(encoded, getattr(cv2, code))
+        if model.colour_crosstalk <= 0:
+            return rgb8
+        return _to_8bit(tone(_colour_matrix(untone(rgb8 / 255.0, model), model), model))
     rgb = cv2.cvtColor(raw_dn.astype(np.uint16), getattr(cv2, code)).astype(float)
-    return _to_8bit(tone(rgb * wb, model))
+    return _to_8bit(tone(_colour_matrix(rgb * wb, model), model))
 
 
 def apply_camera(linear_rgb_dn: np.ndarray, model: CameraModel, rng: np.random.Generator,
@@ -450,6 +485,8 @@ def apply_camera(linear_rgb_dn: np.ndarray, model: CameraModel, rng: np.random.G
         light = light + np.asarray(laser_rgb_dn, dtype=float) * grain[..., None]
     light = light * (model.exposure_scale
                      * vignetting_map((h, w), model.vignetting_corner_loss)[..., None])
+    if model.colour_crosstalk > 0:
+        light = light @ colour_mixing(model.colour_crosstalk).T
     electrons = light * (np.asarray(model.channel_response_rgb) * model.electrons_at_white
                          / 255.0)
     if model.bayer != "none":
