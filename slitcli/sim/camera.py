@@ -460,7 +460,8 @@ def _process(raw_dn: np.ndarray, model: CameraModel) -> np.ndarray:
 
 
 def apply_camera(linear_rgb_dn: np.ndarray, model: CameraModel, rng: np.random.Generator,
-                 *, laser_rgb_dn: np.ndarray | None = None) -> np.ndarray:
+                 *, laser_rgb_dn: np.ndarray | None = None,
+                 speckle_rng: np.random.Generator | None = None) -> np.ndarray:
     """The image a camera delivers from the light that reaches it.
 
     Parameters
@@ -473,6 +474,10 @@ def apply_camera(linear_rgb_dn: np.ndarray, model: CameraModel, rng: np.random.G
         Speckle and sensor noise.
     laser_rgb_dn : (H, W, 3) float, optional
         The laser's own radiance, RGB, linear DN; speckle applies to it alone.
+    speckle_rng : numpy Generator, optional
+        Draws the speckle pattern (default: ``rng``). The pattern belongs to the geometry
+        of laser, surface and camera, so a still view keeps it from frame to frame: pass
+        a generator seeded by the view for that.
 
     Returns
     -------
@@ -481,7 +486,8 @@ def apply_camera(linear_rgb_dn: np.ndarray, model: CameraModel, rng: np.random.G
     light = np.asarray(linear_rgb_dn, dtype=float)
     h, w = light.shape[:2]
     if laser_rgb_dn is not None:
-        grain = speckle_field((h, w), model.speckle_contrast, model.speckle_grain_px, rng)
+        grain = speckle_field((h, w), model.speckle_contrast, model.speckle_grain_px,
+                              rng if speckle_rng is None else speckle_rng)
         light = light + np.asarray(laser_rgb_dn, dtype=float) * grain[..., None]
     light = light * (model.exposure_scale
                      * vignetting_map((h, w), model.vignetting_corner_loss)[..., None])

@@ -309,7 +309,12 @@ def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
     if scene.image.camera is not None:
         # the camera model needs the laser's light apart (speckle is on it alone)
         scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, cam)
-        return apply_camera(scene_rgb, scene.image.camera, rng, laser_rgb_dn=laser_rgb)
+        # speckle is fixed by the geometry: the same view gives the same pattern
+        view = np.r_[cam.origin_xyz, cam.R_world_from_cam.ravel()].round(9) + 0.0
+        speckle_rng = np.random.default_rng([scene.seed, *np.frombuffer(view.tobytes(),
+                                                                         np.uint32)])
+        return apply_camera(scene_rgb, scene.image.camera, rng, laser_rgb_dn=laser_rgb,
+                            speckle_rng=speckle_rng)
     ss = scene.image.supersample
     w, h = rig.image_size_px
     hits, points, rgb = _cast_and_shade(scene, rig, cam)
