@@ -26,17 +26,15 @@ brightness.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import cv2
 import numpy as np
 from numba import njit
 
 from slitcli.errors import SlitcliError
-
-if TYPE_CHECKING:
-    from collections.abc import Mapping
 
 BAYER_PATTERNS = ("none", "RGGB", "BGGR", "GRBG", "GBRG")
 DEMOSAIC_METHODS = ("bilinear", "edge_aware", "vng")
@@ -130,7 +128,7 @@ class CameraModel:
     jpeg_chroma: str = "420"
 
     def __post_init__(self) -> None:
-        problems = camera_problems(self)
+        problems = camera_problems(_values(self))
         if problems:
             name, problem, fix = problems[0]
             raise SlitcliError(f"camera parameter '{name}' {problem}; {fix}")
@@ -162,9 +160,15 @@ class CameraModel:
         return 1.0 / np.asarray(self.channel_response_rgb, dtype=float)
 
 
-def camera_problems(m: CameraModel) -> list[tuple[str, str, str]]:
-    """Everything wrong with a camera model, as (parameter, problem, fix) triples."""
+def _values(m: CameraModel) -> dict[str, Any]:
+    return {f.name: getattr(m, f.name) for f in fields(m)}
+
+
+def camera_problems(values: Mapping[str, Any]) -> list[tuple[str, str, str]]:
+    """Everything wrong with camera parameters (all :class:`CameraModel` fields), as
+    (parameter, problem, fix) triples."""
     out: list[tuple[str, str, str]] = []
+    m = _Fields(values)
 
     def rng_check(name: str, v: Any, lo: float, hi: float, *, lo_open: bool = False,
                   integer: bool = False, optional: bool = False) -> None:
@@ -216,6 +220,13 @@ def camera_problems(m: CameraModel) -> list[tuple[str, str, str]]:
     if m.blooming_share and m.full_well_e is None:
         out.append(("blooming_share", "needs a full well", "give full_well_e too"))
     return out
+
+
+class _Fields:
+    """Attribute access to a mapping of camera parameters (checked before a model exists)."""
+
+    def __init__(self, values: Mapping[str, Any]) -> None:
+        self.__dict__.update(values)
 
 
 # ------------------------------------------------------------------ presets
@@ -544,10 +555,7 @@ def camera_from_scene(v: Any, key: str, keys: Any) -> CameraModel | None:
     if isinstance(kw.get("bayer"), str) and kw["bayer"] != "none":
         kw["bayer"] = kw["bayer"].upper()
     # check before building, so the message names the scene key, not the parameter
-    probe = object.__new__(CameraModel)
-    for f in _FIELDS:
-        object.__setattr__(probe, f, kw.get(f, getattr(CameraModel, f)))
-    problems = camera_problems(probe)
+    problems = camera_problems({**_values(CameraModel()), **kw})
     if problems:
         name, problem, fix = problems[0]
         raise keys.err(f"{key}.{name}", problem, fix)
