@@ -375,6 +375,7 @@ def test_scene_keys_presets_and_overrides():
     ({"colour_crosstalk": 0.4}, "image.camera.colour_crosstalk"),
     ({"preset": "dslr"}, "image.camera.preset"),
     ("dslr", "image.camera"),
+    ([1, 2], "image.camera"),
 ])
 def test_bad_camera_keys_name_the_key(tmp_path, camera, key):
     with pytest.raises(SlitcliError, match=key.replace(".", r"\.")):

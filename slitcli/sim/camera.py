@@ -533,6 +533,9 @@ def camera_from_scene(v: Any, key: str, keys: Any) -> CameraModel | None:
     if v is None:
         return None
     preset_key = key
+    if not isinstance(v, str | Mapping):
+        raise keys.err(key, f"= {v!r} is neither a preset name nor a mapping",
+                       f"give one of {', '.join(PRESETS)} or camera keys (docs/scene.md)")
     if isinstance(v, str):
         v = {"preset": v}
     else:
