@@ -244,14 +244,15 @@ PRESETS: dict[str, dict[str, Any]] = {
                "jpeg_quality": 80, "jpeg_chroma": "420"},
     # a robot's low stereo camera in a dim room: high analog gain (512 electrons at white,
     # so strong shot noise, 4-5 DN of mostly colour noise after the colour matrix, as on the
-    # robot photographs of the dev set), gamma 2.2, MJPEG at quality 90
+    # robot photographs of the dev set), gamma 2.2, JPEG 4:2:0 at quality 95 (their files'
+    # quantisation tables and sampling factors)
     "robot": {"exposure_scale": 0.5, "gain_dn_per_e": 2.0, "read_noise_e": 3.0,
               "full_well_e": 9000.0, "adc_bits": 10, "blooming_share": 0.5,
               "bayer": "RGGB", "demosaic": "edge_aware",
               "channel_response_rgb": (0.6, 1.0, 0.75), "colour_crosstalk": 0.2,
               "vignetting_corner_loss": 0.25,
               "speckle_contrast": 0.25, "speckle_grain_px": 1.5, "tone_curve": "gamma",
-              "gamma": 2.2, "jpeg_quality": 90, "jpeg_chroma": "420"},
+              "gamma": 2.2, "jpeg_quality": 95, "jpeg_chroma": "420"},
 }
 
 
