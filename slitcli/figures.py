@@ -182,8 +182,8 @@ def draw_fig8(axes: Sequence[Axes], trajectories: dict[str, pd.DataFrame],
 # Line style, marker and width per case: wider lines first, so a case whose curve
 # coincides with an earlier one still shows as a narrower, differently dashed line on
 # top of it, with its own markers.
-CASE_STYLES = (("-", "o", 4.0), ("--", "s", 2.6), ("-.", "^", 2.0), (":", "D", 2.2),
-               ((0, (5, 1, 1, 1)), "v", 1.6), ((0, (1, 1)), "P", 1.4))
+CASE_STYLES = (("-", "o", 4.2), ("--", "s", 2.8), ("-.", "^", 2.2), (":", "D", 1.6),
+               ((0, (5, 1, 1, 1)), "v", 1.2), ((0, (1, 1)), "P", 1.0))
 
 
 def coinciding_cases(trajectories: dict[str, pd.DataFrame], column: str,
