@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import math
 import shutil
 from pathlib import Path
@@ -46,9 +47,21 @@ def read_bag(path: Path) -> dict[str, list[tuple[int, object]]]:
 
 
 def expected(table: pd.DataFrame, column: str, frame: int) -> np.ndarray:
-    """The scan a frame's column must give: float32 m, +inf for an empty cell."""
-    v = table.loc[table["frame"] == frame, column].to_numpy(dtype=np.float64)
-    return np.where(np.isnan(v), np.inf, v).astype(np.float32)
+    """The scan a frame's column must give: float32 m, +inf for an empty cell.
+
+    The cells are parsed from the CSV text with Python's float() (``table.attrs``
+    holds the path), independently of the exporter's reader.
+    """
+    with open(table.attrs["path"], newline="") as f:
+        rows = [r for r in csv.DictReader(f) if int(r["frame"]) == frame]
+    return np.array([float(r[column]) if r[column] != "" else np.inf for r in rows],
+                    dtype=np.float32)
+
+
+def read_table(path: Path) -> pd.DataFrame:
+    t = pd.read_csv(path)
+    t.attrs["path"] = str(path)
+    return t
 
 
 def random_table(run: Path, dst: Path, seed: int) -> pd.DataFrame:
@@ -61,7 +74,7 @@ def random_table(run: Path, dst: Path, seed: int) -> pd.DataFrame:
         v[rng.random(len(t)) < 1 / 3] = np.nan
         t[c] = v
     t.to_csv(dst / "ranges.csv", index=False, float_format="%.6g", na_rep="")
-    return pd.read_csv(dst / "ranges.csv")
+    return read_table(dst / "ranges.csv")
 
 
 @pytest.mark.parametrize("kind", [".mcap", ".bag", ""])
@@ -69,7 +82,7 @@ def test_one_scan_per_frame_equal_to_the_table(run6, tmp_path, kind):
     _, det = run6
     out = tmp_path / NAMES[kind]
     summary = export_run(det, out)
-    table = pd.read_csv(det / "ranges.csv")
+    table = read_table(det / "ranges.csv")
     frames = sorted(table["frame"].unique())
     got = read_bag(out)
     assert set(got) == set(COLUMNS)

@@ -10,7 +10,6 @@ again (for the overlay video and the exported images).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -316,6 +315,3 @@ def bag_stamps_ns(run: DetectRun, source: str | Path | None) -> np.ndarray | Non
                            "was made from (source)")
     return pairs.left_ns[run.frames]
 
-
-def finite_or(value: float, default: float) -> float:
-    return value if math.isfinite(value) else default
