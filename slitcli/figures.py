@@ -227,7 +227,7 @@ def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> dict[str, list
     ax.set_ylabel("robot-obstacle distance (m)")
     ax.set_title("Distance to the nearest obstacle")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     return same
 
 
