@@ -249,10 +249,10 @@ def resolve_source(run: DetectRun, source: str | Path | None) -> Path:
     src = Path(source) if source is not None else run.recorded_source()
     if src is None:
         raise SlitcliError(f"{run.folder / MANIFEST}: does not record the input's path; "
-                           "give the sequence folder or bag the run was made from (source)")
+                           "give the sequence folder or bag the run was made from (--source)")
     if not src.exists():
         raise SlitcliError(f"{src}: the run's input is not there; give the sequence folder "
-                           "or bag the run was made from (source)")
+                           "or bag the run was made from (--source)")
     return src
 
 
@@ -278,7 +278,7 @@ def _raw_left_images(run: DetectRun, src: Path) -> Iterator[tuple[int, np.ndarra
     names = inp.get("names")
     if isinstance(names, list) and names != [r.name for r in seq.refs]:
         raise SlitcliError(f"{src}: its images are not the ones the run was made from "
-                           "(other file names); give the run's own input (source)")
+                           "(other file names); give the run's own input (--source)")
     for ref in seq.refs:
         if ref.index in wanted:
             yield ref.index, read_image(ref.left_path)
@@ -288,7 +288,7 @@ def _check_count(run: DetectRun, src: Path, n: int) -> None:
     recorded = run.manifest.get("input", {}).get("frames")
     if isinstance(recorded, int) and recorded != n:
         raise SlitcliError(f"{src}: holds {n} frames, the run was made from {recorded}; give "
-                           "the run's own input (source)")
+                           "the run's own input (--source)")
 
 
 def bag_stamps_ns(run: DetectRun, source: str | Path | None) -> np.ndarray | None:
@@ -312,6 +312,6 @@ def bag_stamps_ns(run: DetectRun, source: str | Path | None) -> np.ndarray | Non
     recorded = inp.get("stamps")
     if isinstance(recorded, int) and int(np.bitwise_xor.reduce(pairs.left_ns)) != recorded:
         raise SlitcliError(f"{src}: its image stamps are not the run's; give the bag the run "
-                           "was made from (source)")
+                           "was made from (--source)")
     return pairs.left_ns[run.frames]
 
