@@ -216,3 +216,19 @@ def test_cli_report_without_video(tmp_path, run6):
     assert res.exit_code == 0, res.output
     assert "report: 6 frames" in res.stdout
     assert Path(det / "report" / "index.html").is_file()
+
+
+def test_a_bag_run_reports_on_the_bags_clock(tmp_path):
+    from detect_runs import bag_run
+
+    from slitcli.report.build import time_axis, video_fps
+
+    bag, det, stamps = bag_run(tmp_path, 3)
+    run = load_run(det)
+    # ranges.csv holds 1.7e+09 s for every frame; the bag's stamps are 0.2 s apart
+    t, own, label = time_axis(run, ReportParams(), bag)
+    assert own and label == "time since the first frame (s)"
+    np.testing.assert_allclose(t, (stamps - stamps[0]) * 1e-9, atol=1e-12)
+    assert video_fps(run, ReportParams(), bag) == pytest.approx(5.0)
+    summary = run_report(det, source=bag)
+    assert count_video_frames(det / "report" / "overlay.mp4") == summary.video_frames == 3

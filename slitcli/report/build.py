@@ -33,6 +33,7 @@ from slitcli.report.preview import disparity_preview, distance_preview
 from slitcli.report.run import (
     SOURCES,
     DetectRun,
+    bag_stamps_ns,
     frame_times_s,
     left_images,
     load_run,
@@ -95,11 +96,29 @@ class ReportSummary:
                 f"{self.folder / 'index.html'}")
 
 
-def video_fps(run: DetectRun, params: ReportParams) -> float:
+def time_axis(run: DetectRun, params: ReportParams, source: str | Path | None
+              ) -> tuple[np.ndarray, bool, str]:
+    """Frame times for the plots and the video (s), whether they are the run's own, and
+    the axis label.
+
+    A bag run takes its bag's stamps (exact; ``ranges.csv`` keeps 6 digits, too few for
+    epoch stamps), counted from the first frame; a folder run its ``time_s``; a run
+    without times ``frame index x period_s``.
+    """
+    if run.input_kind == "bag":
+        stamps = bag_stamps_ns(run, source)
+        if stamps is not None:
+            return (stamps - stamps[0]) * 1e-9, True, "time since the first frame (s)"
+    t, own = frame_times_s(run, params.period_s)
+    return t, own, "time (s)" if own else f"time (s, frame index x {params.period_s:g} s)"
+
+
+def video_fps(run: DetectRun, params: ReportParams, source: str | Path | None = None
+              ) -> float:
     """Frames per second of the overlay video (:class:`ReportParams`)."""
     if params.fps is not None:
         return float(params.fps)
-    t, own = frame_times_s(run, params.period_s)
+    t, own, _ = time_axis(run, params, source)
     if own and t.size > 1:
         return float(np.clip(1.0 / float(np.median(np.diff(t))), 1.0, 30.0))
     return 5.0
@@ -186,8 +205,7 @@ def run_report(run_dir: str | Path, *, params: ReportParams | None = None,
                            "the permissions") from None
     state = _State(folder, _inputs_key(run, p, src))
     stage = on_stage if on_stage is not None else (lambda _s: None)
-    times, own = frame_times_s(run, p.period_s)
-    label = "time (s)" if own else f"time (s, frame index x {p.period_s:g} s)"
+    times, own, label = time_axis(run, p, src)
     share = {name: float(np.mean(run.fused_source == k)) for k, name in enumerate(SOURCES)}
 
     figures = ("heatmap.png", "birdseye.png", "sources.png")
@@ -206,7 +224,7 @@ def run_report(run_dir: str | Path, *, params: ReportParams | None = None,
         video_frames = write_video(folder / "overlay.mp4",
                                    _overlay_frames(run, src, times if own else
                                                    np.full(run.n_frames, np.nan), p, folder),
-                                   fps=video_fps(run, p), on_frame=on_frame)
+                                   fps=video_fps(run, p, src), on_frame=on_frame)
         state.mark("overlay.mp4")
     elif p.video:
         from slitcli.report.overlay import count_video_frames
