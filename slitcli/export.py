@@ -43,8 +43,12 @@ TOPIC_LASER = "/slitcli/scan/laser"
 TOPIC_STEREO = "/slitcli/scan/stereo"
 TOPIC_LEFT = "/slitcli/left/image_rect"
 TOPIC_DISTANCE = "/slitcli/distance/image"
+TOPIC_CAMERA_INFO = "/slitcli/left/camera_info"
+TOPIC_TF_STATIC = "/tf_static"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 FORMATS = {".mcap": "ROS 2 MCAP", ".bag": "ROS 1", "": "ROS 2 sqlite3"}
 
 
@@ -64,8 +68,9 @@ class ExportParams:
         stamped ``i * period_s``; also each scan's ``scan_time`` when the times do not
         give one.
     images : bool
-        Also write the rectified left image (``bgr8``) and, where the run saved it, the
-        distance image (``16UC1``, millimetres, 0 = invalid, REP 118).
+        Also write the rectified left image (``bgr8``), where the run saved it the
+        distance image (``16UC1``, millimetres, 0 = invalid, REP 118), the camera's
+        ``CameraInfo`` and its pose in the scans' frame on ``/tf_static``.
     """
 
     frame_id: str = "slitcli_sensor"
@@ -170,8 +175,35 @@ class _Bag:
         self.ros1 = kind == ".bag"
         self.conns: dict[str, Any] = {}
 
-    def connect(self, topic: str, msgtype: str) -> None:
-        self.conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.ts)
+    def connect(self, topic: str, msgtype: str, *, latched: bool = False) -> None:
+        """Add a topic; ``latched``: a late subscriber still gets the last message
+        (ROS 1 latching, ROS 2 transient-local durability), as ``/tf_static`` needs."""
+        extra: dict[str, Any] = {}
+        if latched and self.ros1:
+            extra["latching"] = 1
+        elif latched:
+            from rosbags.interfaces import (
+                Qos,
+                QosDurability,
+                QosHistory,
+                QosLiveliness,
+                QosReliability,
+                QosTime,
+            )
+
+            zero = QosTime(0, 0)
+            extra["offered_qos_profiles"] = [Qos(
+                QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
+                QosDurability.TRANSIENT_LOCAL, zero, zero, QosLiveliness.AUTOMATIC, zero,
+                False)]
+        if msgtype not in self.ts.types and msgtype == TF_MESSAGE:
+            # the ROS 1 store lacks tf2_msgs; register it on this (private) store
+            from rosbags.typesys import get_types_from_msg
+
+            self.ts.register(get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", TF_MESSAGE))
+        self.conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.ts,
+                                                       **extra)
 
     def header(self, stamp_ns: int, frame_id: str, seq: int) -> Any:
         types = self.ts.types
@@ -203,6 +235,64 @@ def _image_msg(bag: _Bag, header: Any, image: np.ndarray, encoding: str) -> Any:
         is_bigendian=0, step=img.shape[1] * img.itemsize * (img.shape[2] if img.ndim == 3
                                                             else 1),
         data=img.reshape(-1).view(np.uint8))
+
+
+def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w), w >= 0, of a 3 x 3 rotation matrix.
+
+    Uses the largest of the four ``|q_i|`` candidates (Shepperd's method), so it is
+    accurate for every rotation.
+    """
+    m = np.asarray(rotation, dtype=np.float64)
+    t = np.trace(m)
+    cand = np.array([1 + 2 * m[0, 0] - t, 1 + 2 * m[1, 1] - t, 1 + 2 * m[2, 2] - t, 1 + t])
+    k = int(np.argmax(cand))
+    q = np.empty(4)
+    q[k] = 0.5 * math.sqrt(max(cand[k], 0.0))
+    f = 0.25 / q[k]
+    # off-diagonal sums and differences give the other three components
+    if k == 3:
+        q[:3] = f * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    else:
+        i, j, l = k, (k + 1) % 3, (k + 2) % 3
+        q[j] = f * (m[j, i] + m[i, j])
+        q[l] = f * (m[l, i] + m[i, l])
+        q[3] = f * (m[l, j] - m[j, l])
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0 else q
+
+
+def _camera_msgs(bag: _Bag, run: DetectRun, p: ExportParams, stamp_ns: int
+                 ) -> tuple[Any, Any]:
+    """The left camera's CameraInfo and the sensor -> camera transform (from the rig).
+
+    The images are rectified, so the model is the rectified pinhole (no distortion,
+    R = I, P = [K | 0]). The transform places the camera's optical frame (x right,
+    y down, z forward) in the scans' frame: rotation ``R_sensor_from_cam``, translation
+    the optical centre (DESIGN §2).
+    """
+    types, rig = bag.ts.types, run.rig
+    k = np.array([rig.left.fx_px, 0.0, rig.left.cx_px, 0.0, rig.left.fy_px, rig.left.cy_px,
+                  0.0, 0.0, 1.0])
+    proj = np.array([rig.left.fx_px, 0.0, rig.left.cx_px, 0.0, 0.0, rig.left.fy_px,
+                     rig.left.cy_px, 0.0, 0.0, 0.0, 1.0, 0.0])
+    arrays = {"d": np.zeros(5), "k": k, "r": np.eye(3).ravel(), "p": proj}
+    if bag.ros1:
+        arrays = {key.upper(): v for key, v in arrays.items()}
+    roi = types["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0,
+                                                   width=0, do_rectify=False)
+    info = types[CAMERA_INFO](
+        header=bag.header(stamp_ns, p.camera_frame_id, 0), height=rig.height_px,
+        width=rig.width_px, distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi,
+        **arrays)
+    qx, qy, qz, qw = quaternion_xyzw(rig.R_sensor_from_cam)
+    tx, ty, tz = (float(v) for v in rig.cam_origin_sensor_xyz)
+    tf = types["geometry_msgs/msg/TransformStamped"](
+        header=bag.header(stamp_ns, p.frame_id, 0), child_frame_id=p.camera_frame_id,
+        transform=types["geometry_msgs/msg/Transform"](
+            translation=types["geometry_msgs/msg/Vector3"](x=tx, y=ty, z=tz),
+            rotation=types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)))
+    return info, types[TF_MESSAGE](transforms=[tf])
 
 
 def stamps_ns(run: DetectRun, params: ExportParams, source: str | Path | None
@@ -302,6 +392,11 @@ def _write(path: Path, kind: str, run: DetectRun, p: ExportParams, layout: ScanL
         if images is not None:
             bag.connect(TOPIC_LEFT, IMAGE)
             bag.connect(TOPIC_DISTANCE, IMAGE)
+            bag.connect(TOPIC_CAMERA_INFO, CAMERA_INFO)
+            bag.connect(TOPIC_TF_STATIC, TF_MESSAGE, latched=True)
+            bag.write(TOPIC_TF_STATIC, int(stamps[0]), _camera_msgs(bag, run, p,
+                                                                  int(stamps[0]))[1])
+            n += 1
         for i in range(run.n_frames):
             stamp = int(stamps[i])
             for topic, r in scans:
@@ -312,7 +407,9 @@ def _write(path: Path, kind: str, run: DetectRun, p: ExportParams, layout: ScanL
                 left, dist = next(images)
                 hdr = bag.header(stamp, p.camera_frame_id, int(run.frames[i]))
                 bag.write(TOPIC_LEFT, stamp, _image_msg(bag, hdr, left, "bgr8"))
-                n += 1
+                info = _camera_msgs(bag, run, p, stamp)[0]
+                bag.write(TOPIC_CAMERA_INFO, stamp, info)
+                n += 2
                 if dist is not None:
                     bag.write(TOPIC_DISTANCE, stamp, _image_msg(bag, hdr, dist, "16UC1"))
                     n += 1

@@ -219,3 +219,53 @@ def test_cli_writes_the_bag_and_prints_a_summary(run6, tmp_path):
     assert res.exit_code == 0, res.output
     assert "6 frames, 18 messages (ROS 2 MCAP" in res.stdout
     assert len(read_bag(tmp_path / "c.mcap")[TOPIC_FUSED]) == 6
+
+
+def _matrix(q):
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_quaternion_of_a_rotation(seed):
+    from slitcli.export import quaternion_xyzw
+
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        # random rotations, and near-half-turns where the trace is close to -1
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        q *= np.sign(np.linalg.det(q))
+        got = quaternion_xyzw(q)
+        assert np.linalg.norm(got) == pytest.approx(1.0) and got[3] >= 0
+        np.testing.assert_allclose(_matrix(got), q, atol=1e-12)
+    half = np.diag([1.0, -1.0, -1.0])  # a half turn about x: q = (1, 0, 0, 0)
+    np.testing.assert_allclose(quaternion_xyzw(half), [1, 0, 0, 0], atol=1e-15)
+
+
+@pytest.mark.parametrize("kind", [".mcap", ".bag"])
+def test_images_come_with_camera_info_and_the_camera_pose(run6, tmp_path, kind):
+    seq, det = run6
+    out = tmp_path / NAMES[kind]
+    export_run(det, out, params=ExportParams(images=True), source=seq)
+    got = read_bag(out)
+    from slitcli.rig import load_rig
+
+    rig = load_rig(seq / "rig.yaml")
+    (_, tfm), = got["/tf_static"]
+    tf = tfm.transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id) == ("slitcli_sensor",
+                                                       "slitcli_camera_optical")
+    r = tf.transform.rotation
+    t = tf.transform.translation
+    # a camera point taken to the sensor frame by the transform and by the rig agree
+    p_cam = np.array([0.3, -0.2, 1.7])
+    via_tf = _matrix((r.x, r.y, r.z, r.w)) @ p_cam + np.array([t.x, t.y, t.z])
+    np.testing.assert_allclose(via_tf, rig.cam_to_sensor(p_cam), atol=1e-12)
+    infos = got["/slitcli/left/camera_info"]
+    assert len(infos) == 6
+    info = infos[0][1]
+    k = info.K if kind == ".bag" else info.k
+    np.testing.assert_allclose(k, [250, 0, 159.5, 0, 250, 119.5, 0, 0, 1])
+    assert (info.width, info.height) == (320, 240)

@@ -22,8 +22,9 @@ from slitcli.cli import cli
               help="Frame period, seconds, for runs without frame times (frame i is "
               "stamped i x period).")
 @click.option("--images", is_flag=True, help="Also write the rectified left image (bgr8) on "
-              "/slitcli/left/image_rect and the distance image (16UC1, mm; needs detect "
-              "--save-images) on /slitcli/distance/image.")
+              "/slitcli/left/image_rect, the distance image (16UC1, mm; needs detect "
+              "--save-images) on /slitcli/distance/image, the camera on "
+              "/slitcli/left/camera_info and its pose on /tf_static.")
 @click.option("--source", type=click.Path(path_type=Path), default=None,
               help="The run's input (sequence folder or bag) for --images and a bag's exact "
               "stamps [default: the path the run's manifest records].")
