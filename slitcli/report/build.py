@@ -352,10 +352,11 @@ def _rectified(run: DetectRun):
 
 def _img_tag(path: Path, alt: str) -> str:
     import base64
+    import html
 
     data = base64.b64encode(path.read_bytes()).decode("ascii")
     mime = "image/jpeg" if path.suffix == ".jpg" else "image/png"
-    return f'<img alt="{alt}" src="data:{mime};base64,{data}">'
+    return f'<img alt="{html.escape(alt)}" src="data:{mime};base64,{data}">'
 
 
 def render_html(run: DetectRun, folder: Path, share: dict[str, float], p: ReportParams,
@@ -374,7 +375,8 @@ def render_html(run: DetectRun, folder: Path, share: dict[str, float], p: Report
             ("rig", esc(run.rig.name)),
             ("fusion", esc(str(run.manifest.get("params", {}).get("fusion_mode", "?")))),
             ("nearest fused range", f"{nearest:.3f} m" if math.isfinite(nearest) else "none")]
-    rows += [(f"bins ranged by {k}", f"{100 * v:.1f} %") for k, v in share.items()]
+    rows += [(f"bins ranged by {k}" if k != "none" else "bins without a range (neither)",
+              f"{100 * v:.1f} %") for k, v in share.items()]
     table = "\n".join(f"<tr><th>{a}</th><td>{b}</td></tr>" for a, b in rows)
     parts = [f"<h1>slitcli detection report</h1>\n<table>{table}</table>"]
     for name, title, text in (
