@@ -83,7 +83,7 @@ def main() -> None:
 
 
 # The subcommands register themselves on `cli` when their modules are imported.
-from slitcli.cli import calibrate, detect, dwa, figures, laser, rig, sim, stereo  # noqa: E402
+from slitcli.cli import calibrate, detect, dwa, export, figures, laser, report, rig, sim, stereo  # noqa: E402
 
-__all__ = ["calibrate", "cli", "detect", "dwa", "figures", "laser", "main", "rig", "sim",
-           "stereo"]
+__all__ = ["calibrate", "cli", "detect", "dwa", "export", "figures", "laser", "main", "report",
+           "rig", "sim", "stereo"]
