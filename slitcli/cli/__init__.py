@@ -7,6 +7,7 @@ exception is an internal error (exit 1, one line; the traceback with ``--debug``
 
 from __future__ import annotations
 
+import re
 import sys
 import traceback
 from typing import Any
@@ -15,6 +16,40 @@ import click
 
 from slitcli import __version__
 from slitcli.errors import SlitcliError
+
+# Library parameter names (SlitcliError.param) and the options that set them. One
+# table for every command: a parameter keeps its meaning, so its option keeps its name.
+PARAM_FLAGS: dict[str, str] = {
+    "bin_deg": "--bin-deg", "rig_path": "--rig", "rig": "--rig", "jobs": "--jobs",
+    "overwrite": "--overwrite", "max_dt_s": "--max-dt", "left_topic": "--left-topic",
+    "right_topic": "--right-topic", "fusion_mode": "--fusion",
+    "range_column": "--range-column", "memory_s": "--memory-s",
+    "memory_cell_m": "--memory-cell-m", "goal_xy_m": "--goal",
+    "sensing_range_m": "--sensing-range", "colour_order": "--colour-order",
+    "matcher": "--matcher", "prefilter": "--prefilter", "subpixel": "--subpixel",
+    "num_disparities": "--num-disparities", "min_disparity": "--min-disparity",
+    "window_w_px": "--window", "window_h_px": "--window", "window": "--window",
+    "texture_min_dn": "--texture-min", "uniqueness_ratio": "--uniqueness",
+    "lr_max_diff_px": "--lr-max-diff", "support_min_zncc": "--support-min",
+    "support_cross_min_zncc": "--support-cross-min",
+    "speckle_window_px": "--speckle-window", "speckle_range_px": "--speckle-range",
+    "floor_margin_m": "--floor-margin", "robot_height_m": "--robot-height",
+    "max_range_m": "--max-range", "frames": "--frames", "seed": "--seed",
+}
+
+
+def user_message(e: SlitcliError) -> str:
+    """The error's message with its library parameter names replaced by CLI flags.
+
+    A parameter without an option of its own keeps its library name (a library
+    setting the command line does not expose is still named precisely).
+    """
+    msg = str(e)
+    for name in e.params:
+        flag = PARAM_FLAGS.get(name)
+        if flag is not None:
+            msg = re.sub(rf"(?<![\w-]){re.escape(name)}(?![\w-])", flag, msg)
+    return msg
 
 
 class _Group(click.Group):
@@ -31,7 +66,7 @@ class _Group(click.Group):
         except SlitcliError as e:
             if debug:
                 traceback.print_exc()
-            click.echo(f"slitcli: error: {e}", err=True)
+            click.echo(f"slitcli: error: {user_message(e)}", err=True)
             sys.exit(2)
         except click.exceptions.NoArgsIsHelpError as e:
             click.echo(e.ctx.get_help() if e.ctx else str(e), err=True)
