@@ -21,10 +21,9 @@ from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_csv_atomic
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS
 
-CMDS_COLUMNS = ("frame", "time_s", "x_m", "y_m", "heading_deg", "goal_distance_m", "v_mps",
-                "w_dps", "status", "d_collision_m", "n_points")
-RANGE_COLUMNS = ("laser_range_m", "stereo_range_m", "fused_range_m")
+CMDS_COLUMNS = DWA_COMMANDS.columns
 
 
 def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> pd.DataFrame:
@@ -34,9 +33,9 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> p
     non-numeric values, an empty table or a time that does not increase with frame.
     """
     p = Path(path)
-    if range_column not in RANGE_COLUMNS:
+    if range_column not in RANGE_VALUE_COLUMNS:
         raise SlitcliError(f"range_column {range_column!r} is not a range column; use one of "
-                           f"{', '.join(RANGE_COLUMNS)}", param="range_column")
+                           f"{', '.join(RANGE_VALUE_COLUMNS)}", param="range_column")
     try:
         df = pd.read_csv(p)
     except FileNotFoundError:
@@ -50,7 +49,7 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> p
     missing = [c for c in need if c not in df.columns]
     if missing:
         raise SlitcliError(f"{p}: missing column(s) {', '.join(missing)}; a range table has "
-                           "frame, time_s, bearing_deg and " + ", ".join(RANGE_COLUMNS))
+                           "frame, time_s, bearing_deg and " + ", ".join(RANGE_VALUE_COLUMNS))
     if len(df) == 0:
         raise SlitcliError(f"{p}: the range table has no rows; run detect on a non-empty "
                            "sequence")

@@ -25,7 +25,7 @@ PARAM_FLAGS: dict[str, str] = {
     "right_topic": "--right-topic", "fusion_mode": "--fusion",
     "range_column": "--range-column", "memory_s": "--memory-s",
     "memory_cell_m": "--memory-cell-m", "goal_xy_m": "--goal",
-    "sensing_range_m": "--sensing-range", "colour_order": "--colour-order",
+    "sensing_range_m": "--sensing-range",
     "matcher": "--matcher", "prefilter": "--prefilter", "subpixel": "--subpixel",
     "num_disparities": "--num-disparities", "min_disparity": "--min-disparity",
     "window_w_px": "--window", "window_h_px": "--window", "window": "--window",
@@ -110,6 +110,24 @@ def cli(debug: bool) -> None:
 
     Frames: sensor x forward, y left, z up, origin on the floor below the left camera.
     """
+
+
+def bag_options(f: Any) -> Any:
+    """The options that read a ROS bag as a frame source (``laser``, ``stereo``, ``detect``)."""
+    from slitcli.io.frames import DEFAULT_LEFT_TOPIC, DEFAULT_MAX_DT_S, DEFAULT_RIGHT_TOPIC
+
+    options = [
+        click.option("--left-topic", default=DEFAULT_LEFT_TOPIC, show_default=True,
+                     help="Bag topic of the left images."),
+        click.option("--right-topic", default=DEFAULT_RIGHT_TOPIC, show_default=True,
+                     help="Bag topic of the right images."),
+        click.option("--max-dt", type=float, default=DEFAULT_MAX_DT_S, show_default=True,
+                     help="Largest left/right stamp difference that pairs two bag images, "
+                     "seconds."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
 
 
 def main() -> None:

@@ -29,23 +29,12 @@ import pandas as pd
 import yaml
 
 from slitcli.io.atomic import atomic_directory, write_png_atomic
+from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png
 from slitcli.rig import Rig
 from slitcli.sim.render import FrameTruth, render_frame
 from slitcli.sim.scene import Box, Cylinder, Scene, Wall
 
 FRAME_NAME = "{:06d}"
-
-
-def encode_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
-    """KITTI convention: uint16 = round(disparity * 256), 0 = invalid."""
-    d = np.where(np.isfinite(disparity_px) & (disparity_px > 0), disparity_px, 0.0)
-    return np.clip(np.rint(d * 256.0), 0, 65535).astype(np.uint16)
-
-
-def encode_depth_png(depth_m: np.ndarray) -> np.ndarray:
-    """ROS 16UC1 convention: uint16 millimetres, 0 = invalid (beyond 65.535 m too)."""
-    mm = np.where(np.isfinite(depth_m) & (depth_m > 0), np.rint(depth_m * 1000.0), 0.0)
-    return np.where(mm <= 65535, mm, 0).astype(np.uint16)
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -159,7 +148,7 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
             t = fr.truth
             write_png_atomic(tmp / "gt/disparity" / name, encode_disparity_png(t.disparity_px))
             write_png_atomic(tmp / "gt/distance" / name, encode_depth_png(t.depth_m))
-            write_png_atomic(tmp / "gt/mask" / name, (t.obstacle_mask * 255).astype(np.uint8))
+            write_png_atomic(tmp / "gt/mask" / name, encode_mask_png(t.obstacle_mask))
             write_truth_npz(tmp / "gt" / f"frame_{FRAME_NAME.format(i)}.npz", t)
             laser_tables.append(truth_laser_rows(i, t))
             stripe_cols += int(np.isfinite(t.stripe_v_px).sum())
