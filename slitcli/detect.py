@@ -76,7 +76,7 @@ class DetectParams:
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.bin_deg <= 10.0:
-            raise SlitcliError(f"bin_deg {self.bin_deg} is out of range; give 0.05-10 degrees",
+            raise SlitcliError(f"`bin_deg` {self.bin_deg} is out of range; give 0.05-10 degrees",
                                param="bin_deg")
         FusionParams(mode=self.fusion_mode)  # validates the mode
 
@@ -148,7 +148,7 @@ class Detector:
     def __init__(self, rig: Rig, params: DetectParams | None = None, *,
                  colour_order: str = "bgr", check_colours: bool = True) -> None:
         if colour_order not in COLOUR_ORDERS:
-            raise SlitcliError(f"colour_order {colour_order!r} is unknown; use 'bgr' or 'rgb'",
+            raise SlitcliError(f"`colour_order` {colour_order!r} is unknown; use 'bgr' or 'rgb'",
                                param="colour_order")
         p = DetectParams() if params is None else params
         stereo = replace(p.stereo, obstacles=replace(p.stereo.obstacles,
@@ -175,11 +175,11 @@ class Detector:
         for name, img in (("left_bgr", left), ("right_bgr", right)):
             a = np.asarray(img)
             if a.ndim != 3 or a.shape[2] != 3 or a.dtype != np.uint8:
-                raise SlitcliError(f"{name} is {a.dtype} of shape {a.shape}; give a colour "
+                raise SlitcliError(f"`{name}` is {a.dtype} of shape {a.shape}; give a colour "
                                    "image, uint8, shape (H, W, 3)", param=name)
             if (a.shape[1], a.shape[0]) != tuple(want):
-                raise SlitcliError(f"{name} is {a.shape[1]}x{a.shape[0]}, the rig's images "
-                                   f"are {want[0]}x{want[1]}; give the rig of this camera",
+                raise SlitcliError(f"`{name}` is {a.shape[1]}x{a.shape[0]}, the rig's images "
+                                   f"are {want[0]}x{want[1]}; give the rig of this camera (`rig`)",
                                    param=(name, "rig"))
         if self.colour_order == "rgb":
             left, right = left[..., ::-1], right[..., ::-1]
@@ -259,7 +259,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     t0 = time.perf_counter()
     params = DetectParams() if params is None else params
     if jobs < 1:
-        raise SlitcliError(f"jobs {jobs} must be at least 1", param="jobs")
+        raise SlitcliError(f"`jobs` {jobs} must be at least 1", param="jobs")
     src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
                       max_dt_s=max_dt_s)
     rig = src.rig(rig_path)

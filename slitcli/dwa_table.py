@@ -34,7 +34,7 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> p
     """
     p = Path(path)
     if range_column not in RANGE_VALUE_COLUMNS:
-        raise SlitcliError(f"range_column {range_column!r} is not a range column; use one of "
+        raise SlitcliError(f"`range_column` {range_column!r} is not a range column; use one of "
                            f"{', '.join(RANGE_VALUE_COLUMNS)}", param="range_column")
     try:
         df = pd.read_csv(p)
@@ -124,12 +124,12 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
                 memory_s: float = 10.0, memory_cell_m: float = 0.05) -> pd.DataFrame:
     """``slitcli dwa``: read the range table, plan every frame, write CMDS.csv atomically."""
     if not (memory_s >= 0 and math.isfinite(memory_s)):
-        raise SlitcliError(f"memory_s {memory_s!r} must be >= 0 (0 turns the memory off)",
+        raise SlitcliError(f"`memory_s` {memory_s!r} must be >= 0 (0 turns the memory off)",
                            param="memory_s")
     if not memory_cell_m > 0:
-        raise SlitcliError(f"memory_cell_m {memory_cell_m!r} must be > 0", param="memory_cell_m")
+        raise SlitcliError(f"`memory_cell_m` {memory_cell_m!r} must be > 0", param="memory_cell_m")
     if not all(math.isfinite(g) for g in goal_xy_m):
-        raise SlitcliError(f"goal_xy_m {goal_xy_m!r} must be two finite numbers X,Y in metres",
+        raise SlitcliError(f"`goal_xy_m` {goal_xy_m!r} must be two finite numbers X,Y in metres",
                            param="goal_xy_m")
     table = read_range_table(ranges_csv, range_column)
     cmds = plan_range_table(table, goal_xy_m, params, forward_m=forward_m, memory_s=memory_s,

@@ -7,7 +7,6 @@ exception is an internal error (exit 1, one line; the traceback with ``--debug``
 
 from __future__ import annotations
 
-import re
 import sys
 import traceback
 from typing import Any
@@ -41,14 +40,12 @@ PARAM_FLAGS: dict[str, str] = {
 def user_message(e: SlitcliError) -> str:
     """The error's message with its library parameter names replaced by CLI flags.
 
-    A parameter without an option of its own keeps its library name (a library
-    setting the command line does not expose is still named precisely).
+    Library messages quote a parameter in backticks (`bin_deg`); a parameter the
+    command line has no option for keeps its library name, unquoted.
     """
     msg = str(e)
     for name in e.params:
-        flag = PARAM_FLAGS.get(name)
-        if flag is not None:
-            msg = re.sub(rf"(?<![\w-]){re.escape(name)}(?![\w-])", flag, msg)
+        msg = msg.replace(f"`{name}`", PARAM_FLAGS.get(name, name))
     return msg
 
 

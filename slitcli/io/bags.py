@@ -79,7 +79,7 @@ def _open(path: Path):  # returns rosbags' AnyReader, opened
 def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: float) -> BagPairs:
     """Read the stamps of both topics and pair them (first pass, no image decoding)."""
     if not max_dt_s > 0:
-        raise SlitcliError(f"max_dt_s {max_dt_s} must be positive (seconds)", param="max_dt_s")
+        raise SlitcliError(f"`max_dt_s` {max_dt_s} must be positive (seconds)", param="max_dt_s")
     p = Path(path)
     reader = _open(p)
     try:
@@ -87,10 +87,10 @@ def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: floa
         images = sorted(t for t, ty in topics.items() if ty in IMAGE_TYPES)
         for opt, topic in (("left_topic", left_topic), ("right_topic", right_topic)):
             if topic not in topics:
-                raise SlitcliError(f"{p}: no topic {topic!r} ({opt}); image topics in this bag: "
+                raise SlitcliError(f"{p}: no topic {topic!r} (`{opt}`); image topics in this bag: "
                                    f"{', '.join(images) or 'none'}", param=opt)
             if topics[topic] not in IMAGE_TYPES:
-                raise SlitcliError(f"{p}: topic {topic!r} ({opt}) carries {topics[topic]}, not "
+                raise SlitcliError(f"{p}: topic {topic!r} (`{opt}`) carries {topics[topic]}, not "
                                    "images; choose one of " + (", ".join(images) or "none"),
                                    param=opt)
         stamps: dict[str, list[int]] = {left_topic: [], right_topic: []}
@@ -107,7 +107,7 @@ def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: floa
         raise SlitcliError(f"{p}: topic {empty!r} has no messages; the sequence is empty")
     li, ri = _pair(left, right, round(max_dt_s * 1e9))
     if len(li) == 0:
-        raise SlitcliError(f"{p}: no left/right pairs within max_dt_s {max_dt_s:g} s; "
+        raise SlitcliError(f"{p}: no left/right pairs within `max_dt_s` {max_dt_s:g} s; "
                            + _why_unpaired(left, right, max_dt_s), param="max_dt_s")
     return BagPairs(p, left_topic, right_topic, left[li], right[ri])
 
@@ -143,7 +143,7 @@ def _why_unpaired(left: np.ndarray, right: np.ndarray, max_dt_s: float) -> str:
                         "stamps or driver")
     hint = ""
     if gap_s > max_dt_s:
-        hint = (f"; if the cameras are not synchronised, try max_dt_s {gap_s * 1.5:.3g} "
+        hint = (f"; if the cameras are not synchronised, try `max_dt_s` {gap_s * 1.5:.3g} "
                 "(seconds, not milliseconds)")
     return f"the nearest left/right stamps are {gap_s:.3g} s apart (median){hint}"
 

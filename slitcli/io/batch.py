@@ -69,14 +69,14 @@ class FrameBatch:
                     changed = _changed_keys(old, manifest)
                     raise SlitcliError(
                         f"{self.out}: holds {name} results made with other settings "
-                        f"(changed: {changed}); pass overwrite to replace them or choose "
+                        f"(changed: {changed}); pass `overwrite` to replace them or choose "
                         "another output folder", param="overwrite")
                 shutil.rmtree(self.dir)
         elif self.out.exists() and any(self.out.iterdir()) and not overwrite:
             existing = next(iter(self.out.iterdir())).name
             raise SlitcliError(f"{self.out}: is not empty (it holds {existing}) and was not "
                                f"written by slitcli {name}; choose another output folder or "
-                               "pass overwrite", param="overwrite")
+                               "pass `overwrite`", param="overwrite")
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
         except OSError as e:
@@ -113,7 +113,7 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
     flat memory. With ``jobs == 1`` everything runs in this process.
     """
     if jobs < 1:
-        raise SlitcliError(f"jobs {jobs} must be at least 1", param="jobs")
+        raise SlitcliError(f"`jobs` {jobs} must be at least 1", param="jobs")
     if jobs == 1:
         if initializer is not None:
             initializer()

@@ -8,7 +8,7 @@ mount``) reads them through a :class:`FrameSource`:
   stamps); that number is the ``frame`` column of every table;
 - ``source.info`` per frame: :class:`FrameInfo` (index, name, time, and the identity
   of the input it was read from, for resumable batches);
-- ``source.frames(rig)`` decodes the pairs lazily, one at a time, in order, checks
+- ``source.frames(`rig`)`` decodes the pairs lazily, one at a time, in order, checks
   their sizes against each other and the rig, and with ``rectify=True`` rectifies
   raw pairs with the rig's ``raw`` block, once per frame.
 
@@ -164,7 +164,7 @@ class FolderFrames(FrameSource):
             if (lw, lh) != want:
                 raise SlitcliError(f"{ref.left_path}: size {lw}x{lh} does not match the "
                                    f"rig's {key} {want[0]}x{want[1]}; use the rig these images "
-                                   "were taken with (rig)", param="rig")
+                                   "were taken with (`rig`)", param="rig")
 
     def manifest(self) -> dict[str, Any]:
         h = hashlib.sha256()
@@ -196,7 +196,7 @@ class BagFrames(FrameSource):
     def rig(self, rig_path: str | Path | None = None) -> Rig:
         if rig_path is None:
             raise SlitcliError(f"{self.path}: a bag carries no rig; give the camera's rig "
-                               "(rig)", param="rig")
+                               "(`rig`)", param="rig")
         from slitcli.rig import load_rig
 
         return load_rig(rig_path)
@@ -217,7 +217,7 @@ class BagFrames(FrameSource):
                             f"{self.path}: frame {fr.index}: images are {got[0]}x{got[1]} "
                             f"(right {fr.right_bgr.shape[1]}x{fr.right_bgr.shape[0]}), the "
                             f"rig's are {want[0]}x{want[1]}; give the rig of this camera "
-                            "(rig)", param="rig")
+                            "(`rig`)", param="rig")
                 yield fr
 
         yield from _rectified(decoded(), rig, rectify)

@@ -119,7 +119,7 @@ def read_frame(ref: FrameRef, rig: Rig | None = None) -> StereoFrame:
             which = "raw.image_size_px" if rig.raw is not None else "image_size_px"
             raise SlitcliError(f"{ref.left_path}: size {left.shape[1]}x{left.shape[0]} does "
                                f"not match the rig's {which} {want[0]}x{want[1]}; use the rig "
-                               "these images were taken with (rig)", param="rig")
+                               "these images were taken with (`rig`)", param="rig")
     return StereoFrame(ref.index, ref.name, ref.time_s, left, right)
 
 

@@ -253,8 +253,8 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     if m >= min_cols and m >= 4 * max(n, 1):
         raise SlitcliError(
             f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
-            f"({m} stripe columns with red and blue swapped, {n} as given); pass "
-            "colour_order='rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
+            f"({m} stripe columns with red and blue swapped, {n} as given); set "
+            "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
             param="colour_order")
 
 
