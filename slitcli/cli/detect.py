@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import bag_options, cli
+from slitcli.cli.main import bag_options, cli
 from slitcli.cli.stereo import matcher_options, stereo_params
 
 

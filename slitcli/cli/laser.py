@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli import bag_options, cli
+from slitcli.cli.main import bag_options, cli
 
 
 def _laser_defaults() -> dict[str, Any]:

@@ -26,7 +26,6 @@ or on any number of workers. :func:`slitcli.laser.detect_laser` still takes a
 from __future__ import annotations
 
 import hashlib
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -44,12 +43,6 @@ if TYPE_CHECKING:
 DEFAULT_LEFT_TOPIC = "/stereo/left/image_raw"
 DEFAULT_RIGHT_TOPIC = "/stereo/right/image_raw"
 DEFAULT_MAX_DT_S = 0.01
-
-
-def natural_key(name: str) -> tuple:
-    """Sort key that orders the digit runs of a name by value (``frame_2`` < ``frame_10``)."""
-    return tuple((0, int(t), t) if t.isdigit() else (1, 0, t)
-                 for t in re.split(r"(\d+)", name) if t)
 
 
 @dataclass(frozen=True)
@@ -264,5 +257,4 @@ def open_frames(path: str | Path, *, left_topic: str = DEFAULT_LEFT_TOPIC,
     return FolderFrames(p)
 
 
-__all__ = ["BagFrames", "FolderFrames", "FrameInfo", "FrameSource", "natural_key",
-           "open_frames"]
+__all__ = ["BagFrames", "FolderFrames", "FrameInfo", "FrameSource", "open_frames"]
