@@ -10,6 +10,7 @@ Layout written by :func:`render_sequence` (docs/sequence.md, docs/ground-truth.m
     OUT/gt/distance/000000.png    16-bit, depth along the optical axis in mm, 0 = none
     OUT/gt/mask/000000.png        8-bit, 255 = obstacle pixel
     OUT/gt/laser.csv     laser-table columns for the true stripe points
+    OUT/gt/laser_ranges.csv   frame,time_s,bearing_deg,laser_true_m (nearest lit point)
     OUT/gt/ranges.csv    frame,time_s,bearing_deg,range_m (true nearest obstacle)
     OUT/gt/poses.csv     frame,time_s,x_m,y_m,yaw_deg (robot rotation centre, world)
     OUT/gt/frame_000000.npz   lossless float truth (every FrameTruth array)
@@ -31,6 +32,7 @@ import yaml
 from slitcli.io.atomic import atomic_directory, write_png_atomic
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png
 from slitcli.rig import Rig
+from slitcli.sim.laser_truth import lit_wedge_ranges
 from slitcli.sim.render import FrameTruth, render_frame
 from slitcli.sim.scene import Box, Cylinder, Scene, Wall
 
@@ -135,7 +137,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         scene = replace(scene, seed=seed)
     poses = scene.poses(frames)
     times = scene.times_s(frames)
-    laser_tables, range_tables, pose_rows = [], [], []
+    laser_tables, range_tables, lit_tables, pose_rows = [], [], [], []
+    _, bin_lo, bin_hi = rig.bearing_bins(1.0)
     stripe_cols = 0
     with atomic_directory(out, overwrite=overwrite) as tmp:
         for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
@@ -155,6 +158,9 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
             range_tables.append(pd.DataFrame({"frame": i, "time_s": times[i],
                                               "bearing_deg": t.bearing_deg,
                                               "range_m": t.range_m}))
+            lit_tables.append(pd.DataFrame({
+                "frame": i, "time_s": times[i], "bearing_deg": t.bearing_deg,
+                "laser_true_m": lit_wedge_ranges(scene, rig, pose, bin_lo, bin_hi)}))
             pose_rows.append((i, times[i], pose.x_m, pose.y_m, math.degrees(pose.yaw_rad)))
             if on_frame is not None:
                 on_frame(i + 1, len(poses))
@@ -163,6 +169,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
             tmp / "times.csv", index=False, float_format=fmt, lineterminator="\n")
         pd.concat(laser_tables).to_csv(tmp / "gt/laser.csv", index=False, float_format=fmt,
                                        lineterminator="\n")
+        pd.concat(lit_tables).to_csv(tmp / "gt/laser_ranges.csv", index=False,
+                                     float_format=fmt, lineterminator="\n", na_rep="")
         ranges = pd.concat(range_tables)
         ranges.to_csv(tmp / "gt/ranges.csv", index=False, float_format=fmt,
                       lineterminator="\n", na_rep="")
