@@ -294,7 +294,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     counts = pd.read_csv(table, usecols=["fused_source"])["fused_source"].value_counts()
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
                       MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
-                                        "stereo_bins": int(counts.get("stereo", 0))}))
+                                        "stereo_bins": int(counts.get("stereo", 0))}),
+                      src.notes())
 
 
 def summary_line(summary: RunSummary) -> str:

@@ -21,7 +21,7 @@ from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_csv_atomic
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
-from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS
+from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS, format_time_s
 
 CMDS_COLUMNS = DWA_COMMANDS.columns
 
@@ -134,5 +134,6 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
     table = read_range_table(ranges_csv, range_column)
     cmds = plan_range_table(table, goal_xy_m, params, forward_m=forward_m, memory_s=memory_s,
                             memory_cell_m=memory_cell_m)
-    write_csv_atomic(out_csv, cmds)
+    # times keep every digit of their stamps (a wall-clock 1.7e9 s with %.6g loses them)
+    write_csv_atomic(out_csv, cmds.assign(time_s=[format_time_s(t) for t in cmds["time_s"]]))
     return cmds

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli.main import bag_options, cli
+from slitcli.cli.main import bag_options, cli, echo_notes
 from slitcli.cli.stereo import matcher_options, stereo_params
 
 
@@ -56,4 +56,5 @@ def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_
                              save_images=save_images, overwrite=overwrite,
                              left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
                              on_progress=on_progress)
+    echo_notes(summary.notes)
     click.echo(summary_line(summary))

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli.main import bag_options, cli
+from slitcli.cli.main import bag_options, cli, echo_notes
 
 
 def _laser_defaults() -> dict[str, Any]:
@@ -97,6 +97,7 @@ def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool, left_t
         summary = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay,
                             left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
                             on_progress=on_progress)
+    echo_notes(summary.notes)
     click.echo(summary.line(f"{summary.counts['stripe_columns']} stripe columns"))
 
 

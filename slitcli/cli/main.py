@@ -37,16 +37,24 @@ PARAM_FLAGS: dict[str, str] = {
 }
 
 
-def user_message(e: SlitcliError) -> str:
-    """The error's message with its library parameter names replaced by CLI flags.
+def to_flags(text: str, names: tuple[str, ...] | None = None) -> str:
+    """``text`` with the library parameters it quotes in backticks (`bin_deg`) replaced
+    by CLI flags (``names``: only these; default every known parameter). A parameter the
+    command line has no option for keeps its library name, unquoted."""
+    for name in PARAM_FLAGS if names is None else names:
+        text = text.replace(f"`{name}`", PARAM_FLAGS.get(name, name))
+    return text
 
-    Library messages quote a parameter in backticks (`bin_deg`); a parameter the
-    command line has no option for keeps its library name, unquoted.
-    """
-    msg = str(e)
-    for name in e.params:
-        msg = msg.replace(f"`{name}`", PARAM_FLAGS.get(name, name))
-    return msg
+
+def user_message(e: SlitcliError) -> str:
+    """The error's message with its library parameter names replaced by CLI flags."""
+    return to_flags(str(e), e.params)
+
+
+def echo_notes(notes: tuple[str, ...]) -> None:
+    """A run's notes on stderr, one line each, in the command line's terms."""
+    for note in notes:
+        click.echo(f"slitcli: note: {to_flags(note)}", err=True)
 
 
 class _Group(click.Group):
@@ -120,7 +128,8 @@ def bag_options(f: Any) -> Any:
                      help="Bag topic of the right images."),
         click.option("--max-dt", type=float, default=DEFAULT_MAX_DT_S, show_default=True,
                      help="Largest left/right stamp difference that pairs two bag images, "
-                     "seconds."),
+                     "seconds. Synchronised cameras: a few ms; free-running cameras: half the "
+                     "frame period (0.05 at 10 Hz). Unpaired images are reported."),
     ]
     for option in reversed(options):
         f = option(f)

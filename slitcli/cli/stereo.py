@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli.main import bag_options, cli
+from slitcli.cli.main import bag_options, cli, echo_notes
 from slitcli.errors import SlitcliError
 
 
@@ -134,5 +134,6 @@ def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, left_topic: str,
         summary = run_stereo(seq, out, rig_path=rig_path, params=params,
                              overwrite=overwrite, left_topic=left_topic,
                              right_topic=right_topic, max_dt_s=max_dt, on_progress=on_progress)
+    echo_notes(summary.notes)
     click.echo(summary.line(f"mean valid disparity fraction "
                             f"{summary.counts['valid_fraction']:.3f}"))

@@ -96,6 +96,10 @@ class FrameSource:
         """JSON-able identity of the input, for the manifests of resumable batches."""
         raise NotImplementedError
 
+    def notes(self) -> tuple[str, ...]:
+        """What the user should know about the input (bags: images left unpaired)."""
+        return ()
+
 
 def _rectified(frames: Iterator[StereoFrame], rig: Rig | None, rectify: bool
                ) -> Iterator[StereoFrame]:
@@ -214,6 +218,10 @@ class BagFrames(FrameSource):
                 yield fr
 
         yield from _rectified(decoded(), rig, rectify)
+
+    def notes(self) -> tuple[str, ...]:
+        report = self.pairs.pairing_report()
+        return () if report is None else (report,)
 
     def manifest(self) -> dict[str, Any]:
         p = self.pairs

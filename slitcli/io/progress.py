@@ -38,6 +38,9 @@ class RunSummary:
         The tables (and folders) written.
     counts : mapping str -> number
         Command-specific counts (``laser_bins``, ``valid_fraction``...).
+    notes : tuple of str
+        What the user should know about the input (e.g. bag images left unpaired);
+        parameters named in backticks as in :class:`slitcli.errors.SlitcliError`.
     """
 
     command: str
@@ -46,6 +49,7 @@ class RunSummary:
     seconds: float
     outputs: tuple[Path, ...]
     counts: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    notes: tuple[str, ...] = ()
 
     @property
     def computed(self) -> int:

@@ -84,7 +84,7 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     table = pd.read_csv(path, usecols=["frame"])
     outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
     return RunSummary("laser", len(src), 0, time.perf_counter() - t0, outputs,
-                      MappingProxyType({"stripe_columns": len(table)}))
+                      MappingProxyType({"stripe_columns": len(table)}), src.notes())
 
 
 def _run(src: FrameSource, rig: Rig, out: Path, params: LaserParams, overlay: bool,

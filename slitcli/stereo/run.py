@@ -162,4 +162,4 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
     batch.assemble(n, "stereo", out / RANGES_FILE, RANGES_HEADER)
     return RunSummary("stereo", n, skipped, time.perf_counter() - t0, (out / RANGES_FILE,),
                       MappingProxyType({"valid_fraction": float(np.mean(valid)) if valid
-                                        else float("nan")}))
+                                        else float("nan")}), src.notes())
