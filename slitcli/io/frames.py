@@ -37,7 +37,7 @@ from slitcli.errors import SlitcliError
 
 if TYPE_CHECKING:
     from slitcli.io.bags import BagPairs
-    from slitcli.io.sequence import StereoFrame, StereoSequence
+    from slitcli.io.sequence import StereoFrame
     from slitcli.rig import Rig
 
 DEFAULT_LEFT_TOPIC = "/stereo/left/image_raw"
@@ -114,27 +114,47 @@ def _rectified(frames: Iterator[StereoFrame], rig: Rig | None, rectify: bool
 
 
 class FolderFrames(FrameSource):
-    """A sequence folder: ``left/`` and ``right/`` with the same file names (docs/sequence.md)."""
+    """A folder of stereo pairs in one of the layouts of :mod:`slitcli.io.layouts`
+    (``slitcli``: ``left/`` and ``right/`` with the same names, docs/sequence.md; EuRoC,
+    KITTI raw, a flat folder of ``left*`` / ``right*``)."""
 
     kind = "folder"
 
     def __init__(self, folder: str | Path) -> None:
+        from slitcli.io.layouts import detect_layout, read_layout
         from slitcli.io.sequence import StereoSequence
 
         self.path = Path(folder)
-        self.sequence: StereoSequence = StereoSequence(self.path)
+        self.layout = detect_layout(self.path)
+        if self.layout == "slitcli":
+            self.refs = StereoSequence(self.path).refs
+            self._notes: tuple[str, ...] = ()
+        else:
+            self.refs, self._notes = read_layout(self.path, self.layout)
         self.info = [FrameInfo(r.index, r.name, r.time_s,
-                               f"{r.left_path.name},{r.right_path.name}")
-                     for r in self.sequence.refs]
+                               f"{r.left_path.name},{r.right_path.name}") for r in self.refs]
 
     def rig(self, rig_path: str | Path | None = None) -> Rig:
-        return self.sequence.rig(rig_path)
+        from slitcli.rig import load_rig, paper_rig
+
+        if rig_path is not None:
+            return load_rig(rig_path)
+        own = self.path / "rig.yaml"
+        if own.exists():
+            return load_rig(own)
+        if self.layout != "slitcli":
+            raise SlitcliError(f"{self.path}: a {self.layout} folder carries no slitcli rig; "
+                               "give the camera's rig (`rig`)", param="rig")
+        return paper_rig()
+
+    def notes(self) -> tuple[str, ...]:
+        return self._notes
 
     def frames(self, rig: Rig | None = None, *, skip: frozenset[int] | set[int] = frozenset(),
                rectify: bool = False) -> Iterator[StereoFrame]:
         from slitcli.io.sequence import read_frame
 
-        refs = (r for r in self.sequence.refs if r.index not in skip)
+        refs = (r for r in self.refs if r.index not in skip)
         yield from _rectified((read_frame(r, rig) for r in refs), rig, rectify)
 
     def check_sizes(self, rig: Rig) -> None:
@@ -144,7 +164,7 @@ class FolderFrames(FrameSource):
 
         want = tuple(rig.raw.image_size_px if rig.raw is not None else rig.image_size_px)
         key = "raw.image_size_px" if rig.raw is not None else "image_size_px"
-        for ref in self.sequence.refs:
+        for ref in self.refs:
             sizes = []
             for path in (ref.left_path, ref.right_path):
                 try:
@@ -165,11 +185,11 @@ class FolderFrames(FrameSource):
 
     def manifest(self) -> dict[str, Any]:
         h = hashlib.sha256()
-        for r in self.sequence.refs:
+        for r in self.refs:
             for p in (r.left_path, r.right_path):
                 h.update(p.name.encode() + b"\0")
                 h.update(p.read_bytes())
-        return {"kind": "folder", "frames": len(self),
+        return {"kind": "folder", "layout": self.layout, "frames": len(self),
                 "names": [i.name for i in self.info], "sha256": h.hexdigest()}
 
 
@@ -239,8 +259,10 @@ def open_frames(path: str | Path, *, left_topic: str = DEFAULT_LEFT_TOPIC,
     Parameters
     ----------
     path : path
-        A sequence folder (``left/``, ``right/``, optional ``times.csv``, ``rig.yaml``),
-        a ROS 1 ``.bag``, a ROS 2 ``.db3`` / ``.mcap`` file or a ROS 2 bag folder.
+        A sequence folder (``left/``, ``right/``, optional ``times.csv``, ``rig.yaml``;
+        or the EuRoC, KITTI raw or flat ``left*`` / ``right*`` layouts of
+        :mod:`slitcli.io.layouts`), a ROS 1 ``.bag``, a ROS 2 ``.db3`` / ``.mcap`` file
+        or a ROS 2 bag folder.
     left_topic, right_topic : str
         Image topics of a bag.
     max_dt_s : float
