@@ -48,7 +48,7 @@ class _Stages:
 
 def run(out: Path, figures: Path, report: Path) -> None:
     """Run every stage; see the module docstring."""
-    from slitcli.detect import DetectParams, run_detect
+    from slitcli.detect import DetectParams, run_detect, summary_line
     from slitcli.dwa import DwaParams
     from slitcli.rig import paper_rig
     from slitcli.sim.loop import SimParams, simulate_dwa
@@ -74,7 +74,7 @@ def run(out: Path, figures: Path, report: Path) -> None:
         def detect(scene: str = scene, mode: str = mode, target: Path = target) -> str:
             s = run_detect(out / "sequences" / scene, target,
                            params=DetectParams(fusion_mode=mode), save_images=True, jobs=2)
-            return s.line()
+            return summary_line(s)
 
         stages.run(f"detect {label}", (target / "ranges.csv").exists(), detect)
     dwa_out = out / "dwa"
