@@ -40,7 +40,6 @@ from slitcli.laser.frame import (
     EdgeParams,
     LaserFrame,
     LaserGeometry,
-    check_colour_order,
     detect_laser,
     laser_sight_range_m,
     nearest_range_per_bin,
@@ -58,6 +57,40 @@ from slitcli.stereo.pipeline import (
 from slitcli.stereo.rectify import rectify_pair
 
 COLOUR_ORDERS = ("bgr", "rgb")
+
+
+def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
+                       params: LaserParams | None = None, *,
+                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> None:
+    """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
+
+    A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
+    chromaticity rejects every column of it: the frame silently has no laser. So when
+    the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
+    columns, the stripe is searched again with the first and last channels swapped;
+    finding at least ``min_cols`` columns there (two of the extractor's shortest
+    segments, 8 columns each), four times as many as as given, means the channels are
+    swapped. A scene without any lit obstacle or floor in view costs one more
+    extraction and passes; a real blue light would have to form a thin line on the
+    laser plane's rows to be taken for the stripe.
+
+    Raises
+    ------
+    SlitcliError
+        ``param="colour_order"``, naming both counts.
+    """
+    n = int(found.found.sum())
+    if 2 * n >= min_cols:
+        return
+    swapped = detect_laser(np.ascontiguousarray(np.asarray(left_bgr)[..., ::-1]), rig, params,
+                           geometry=geometry)
+    m = int(swapped.found.sum())
+    if m >= min_cols and m >= 4 * max(n, 1):
+        raise SlitcliError(
+            f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
+            f"({m} stripe columns with red and blue swapped, {n} as given); set "
+            "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
+            param="colour_order")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,7 +169,7 @@ class Detector:
     check_colours : bool
         When the laser finds almost nothing, look for the stripe with red and blue
         swapped and raise :class:`SlitcliError` (``colour_order``) if it is there
-        (:func:`slitcli.laser.frame.check_colour_order`).
+        (:func:`check_colour_order`).
 
     Examples
     --------
@@ -315,5 +348,5 @@ def _jsonable(d: object) -> object:
     return d
 
 
-__all__ = ["COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection", "run_detect",
-           "summary_line"]
+__all__ = ["COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection", "check_colour_order",
+           "run_detect", "summary_line"]

@@ -19,7 +19,7 @@ _WHERE = {
     "extract_stripe": "extract",
     "LaserBins": "frame", "LaserFrame": "frame", "LaserGeometry": "frame",
     "bearing_bin_centres_deg": "frame", "bin_boundary_points": "frame",
-    "check_colour_order": "frame", "detect_laser": "frame", "laser_sight_range_m": "frame",
+    "detect_laser": "frame", "laser_sight_range_m": "frame",
     "nearest_range_per_bin": "frame", "triangulate_stripe": "frame",
     "draw_overlay": "overlay", "LaserParams": "params",
 }

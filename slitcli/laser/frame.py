@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from slitcli.errors import SlitcliError
 from slitcli.laser.extract import extract_stripe
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import BearingBins, absolute_bin, bin_count, bin_min, boundary_deg
@@ -222,40 +221,6 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
                       saturated=stripe.saturated, x_m=x, y_m=y, range_m=rng,
                       bearing_deg=bearing, in_band=in_band,
                       noise_sigma_dn=stripe.noise_sigma_dn, threshold_dn=stripe.threshold_dn)
-
-
-def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
-                       params: LaserParams | None = None, *,
-                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> None:
-    """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
-
-    A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
-    chromaticity rejects every column of it: the frame silently has no laser. So when
-    the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
-    columns, the stripe is searched again with the first and last channels swapped;
-    finding at least ``min_cols`` columns there (two of the extractor's shortest
-    segments, 8 columns each), four times as many as as given, means the channels are
-    swapped. A scene without any lit obstacle or floor in view costs one more
-    extraction and passes; a real blue light would have to form a thin line on the
-    laser plane's rows to be taken for the stripe.
-
-    Raises
-    ------
-    SlitcliError
-        ``param="colour_order"``, naming both counts.
-    """
-    n = int(found.found.sum())
-    if 2 * n >= min_cols:
-        return
-    swapped = detect_laser(np.ascontiguousarray(np.asarray(left_bgr)[..., ::-1]), rig, params,
-                           geometry=geometry)
-    m = int(swapped.found.sum())
-    if m >= min_cols and m >= 4 * max(n, 1):
-        raise SlitcliError(
-            f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
-            f"({m} stripe columns with red and blue swapped, {n} as given); set "
-            "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
-            param="colour_order")
 
 
 def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:

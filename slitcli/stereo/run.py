@@ -34,11 +34,13 @@ from slitcli.io.frames import (
     DEFAULT_RIGHT_TOPIC,
     FolderFrames,
     FrameInfo,
+    FrameSource,
     open_frames,
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
 from slitcli.io.progress import Progress, RunSummary
 from slitcli.ranges import STEREO_RANGES, csv_rows, format_time_s
+from slitcli.rig import Rig
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
@@ -73,6 +75,33 @@ def _write_frame(out: Path, batch: FrameBatch, ref: FrameInfo, res: StereoFrameR
         target = out / sub / name
         write_bytes_atomic(target, png_bytes(target, img))
     write_bytes_atomic(batch.part_path(ref.index, "stereo"), _ranges_rows(ref, res).encode())
+
+
+def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: FrameBatch,
+               done: frozenset[int], on_progress: Progress | None) -> list[float]:
+    """Match every frame not in ``done`` and write its files; the valid-pixel fractions."""
+    n, skipped = len(src), len(done)
+    valid: list[float] = []
+    frames = src.frames(rig, skip=done)
+    # reading the next pair and encoding / writing the last frame's PNGs run on a
+    # helper thread (OpenCV releases the GIL) while this thread matches
+    with ThreadPoolExecutor(max_workers=1) as io_pool:
+        reads = deque(io_pool.submit(next, frames, None) for _ in range(2))
+        writes: deque[Future] = deque()
+        k = 0
+        while (frame := reads.popleft().result()) is not None:
+            reads.append(io_pool.submit(next, frames, None))
+            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
+            writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
+            while len(writes) > 1:
+                writes.popleft().result()
+                if on_progress is not None:
+                    on_progress(skipped + k, n)
+            valid.append(float(np.isfinite(res.disparity_px).mean()))
+            k += 1
+        while writes:
+            writes.popleft().result()
+    return valid
 
 
 def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | None = None,
@@ -137,26 +166,7 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
     skipped = len(done)
     if on_progress is not None:
         on_progress(skipped, n)
-    valid: list[float] = []
-    frames = src.frames(rig, skip=done)
-    # reading the next pair and encoding / writing the last frame's PNGs run on a
-    # helper thread (OpenCV releases the GIL) while this thread matches
-    with ThreadPoolExecutor(max_workers=1) as io_pool:
-        reads = deque(io_pool.submit(next, frames, None) for _ in range(2))
-        writes: deque[Future] = deque()
-        k = 0
-        while (frame := reads.popleft().result()) is not None:
-            reads.append(io_pool.submit(next, frames, None))
-            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
-            writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
-            while len(writes) > 1:
-                writes.popleft().result()
-                if on_progress is not None:
-                    on_progress(skipped + k, n)
-            valid.append(float(np.isfinite(res.disparity_px).mean()))
-            k += 1
-        while writes:
-            writes.popleft().result()
+    valid = _match_all(src, rig, p, out, batch, done, on_progress)
     if on_progress is not None:
         on_progress(n, n)
     batch.assemble(n, "stereo", out / RANGES_FILE, RANGES_HEADER)
