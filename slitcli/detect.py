@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
@@ -30,6 +31,7 @@ from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
     DEFAULT_RIGHT_TOPIC,
+    BadFrame,
     FrameInfo,
     open_frames,
 )
@@ -57,6 +59,7 @@ from slitcli.stereo.pipeline import (
 from slitcli.stereo.rectify import rectify_pair
 
 COLOUR_ORDERS = ("bgr", "rgb")
+SKIPPED_FILE = "skipped_frames.csv"
 
 
 def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
@@ -250,6 +253,7 @@ class Detector:
 @dataclass(frozen=True)
 class _Task:
     info: FrameInfo
+    digest: str
     left_bgr: np.ndarray
     right_bgr: np.ndarray
 
@@ -266,6 +270,7 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
+    write_text_atomic(batch.part_path(i, "input"), task.digest)
     # the rows part goes last: its presence marks the frame as finished
     write_text_atomic(batch.part_path(i), csv_rows(res.table(i, task.info.time_s)))
     return i
@@ -275,13 +280,18 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                params: DetectParams | None = None, jobs: int = 1, save_images: bool = False,
                overwrite: bool = False, left_topic: str = DEFAULT_LEFT_TOPIC,
                right_topic: str = DEFAULT_RIGHT_TOPIC, max_dt_s: float = DEFAULT_MAX_DT_S,
-               on_progress: Progress | None = None) -> RunSummary:
+               on_bad_frame: str = "stop", on_progress: Progress | None = None) -> RunSummary:
     """Detect obstacles in every frame of a sequence folder or ROS bag.
 
     Writes ``OUT/ranges.csv`` (docs/detect.md) and with ``save_images`` also
     ``OUT/disparity/``, ``OUT/distance/``, ``OUT/mask/`` and ``OUT/laser.csv``. The run
     resumes where an earlier one with the same settings stopped; ``jobs`` processes
     give the same bytes as one. Progress: ``on_progress(done, total)``.
+
+    A frame that cannot be read stops the run (``on_bad_frame="stop"``: the error names
+    the file; finished frames are kept for the resume) or is skipped (``"skip"``: no
+    rows, listed in ``OUT/skipped_frames.csv`` and in the summary; a re-run tries it
+    again).
 
     Returns
     -------
@@ -298,27 +308,44 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     rig = src.rig(rig_path)
     detector = Detector(rig, params)  # checks every parameter before anything is written
     n = len(src)
-    manifest = {"command": "detect", "format": 2, "input": src.manifest(), "rig": rig.to_dict(),
+    manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": _jsonable(asdict(params)), "save_images": save_images}
     batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite)
     kinds = ("rows", "laser") if save_images else ("rows",)
     if save_images:
         for sub in ("disparity", "distance", "mask"):
             (batch.out / sub).mkdir(exist_ok=True)
-    finished = frozenset(i for i in range(n) if batch.is_done(i, kinds))
+    digests = [src.frame_digest(i) for i in range(n)]
+    finished = frozenset(i for i in range(n) if batch.is_done(i, (*kinds, "input"))
+                         and not batch.is_skipped(i)
+                         and batch.part_path(i, "input").read_text() == digests[i])
     done = len(finished)
     if on_progress is not None:
         on_progress(done, n)
-    tasks = (_Task(src.info[f.index], f.left_bgr, f.right_bgr)
-             for f in src.frames(rig, skip=finished))
-    for _ in run_pool(tasks, partial(_work, detector, batch, save_images), jobs=jobs,
+    def tasks() -> Iterator[_Task]:
+        for f in src.frames(rig, skip=finished, on_bad=on_bad_frame):
+            if isinstance(f, BadFrame):
+                batch.mark_skipped(f.index, f.name, f.reason, kinds)
+                continue
+            batch.clear_skipped(f.index)
+            yield _Task(src.info[f.index], digests[f.index], f.left_bgr, f.right_bgr)
+
+    for _ in run_pool(tasks(), partial(_work, detector, batch, save_images), jobs=jobs,
                       initializer=single_thread_worker if jobs > 1 else None):
         done += 1
         if on_progress is not None:
             on_progress(done, n)
+    if on_progress is not None:
+        on_progress(n, n)
     table = batch.out / RANGES.file
     batch.assemble(n, "rows", table, RANGES.header)
     outputs: tuple[Path, ...] = (table,)
+    notes = src.notes()
+    skipped = batch.write_skipped(n, batch.out / SKIPPED_FILE)
+    if skipped:
+        outputs += (batch.out / SKIPPED_FILE,)
+        notes += (f"{skipped} frame(s) could not be read and were skipped (no rows): "
+                  f"{batch.out / SKIPPED_FILE}",)
     if save_images:
         batch.assemble(n, "laser", batch.out / LASER.file, LASER.header)
         outputs += (batch.out / LASER.file,)
@@ -327,8 +354,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     counts = pd.read_csv(table, usecols=["fused_source"])["fused_source"].value_counts()
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
                       MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
-                                        "stereo_bins": int(counts.get("stereo", 0))}),
-                      src.notes())
+                                        "stereo_bins": int(counts.get("stereo", 0)),
+                                        "skipped_frames": skipped}), notes)
 
 
 def summary_line(summary: RunSummary) -> str:

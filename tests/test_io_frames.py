@@ -70,14 +70,18 @@ def test_sizes_are_checked_against_the_rig(tmp_path):
         src.check_sizes(paper_rig())
 
 
-def test_manifest_follows_the_bytes(tmp_path):
+def test_frame_digest_follows_the_bytes(tmp_path):
+    """A changed image changes its frame's digest only (a resumed batch recomputes that
+    frame and keeps the others); the manifest names the frames."""
     _folder(tmp_path, ["p", "q"])
-    before = open_frames(tmp_path).manifest()
-    assert open_frames(tmp_path).manifest() == before
+    src = open_frames(tmp_path)
+    before = [src.frame_digest(i) for i in range(2)]
+    assert src.manifest()["names"] == ["p", "q"]
     img = cv2.imread(str(tmp_path / "right" / "q.png"))
     img[0, 0] ^= 1
     cv2.imwrite(str(tmp_path / "right" / "q.png"), img)
-    assert open_frames(tmp_path).manifest()["sha256"] != before["sha256"]
+    after = [open_frames(tmp_path).frame_digest(i) for i in range(2)]
+    assert after[0] == before[0] and after[1] != before[1]
 
 
 @pytest.mark.parametrize("ros,storage", [(1, ""), (2, "sqlite3"), (2, "mcap")])
@@ -165,3 +169,53 @@ def test_unpaired_bag_images_are_reported(tmp_path):
     assert "try `max_dt_s` 0.1 " in note
     assert open_frames(bag, max_dt_s=0.1).notes() == ()
     assert len(open_frames(bag, max_dt_s=0.1)) == 6
+
+
+def test_bad_frames_stop_or_are_skipped(tmp_path):
+    _folder(tmp_path, ["a1", "a2", "a3"])
+    (tmp_path / "right" / "a2.png").write_bytes(b"broken")
+    src = open_frames(tmp_path)
+    with pytest.raises(SlitcliError, match=r"a2\.png: unreadable"):
+        list(src.frames())
+    got = list(src.frames(on_bad="skip"))
+    assert [type(f).__name__ for f in got] == ["StereoFrame", "BadFrame", "StereoFrame"]
+    assert got[1].index == 1 and "a2.png: unreadable" in got[1].reason
+    with pytest.raises(SlitcliError) as e:
+        list(src.frames(on_bad="ignore"))
+    assert e.value.param == "on_bad"
+
+
+def test_detect_skips_a_bad_frame_and_retries_it(tmp_path):
+    """`detect --on-bad-frame skip`: the other frames' rows, the bad one listed; after the
+    file is fixed a re-run computes it, and the table equals a clean run's."""
+    from click.testing import CliRunner
+
+    from slitcli.cli import cli
+
+    seq = tmp_path / "seq"
+    for side in ("left", "right"):
+        (seq / side).mkdir(parents=True)
+        for p in sorted((BUNDLED / side).iterdir())[:3]:
+            shutil.copy(p, seq / side / p.name)
+    good = (seq / "left" / "000001.png").read_bytes()
+    (seq / "left" / "000001.png").write_bytes(b"broken")
+    runner = CliRunner()
+    args = ["detect", str(seq), "--rig", str(BUNDLED / "rig.yaml"), "-o", str(tmp_path / "o")]
+    res = runner.invoke(cli, args)
+    assert res.exit_code == 2 and "000001.png: unreadable" in res.stderr
+    res = runner.invoke(cli, [*args, "--on-bad-frame", "skip"])
+    assert res.exit_code == 0, res.stderr
+    assert "1 frame(s) could not be read" in res.stderr
+    import pandas as pd
+
+    table = pd.read_csv(tmp_path / "o" / "ranges.csv")
+    assert sorted(set(table["frame"])) == [0, 2]
+    skipped = pd.read_csv(tmp_path / "o" / "skipped_frames.csv")
+    assert skipped["frame"].tolist() == [1] and "unreadable" in skipped["reason"][0]
+    (seq / "left" / "000001.png").write_bytes(good)
+    res = runner.invoke(cli, [*args, "--on-bad-frame", "skip"])
+    assert res.exit_code == 0 and "(2 already done)" in res.output
+    assert not (tmp_path / "o" / "skipped_frames.csv").exists()
+    clean = tmp_path / "clean"
+    assert runner.invoke(cli, [*args[:-1], str(clean)]).exit_code == 0
+    assert (tmp_path / "o" / "ranges.csv").read_bytes() == (clean / "ranges.csv").read_bytes()

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli.main import bag_options, cli, echo_notes
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 from slitcli.cli.stereo import matcher_options, stereo_params
 
 
@@ -28,11 +28,12 @@ from slitcli.cli.stereo import matcher_options, stereo_params
 @click.option("--save-images", is_flag=True, help="Also write disparity/, distance/, mask/ "
               "PNGs and laser.csv.")
 @bag_options
+@bad_frame_option
 @matcher_options
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
 def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_deg: float,
                jobs: int, save_images: bool, left_topic: str, right_topic: str, max_dt: float,
-               overwrite: bool, **matcher: object) -> None:
+               on_bad_frame: str, overwrite: bool, **matcher: object) -> None:
     """Range obstacles per bearing bin: laser stripe (Eqs. 1-7), Eq. 10 stereo (Eqs. 8-10)
     and their fusion (Eq. 11), for a sequence folder or a ROS 1/2 bag.
 
@@ -55,6 +56,6 @@ def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_
         summary = run_detect(source, out, rig_path=rig_path, params=params, jobs=jobs,
                              save_images=save_images, overwrite=overwrite,
                              left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
-                             on_progress=on_progress)
+                             on_bad_frame=on_bad_frame, on_progress=on_progress)
     echo_notes(summary.notes)
     click.echo(summary_line(summary))

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli.main import bag_options, cli, echo_notes
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 
 
 def _laser_defaults() -> dict[str, Any]:
@@ -32,6 +32,7 @@ _LD = _laser_defaults()
               help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
                    "(paper Fig. 4 style).")
 @bag_options
+@bad_frame_option
 @click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
               help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a pixel adds "
                    "above its background (unitless; grey is 0.333).")
@@ -77,7 +78,7 @@ _LD = _laser_defaults()
                    "whose fitted width implies a sheet 1.6x thicker or thinner is rejected; "
                    "0 = off.")
 def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool, left_topic: str,
-              right_topic: str, max_dt: float, **tuning: Any) -> None:
+              right_topic: str, max_dt: float, on_bad_frame: str, **tuning: Any) -> None:
     """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
 
     Reads the left images of the sequence folder or ROS bag SEQ and writes
@@ -96,7 +97,7 @@ def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool, left_t
     with progress("laser") as on_progress:
         summary = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay,
                             left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
-                            on_progress=on_progress)
+                            on_bad_frame=on_bad_frame, on_progress=on_progress)
     echo_notes(summary.notes)
     click.echo(summary.line(f"{summary.counts['stripe_columns']} stripe columns"))
 

@@ -34,6 +34,7 @@ PARAM_FLAGS: dict[str, str] = {
     "speckle_window_px": "--speckle-window", "speckle_range_px": "--speckle-range",
     "floor_margin_m": "--floor-margin", "robot_height_m": "--robot-height",
     "max_range_m": "--max-range", "frames": "--frames", "seed": "--seed",
+    "on_bad": "--on-bad-frame", "on_bad_frame": "--on-bad-frame",
 }
 
 
@@ -134,6 +135,15 @@ def bag_options(f: Any) -> Any:
     for option in reversed(options):
         f = option(f)
     return f
+
+
+def bad_frame_option(f: Any) -> Any:
+    """``--on-bad-frame {stop,skip}`` (``laser``, ``stereo``, ``detect``)."""
+    return click.option(
+        "--on-bad-frame", "on_bad_frame", type=click.Choice(["stop", "skip"]), default="stop",
+        show_default=True, help="A frame that cannot be read (unreadable image, wrong size): "
+        "stop = exit 2 naming the file (finished frames are kept for a re-run); skip = "
+        "leave it out, list it in OUT/skipped_frames.csv and go on.")(f)
 
 
 def main() -> None:

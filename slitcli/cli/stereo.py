@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli.main import bag_options, cli, echo_notes
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 from slitcli.errors import SlitcliError
 
 
@@ -105,10 +105,11 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
               default=None, help="Rig file [default: SEQ/rig.yaml, else the paper rig; "
               "required for bags].")
 @bag_options
+@bad_frame_option
 @matcher_options
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
 def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, left_topic: str,
-               right_topic: str, max_dt: float, matcher: str,
+               right_topic: str, max_dt: float, on_bad_frame: str, matcher: str,
                num_disparities: int, min_disparity: int, window: str, prefilter: str,
                texture_min: float, uniqueness: float, lr_max_diff: int, support_min: float,
                support_cross_min: float, speckle_window: int, speckle_range: float,
@@ -133,7 +134,8 @@ def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, left_topic: str,
     with progress("stereo") as on_progress:
         summary = run_stereo(seq, out, rig_path=rig_path, params=params,
                              overwrite=overwrite, left_topic=left_topic,
-                             right_topic=right_topic, max_dt_s=max_dt, on_progress=on_progress)
+                             right_topic=right_topic, max_dt_s=max_dt,
+                             on_bad_frame=on_bad_frame, on_progress=on_progress)
     echo_notes(summary.notes)
     click.echo(summary.line(f"mean valid disparity fraction "
                             f"{summary.counts['valid_fraction']:.3f}"))

@@ -90,6 +90,34 @@ class FrameBatch:
     def is_done(self, frame: int, kinds: Iterable[str] = ("rows",)) -> bool:
         return all(self.part_path(frame, k).exists() for k in kinds)
 
+    def mark_skipped(self, frame: int, name: str, reason: str, kinds: Iterable[str]) -> None:
+        """Record a frame that could not be read: empty parts of ``kinds`` (so the table
+        assembles) and why. A skipped frame is not finished: a re-run tries it again."""
+        for k in kinds:
+            write_text_atomic(self.part_path(frame, k), "")
+        write_text_atomic(self.part_path(frame, "skipped"), json.dumps([frame, name, reason]))
+
+    def is_skipped(self, frame: int) -> bool:
+        return self.part_path(frame, "skipped").exists()
+
+    def clear_skipped(self, frame: int) -> None:
+        self.part_path(frame, "skipped").unlink(missing_ok=True)
+
+    def write_skipped(self, n_frames: int, target: Path) -> int:
+        """Write ``target`` (frame,name,reason) listing the skipped frames, if any (an old
+        list is removed when none is left); returns how many."""
+        from slitcli.io.atomic import write_csv_atomic
+
+        rows = [json.loads(self.part_path(i, "skipped").read_text())
+                for i in range(n_frames) if self.is_skipped(i)]
+        if rows:
+            import pandas as pd
+
+            write_csv_atomic(target, pd.DataFrame(rows, columns=["frame", "name", "reason"]))
+        else:
+            target.unlink(missing_ok=True)
+        return len(rows)
+
     def assemble(self, n_frames: int, kind: str, target: Path, header: str) -> None:
         """Concatenate the parts of frames 0..n-1 (each without header) into ``target``."""
         chunks = [header.rstrip("\n") + "\n"]

@@ -68,6 +68,18 @@ class FrameInfo:
     identity: str
 
 
+ON_BAD_FRAME = ("stop", "skip")
+
+
+@dataclass(frozen=True)
+class BadFrame:
+    """A frame that could not be read (``on_bad="skip"``): its number, name and why."""
+
+    index: int
+    name: str
+    reason: str
+
+
 class FrameSource:
     """The stereo pairs of a sequence folder or a bag (:func:`open_frames`)."""
 
@@ -84,11 +96,15 @@ class FrameSource:
         raise NotImplementedError
 
     def frames(self, rig: Rig | None = None, *, skip: frozenset[int] | set[int] = frozenset(),
-               rectify: bool = False) -> Iterator[StereoFrame]:
+               rectify: bool = False, on_bad: str = "stop"
+               ) -> Iterator[StereoFrame | BadFrame]:
         """Decode the pairs in order, leaving out (and not decoding) those in ``skip``.
 
         With ``rig`` the image sizes are checked against it (its ``raw`` size when it
-        has a raw calibration); ``rectify`` rectifies raw pairs with it.
+        has a raw calibration); ``rectify`` rectifies raw pairs with it. A pair that
+        cannot be read (unreadable file, wrong size) raises :class:`SlitcliError`
+        naming the file (``on_bad="stop"``), or is yielded as a :class:`BadFrame` and
+        the frames after it follow (``on_bad="skip"``).
         """
         raise NotImplementedError
 
@@ -100,15 +116,29 @@ class FrameSource:
         """What the user should know about the input (bags: images left unpaired)."""
         return ()
 
+    def frame_digest(self, index: int) -> str:
+        """What frame ``index``'s results depend on in the input (a resumed batch keeps a
+        finished frame only while this is unchanged)."""
+        return self.info[index].identity
 
-def _rectified(frames: Iterator[StereoFrame], rig: Rig | None, rectify: bool
-               ) -> Iterator[StereoFrame]:
+
+def _check_on_bad(on_bad: str) -> None:
+    if on_bad not in ON_BAD_FRAME:
+        raise SlitcliError(f"`on_bad` {on_bad!r} is unknown; use 'stop' or 'skip'",
+                           param="on_bad")
+
+
+def _rectified(frames: Iterator[StereoFrame | BadFrame], rig: Rig | None, rectify: bool
+               ) -> Iterator[StereoFrame | BadFrame]:
     if not rectify or rig is None or rig.raw is None:
         yield from frames
         return
     from slitcli.stereo.rectify import rectify_pair
 
     for fr in frames:
+        if isinstance(fr, BadFrame):
+            yield fr
+            continue
         left, right = rectify_pair(fr.left_bgr, fr.right_bgr, rig)
         yield replace(fr, left_bgr=left, right_bgr=right)
 
@@ -151,11 +181,24 @@ class FolderFrames(FrameSource):
         return self._notes
 
     def frames(self, rig: Rig | None = None, *, skip: frozenset[int] | set[int] = frozenset(),
-               rectify: bool = False) -> Iterator[StereoFrame]:
+               rectify: bool = False, on_bad: str = "stop"
+               ) -> Iterator[StereoFrame | BadFrame]:
         from slitcli.io.sequence import read_frame
 
-        refs = (r for r in self.refs if r.index not in skip)
-        yield from _rectified((read_frame(r, rig) for r in refs), rig, rectify)
+        _check_on_bad(on_bad)
+
+        def read() -> Iterator[StereoFrame | BadFrame]:
+            for r in self.refs:
+                if r.index in skip:
+                    continue
+                try:
+                    yield read_frame(r, rig)
+                except SlitcliError as e:
+                    if on_bad == "stop":
+                        raise
+                    yield BadFrame(r.index, r.name, str(e))
+
+        yield from _rectified(read(), rig, rectify)
 
     def check_sizes(self, rig: Rig) -> None:
         """Check every pair's image sizes from the file headers (no decoding), so a
@@ -183,14 +226,23 @@ class FolderFrames(FrameSource):
                                    f"rig's {key} {want[0]}x{want[1]}; use the rig these images "
                                    "were taken with (`rig`)", param="rig")
 
-    def manifest(self) -> dict[str, Any]:
+    def frame_digest(self, index: int) -> str:
+        """SHA-256 of the pair's file names and bytes."""
+        r = self.refs[index]
         h = hashlib.sha256()
-        for r in self.refs:
-            for p in (r.left_path, r.right_path):
-                h.update(p.name.encode() + b"\0")
+        for p in (r.left_path, r.right_path):
+            h.update(p.name.encode() + b"\0")
+            try:
                 h.update(p.read_bytes())
+            except OSError:
+                h.update(b"unreadable")
+        return h.hexdigest()
+
+    def manifest(self) -> dict[str, Any]:
+        # the frames' bytes are checked one by one (frame_digest), so a fixed or replaced
+        # image is computed again while the other finished frames are kept
         return {"kind": "folder", "layout": self.layout, "frames": len(self),
-                "names": [i.name for i in self.info], "sha256": h.hexdigest()}
+                "names": [i.name for i in self.info]}
 
 
 class BagFrames(FrameSource):
@@ -219,10 +271,13 @@ class BagFrames(FrameSource):
         return load_rig(rig_path)
 
     def frames(self, rig: Rig | None = None, *, skip: frozenset[int] | set[int] = frozenset(),
-               rectify: bool = False) -> Iterator[StereoFrame]:
+               rectify: bool = False, on_bad: str = "stop"
+               ) -> Iterator[StereoFrame | BadFrame]:
         from slitcli.io.bags import bag_frames
 
-        def decoded() -> Iterator[StereoFrame]:
+        _check_on_bad(on_bad)
+
+        def decoded() -> Iterator[StereoFrame | BadFrame]:
             for fr in bag_frames(self.pairs, skip=set(skip)):
                 if isinstance(fr, int):
                     continue
@@ -230,11 +285,15 @@ class BagFrames(FrameSource):
                     want = rig.raw.image_size_px if rig.raw is not None else rig.image_size_px
                     got = (fr.left_bgr.shape[1], fr.left_bgr.shape[0])
                     if got != tuple(want) or fr.right_bgr.shape != fr.left_bgr.shape:
-                        raise SlitcliError(
+                        e = SlitcliError(
                             f"{self.path}: frame {fr.index}: images are {got[0]}x{got[1]} "
                             f"(right {fr.right_bgr.shape[1]}x{fr.right_bgr.shape[0]}), the "
                             f"rig's are {want[0]}x{want[1]}; give the rig of this camera "
                             "(`rig`)", param="rig")
+                        if on_bad == "stop":
+                            raise e
+                        yield BadFrame(fr.index, fr.name, str(e))
+                        continue
                 yield fr
 
         yield from _rectified(decoded(), rig, rectify)
@@ -287,4 +346,5 @@ def open_frames(path: str | Path, *, left_topic: str = DEFAULT_LEFT_TOPIC,
     return FolderFrames(p)
 
 
-__all__ = ["BagFrames", "FolderFrames", "FrameInfo", "FrameSource", "open_frames"]
+__all__ = ["ON_BAD_FRAME", "BadFrame", "BagFrames", "FolderFrames", "FrameInfo", "FrameSource",
+           "open_frames"]

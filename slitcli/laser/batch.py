@@ -18,6 +18,7 @@ from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
     DEFAULT_RIGHT_TOPIC,
+    BadFrame,
     FrameSource,
     open_frames,
 )
@@ -29,6 +30,7 @@ from slitcli.rig import Rig
 
 TABLE_COLUMNS = LASER.columns
 OVERLAY_DIR = "laser_overlay"
+SKIPPED_FILE = "skipped_frames.csv"
 
 
 def laser_table(frame_index: int, frame: LaserFrame) -> pd.DataFrame:
@@ -50,7 +52,7 @@ def laser_table(frame_index: int, frame: LaserFrame) -> pd.DataFrame:
 def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path | None = None,
               params: LaserParams | None = None, overlay: bool = False,
               left_topic: str = DEFAULT_LEFT_TOPIC, right_topic: str = DEFAULT_RIGHT_TOPIC,
-              max_dt_s: float = DEFAULT_MAX_DT_S,
+              max_dt_s: float = DEFAULT_MAX_DT_S, on_bad_frame: str = "stop",
               on_progress: Progress | None = None) -> RunSummary:
     """Extract and triangulate the stripe in every left image of a sequence or bag.
 
@@ -59,7 +61,9 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     rectified first. Each frame's stripe depends on its own image only
     (:mod:`slitcli.io.frames`: the previous-frame rule). Outputs appear only once every
     frame is done (temporary files renamed into place); on bad input nothing is left
-    behind. Progress: ``on_progress(done, total)``.
+    behind. Progress: ``on_progress(done, total)``. A frame that cannot be read stops
+    the run (``on_bad_frame="stop"``, the error names the file) or is skipped
+    (``"skip"``: no rows; listed in ``OUT/skipped_frames.csv`` and the summary).
 
     Raises
     ------
@@ -76,28 +80,43 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
         raise SlitcliError(f"{out}: exists and is not a folder; choose another output path")
     created = not out.exists()
     try:
-        path = _run(src, rig, out, params, overlay, on_progress)
+        path, bad = _run(src, rig, out, params, overlay, on_bad_frame, on_progress)
     except BaseException:
         if created and out.is_dir() and not any(out.iterdir()):
             shutil.rmtree(out, ignore_errors=True)
         raise
     table = pd.read_csv(path, usecols=["frame"])
     outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
+    notes = src.notes()
+    skipped_csv = out / SKIPPED_FILE
+    if bad:
+        write_csv_atomic(skipped_csv, pd.DataFrame(
+            [(b.index, b.name, b.reason) for b in bad], columns=["frame", "name", "reason"]))
+        outputs += (skipped_csv,)
+        notes += (f"{len(bad)} frame(s) could not be read and were skipped (no rows): "
+                  f"{skipped_csv}",)
+    else:
+        skipped_csv.unlink(missing_ok=True)
     return RunSummary("laser", len(src), 0, time.perf_counter() - t0, outputs,
-                      MappingProxyType({"stripe_columns": len(table)}), src.notes())
+                      MappingProxyType({"stripe_columns": len(table),
+                                        "skipped_frames": len(bad)}), notes)
 
 
 def _run(src: FrameSource, rig: Rig, out: Path, params: LaserParams, overlay: bool,
-         on_progress: Progress | None) -> Path:
+         on_bad_frame: str, on_progress: Progress | None) -> tuple[Path, list[BadFrame]]:
     rect = replace(rig, raw=None)
     geometry = LaserGeometry.from_rig(rect, params)
     tables: list[pd.DataFrame] = []
+    bad: list[BadFrame] = []
     n = len(src)
     if on_progress is not None:
         on_progress(0, n)
     with atomic_directory(out / OVERLAY_DIR, overwrite=True) if overlay else \
             nullcontext() as tmp_overlay:
-        for k, frame in enumerate(src.frames(rig, rectify=True)):
+        for k, frame in enumerate(src.frames(rig, rectify=True, on_bad=on_bad_frame)):
+            if isinstance(frame, BadFrame):
+                bad.append(frame)
+                continue
             stripe = detect_laser(frame.left_bgr, rect, params, geometry=geometry)
             tables.append(laser_table(frame.index, stripe))
             if tmp_overlay is not None:
@@ -111,4 +130,4 @@ def _run(src: FrameSource, rig: Rig, out: Path, params: LaserParams, overlay: bo
         table = pd.concat(tables, ignore_index=True) if tables else \
             pd.DataFrame(columns=list(LASER.columns))
         write_csv_atomic(out / LASER.file, table, float_format=FLOAT_FORMAT)
-    return out / LASER.file
+    return out / LASER.file, bad

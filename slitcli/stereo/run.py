@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
@@ -32,6 +33,7 @@ from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
     DEFAULT_RIGHT_TOPIC,
+    BadFrame,
     FolderFrames,
     FrameInfo,
     FrameSource,
@@ -39,6 +41,7 @@ from slitcli.io.frames import (
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
 from slitcli.io.progress import Progress, RunSummary
+from slitcli.io.sequence import StereoFrame
 from slitcli.ranges import STEREO_RANGES, csv_rows, format_time_s
 from slitcli.rig import Rig
 from slitcli.stereo.pipeline import (
@@ -51,6 +54,7 @@ from slitcli.stereo.pipeline import (
 OUTPUT_FOLDERS = ("disparity", "distance", "mask")
 RANGES_FILE = STEREO_RANGES.file
 RANGES_HEADER = STEREO_RANGES.header
+SKIPPED_FILE = "skipped_frames.csv"
 
 
 def _ranges_rows(ref: FrameInfo, res: StereoFrameResult) -> str:
@@ -78,11 +82,20 @@ def _write_frame(out: Path, batch: FrameBatch, ref: FrameInfo, res: StereoFrameR
 
 
 def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: FrameBatch,
-               done: frozenset[int], on_progress: Progress | None) -> list[float]:
+               done: frozenset[int], on_bad_frame: str, on_progress: Progress | None
+               ) -> list[float]:
     """Match every frame not in ``done`` and write its files; the valid-pixel fractions."""
     n, skipped = len(src), len(done)
     valid: list[float] = []
-    frames = src.frames(rig, skip=done)
+
+    def readable() -> Iterator[StereoFrame]:
+        for f in src.frames(rig, skip=done, on_bad=on_bad_frame):
+            if isinstance(f, BadFrame):  # recorded; no images, no rows
+                batch.mark_skipped(f.index, f.name, f.reason, ("stereo",))
+            else:
+                yield f
+
+    frames = readable()
     # reading the next pair and encoding / writing the last frame's PNGs run on a
     # helper thread (OpenCV releases the GIL) while this thread matches
     with ThreadPoolExecutor(max_workers=1) as io_pool:
@@ -91,6 +104,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
         k = 0
         while (frame := reads.popleft().result()) is not None:
             reads.append(io_pool.submit(next, frames, None))
+            batch.clear_skipped(frame.index)
             res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
             writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
             while len(writes) > 1:
@@ -107,7 +121,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
 def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | None = None,
                params: StereoParams | None = None, overwrite: bool = False,
                left_topic: str = DEFAULT_LEFT_TOPIC, right_topic: str = DEFAULT_RIGHT_TOPIC,
-               max_dt_s: float = DEFAULT_MAX_DT_S,
+               max_dt_s: float = DEFAULT_MAX_DT_S, on_bad_frame: str = "stop",
                on_progress: Progress | None = None) -> RunSummary:
     """Run the stereo pipeline over a sequence folder or bag and write the image folders.
 
@@ -126,6 +140,9 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
         Replace results made with other settings.
     left_topic, right_topic, max_dt_s
         Bag topics and pairing tolerance (seconds).
+    on_bad_frame : {"stop", "skip"}
+        A frame that cannot be read stops the run (the error names the file) or is
+        skipped (listed in ``OUT/skipped_frames.csv``; a re-run tries it again).
     on_progress : callable(done, total), optional
         Progress callback.
 
@@ -160,16 +177,30 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
     for sub in OUTPUT_FOLDERS:
         (out / sub).mkdir(parents=True, exist_ok=True)
     n = len(src)
+    # a finished frame is kept while its input bytes are unchanged
+    digests = [src.frame_digest(i) for i in range(len(src))]
+    for i, d in enumerate(digests):
+        part = batch.part_path(i, "input")
+        if not part.exists() or part.read_text() != d:
+            batch.part_path(i, "stereo").unlink(missing_ok=True)
+            write_bytes_atomic(part, d.encode())
     done = frozenset(i.index for i in src.info if
-                     batch.is_done(i.index, ("stereo",))
+                     batch.is_done(i.index, ("stereo",)) and not batch.is_skipped(i.index)
                      and all((out / sub / f"{i.name}.png").exists() for sub in OUTPUT_FOLDERS))
     skipped = len(done)
     if on_progress is not None:
         on_progress(skipped, n)
-    valid = _match_all(src, rig, p, out, batch, done, on_progress)
+    valid = _match_all(src, rig, p, out, batch, done, on_bad_frame, on_progress)
     if on_progress is not None:
         on_progress(n, n)
     batch.assemble(n, "stereo", out / RANGES_FILE, RANGES_HEADER)
-    return RunSummary("stereo", n, skipped, time.perf_counter() - t0, (out / RANGES_FILE,),
+    outputs: tuple[Path, ...] = (out / RANGES_FILE,)
+    notes = src.notes()
+    bad = batch.write_skipped(n, out / SKIPPED_FILE)
+    if bad:
+        outputs += (out / SKIPPED_FILE,)
+        notes += (f"{bad} frame(s) could not be read and were skipped (no images, no rows): "
+                  f"{out / SKIPPED_FILE}",)
+    return RunSummary("stereo", n, skipped, time.perf_counter() - t0, outputs,
                       MappingProxyType({"valid_fraction": float(np.mean(valid)) if valid
-                                        else float("nan")}), src.notes())
+                                        else float("nan"), "skipped_frames": bad}), notes)
