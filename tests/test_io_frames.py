@@ -22,6 +22,8 @@ BUNDLED = ROOT / "sample_data" / "sequences" / "corridor"
 
 
 def _folder(tmp: Path, names: list[str], size=(16, 12), seed=0) -> list[np.ndarray]:
+    """Random pairs under the given names. Where a test uses one seed, the pixels only
+    tell the frames apart (any content would do), so one seed suffices."""
     rng = np.random.default_rng(seed)
     imgs = []
     for side in ("left", "right"):
@@ -156,7 +158,7 @@ def test_unpaired_bag_images_are_reported(tmp_path):
     """Free-running cameras: every other right image 30 ms late. With max_dt_s 0.01 half
     the pairs are dropped, and the source says so with the numbers and a fix (half the
     0.2 s frame period)."""
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(0)  # pairing reads stamps only: the pixels do not matter
     frames = [(rng.integers(0, 256, (12, 16, 3), dtype=np.uint8),) * 2 for _ in range(6)]
     offsets = [2_000_000, 30_000_000] * 3
     bag = write_bag(tmp_path / "b", frames, ros=2, right_offsets_ns=offsets)
