@@ -36,7 +36,7 @@ from slitcli.io.frames import (
     open_frames,
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
-from slitcli.io.progress import Progress, RunSummary
+from slitcli.io.progress import Progress, RunSummary, no_laser_note
 from slitcli.laser.batch import laser_table
 from slitcli.laser.frame import (
     EdgeParams,
@@ -351,7 +351,10 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
         outputs += (batch.out / LASER.file,)
     import pandas as pd
 
-    counts = pd.read_csv(table, usecols=["fused_source"])["fused_source"].value_counts()
+    rows = pd.read_csv(table, usecols=["frame", "laser_range_m", "fused_source"])
+    counts = rows["fused_source"].value_counts()
+    lit = rows.groupby("frame")["laser_range_m"].count()
+    notes += no_laser_note(int((lit == 0).sum()), len(lit))
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
                       MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
                                         "stereo_bins": int(counts.get("stereo", 0)),

@@ -22,7 +22,7 @@ from slitcli.io.frames import (
     FrameSource,
     open_frames,
 )
-from slitcli.io.progress import Progress, RunSummary
+from slitcli.io.progress import Progress, RunSummary, no_laser_note
 from slitcli.laser.frame import LaserFrame, LaserGeometry, detect_laser
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import FLOAT_FORMAT, LASER
@@ -87,7 +87,8 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
         raise
     table = pd.read_csv(path, usecols=["frame"])
     outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
-    notes = src.notes()
+    read = len(src) - len(bad)
+    notes = src.notes() + no_laser_note(read - table["frame"].nunique(), read)
     skipped_csv = out / SKIPPED_FILE
     if bad:
         write_csv_atomic(skipped_csv, pd.DataFrame(
