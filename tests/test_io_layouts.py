@@ -108,6 +108,16 @@ def test_euroc_gives_the_same_range_columns_as_the_slitcli_layout(tmp_path):
             "fused_range_m", "fused_source"]
     pd.testing.assert_frame_equal(a[cols], b[cols])
     assert a["time_s"].iloc[-1] - a["time_s"].iloc[0] == pytest.approx(DT_NS * 1e-9, abs=1e-6)
+    # wall-clock stamps survive the table: the offline planner takes it (issue: %.6g
+    # made every time 1.4e+09 and `dwa` refused the table)
+    from slitcli.dwa import DwaParams
+    from slitcli.dwa_table import dwa_offline
+
+    cmds = dwa_offline(tmp_path / "a" / "ranges.csv", (3.0, 0.0), tmp_path / "cmds.csv",
+                       DwaParams())
+    assert len(cmds) == 2
+    back = pd.read_csv(tmp_path / "cmds.csv")["time_s"].to_numpy()
+    assert np.diff(back)[0] == pytest.approx(DT_NS * 1e-9, abs=1e-6)
 
 
 def test_unknown_and_ambiguous_folders_are_refused(tmp_path):
