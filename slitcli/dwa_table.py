@@ -21,10 +21,9 @@ from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_csv_atomic
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS, format_time_s
 
-CMDS_COLUMNS = ("frame", "time_s", "x_m", "y_m", "heading_deg", "goal_distance_m", "v_mps",
-                "w_dps", "status", "d_collision_m", "n_points")
-RANGE_COLUMNS = ("laser_range_m", "stereo_range_m", "fused_range_m")
+CMDS_COLUMNS = DWA_COMMANDS.columns
 
 
 def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> pd.DataFrame:
@@ -34,9 +33,9 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> p
     non-numeric values, an empty table or a time that does not increase with frame.
     """
     p = Path(path)
-    if range_column not in RANGE_COLUMNS:
-        raise SlitcliError(f"--range-column {range_column!r} is not a range column; use one of "
-                           f"{', '.join(RANGE_COLUMNS)}")
+    if range_column not in RANGE_VALUE_COLUMNS:
+        raise SlitcliError(f"`range_column` {range_column!r} is not a range column; use one of "
+                           f"{', '.join(RANGE_VALUE_COLUMNS)}", param="range_column")
     try:
         df = pd.read_csv(p)
     except FileNotFoundError:
@@ -50,7 +49,7 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m") -> p
     missing = [c for c in need if c not in df.columns]
     if missing:
         raise SlitcliError(f"{p}: missing column(s) {', '.join(missing)}; a range table has "
-                           "frame, time_s, bearing_deg and " + ", ".join(RANGE_COLUMNS))
+                           "frame, time_s, bearing_deg and " + ", ".join(RANGE_VALUE_COLUMNS))
     if len(df) == 0:
         raise SlitcliError(f"{p}: the range table has no rows; run detect on a non-empty "
                            "sequence")
@@ -125,13 +124,16 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
                 memory_s: float = 10.0, memory_cell_m: float = 0.05) -> pd.DataFrame:
     """``slitcli dwa``: read the range table, plan every frame, write CMDS.csv atomically."""
     if not (memory_s >= 0 and math.isfinite(memory_s)):
-        raise SlitcliError(f"--memory-s {memory_s!r} must be >= 0 (0 turns the memory off)")
+        raise SlitcliError(f"`memory_s` {memory_s!r} must be >= 0 (0 turns the memory off)",
+                           param="memory_s")
     if not memory_cell_m > 0:
-        raise SlitcliError(f"--memory-cell-m {memory_cell_m!r} must be > 0")
+        raise SlitcliError(f"`memory_cell_m` {memory_cell_m!r} must be > 0", param="memory_cell_m")
     if not all(math.isfinite(g) for g in goal_xy_m):
-        raise SlitcliError(f"--goal {goal_xy_m!r} must be two finite numbers X,Y in metres")
+        raise SlitcliError(f"`goal_xy_m` {goal_xy_m!r} must be two finite numbers X,Y in metres",
+                           param="goal_xy_m")
     table = read_range_table(ranges_csv, range_column)
     cmds = plan_range_table(table, goal_xy_m, params, forward_m=forward_m, memory_s=memory_s,
                             memory_cell_m=memory_cell_m)
-    write_csv_atomic(out_csv, cmds)
+    # times keep every digit of their stamps (a wall-clock 1.7e9 s with %.6g loses them)
+    write_csv_atomic(out_csv, cmds.assign(time_s=[format_time_s(t) for t in cmds["time_s"]]))
     return cmds

@@ -27,8 +27,10 @@ def _image(ts, t_ns: int, bgr: np.ndarray):
 def write_bag(path: Path, frames: list[tuple[np.ndarray, np.ndarray]], *, ros: int,
               t0_ns: int = 1_700_000_000 * 10**9, dt_ns: int = 200_000_000,
               right_offset_ns: int = 2_000_000, right_divisor: int = 1,
-              storage: str = "sqlite3") -> Path:
-    """Frames as /stereo/left/image_raw and /stereo/right/image_raw; returns the bag path."""
+              storage: str = "sqlite3", right_offsets_ns: list[int] | None = None) -> Path:
+    """Frames as /stereo/left/image_raw and /stereo/right/image_raw; returns the bag path.
+
+    ``right_offsets_ns`` (one per frame) replaces the constant ``right_offset_ns``."""
     if ros == 1:
         ts = get_typestore(Stores.ROS1_NOETIC)
         writer, ser = Writer1(path), ts.serialize_ros1
@@ -41,7 +43,8 @@ def write_bag(path: Path, frames: list[tuple[np.ndarray, np.ndarray]], *, ros: i
         cr = w.add_connection("/stereo/right/image_raw", IMAGE, typestore=ts)
         for i, (left, right) in enumerate(frames):
             t = t0_ns + i * dt_ns
-            tr = (t + right_offset_ns) // right_divisor
+            off = right_offset_ns if right_offsets_ns is None else right_offsets_ns[i]
+            tr = (t + off) // right_divisor
             w.write(cl, t, ser(_image(ts, t, left), IMAGE))
-            w.write(cr, t + right_offset_ns, ser(_image(ts, tr, right), IMAGE))
+            w.write(cr, t + off, ser(_image(ts, tr, right), IMAGE))
     return path

@@ -41,11 +41,10 @@ def _detect_table(seq_dir: Path, mode: str = "paper") -> pd.DataFrame:
     seq = StereoSequence(seq_dir)
     rig = seq.rig()
     det = Detector(rig, DetectParams(fusion_mode=mode))
-    rows, prev = [], None
+    rows = []
     for f in seq.frames(rig):
-        rows.append(det(f.left_bgr, f.right_bgr, previous_left_bgr=prev).table(f.index,
+        rows.append(det(f.left_bgr, f.right_bgr).table(f.index,
                                                                                 f.time_s))
-        prev = f.left_bgr
     return pd.concat(rows, ignore_index=True)
 
 

@@ -18,7 +18,7 @@ def test_same_manifest_resumes_and_keeps_finished_parts(tmp_path):
 
 def test_other_settings_are_refused_unless_overwrite(tmp_path):
     FrameBatch(tmp_path, "detect", {"fusion": "paper"}).part_path(0).write_text("0,1\n")
-    with pytest.raises(SlitcliError, match=r"changed: fusion.*--overwrite"):
+    with pytest.raises(SlitcliError, match=r"changed: fusion.*pass `overwrite`"):
         FrameBatch(tmp_path, "detect", {"fusion": "conservative"})
     b = FrameBatch(tmp_path, "detect", {"fusion": "conservative"}, overwrite=True)
     assert not b.is_done(0)

@@ -82,7 +82,7 @@ def test_rerun_skips_finished_frames_and_refuses_other_settings(tmp_path):
     (out / "disparity" / "f000.png").unlink()   # as if killed while writing frame 0
     res = run("stereo", seq, "-o", out)
     assert res.exit_code == 0
-    assert "1 computed, 1 already done" in res.output
+    assert "2 frames (1 already done)" in res.output
     assert (out / "disparity" / "f000.png").exists()
     assert (out / "disparity" / "f001.png").stat().st_mtime_ns == before
     res = run("stereo", seq, "-o", out, "--window", "7")

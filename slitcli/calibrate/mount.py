@@ -23,7 +23,7 @@ import numpy as np
 
 from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
-from slitcli.io.sequence import StereoSequence, read_frame
+from slitcli.io.frames import open_frames
 from slitcli.rig import Mount, Rig, load_rig, save_rig
 
 
@@ -271,11 +271,11 @@ def run_calibrate_mount(rig_path: str | Path, seq_dir: str | Path, params: Mount
     ``out_rig`` defaults to ``rig_path``. Nothing is written on error.
     """
     rig = load_rig(rig_path)
-    seq = StereoSequence(seq_dir)
-    n = len(seq)
+    src = open_frames(seq_dir)
+    n = len(src)
     take = np.unique(np.linspace(0, n - 1, min(n, max(1, params.max_frames))).round()
                      .astype(int))
-    frames = [read_frame(seq.refs[i], rig) for i in take]
+    frames = list(src.frames(rig, skip=frozenset(range(n)) - frozenset(take.tolist())))
     result = calibrate_mount_frames([f.name for f in frames],
                                     [(f.left_bgr, f.right_bgr) for f in frames], rig, params,
                                     source=str(seq_dir))

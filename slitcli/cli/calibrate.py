@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (points where four squares meet), e.g. 9x6."
 _SQUARE_HELP = "Side of one chessboard square in metres, e.g. 0.025."

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 from slitcli.cli.stereo import matcher_options, stereo_params
 
 
@@ -27,17 +27,13 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               help="Worker processes (the table is byte-identical for any number).")
 @click.option("--save-images", is_flag=True, help="Also write disparity/, distance/, mask/ "
               "PNGs and laser.csv.")
-@click.option("--left-topic", default="/stereo/left/image_raw", show_default=True,
-              help="Bag topic of the left images.")
-@click.option("--right-topic", default="/stereo/right/image_raw", show_default=True,
-              help="Bag topic of the right images.")
-@click.option("--max-dt", type=float, default=0.01, show_default=True,
-              help="Largest left/right stamp difference that pairs two bag images, seconds.")
+@bag_options
+@bad_frame_option
 @matcher_options
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
 def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_deg: float,
                jobs: int, save_images: bool, left_topic: str, right_topic: str, max_dt: float,
-               overwrite: bool, **matcher: object) -> None:
+               on_bad_frame: str, overwrite: bool, **matcher: object) -> None:
     """Range obstacles per bearing bin: laser stripe (Eqs. 1-7), Eq. 10 stereo (Eqs. 8-10)
     and their fusion (Eq. 11), for a sequence folder or a ROS 1/2 bag.
 
@@ -52,17 +48,14 @@ def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_
       slitcli detect run.bag --rig rig.yaml -o out/bag --left-topic /cam/left/image_raw \\
           --right-topic /cam/right/image_raw
     """
-    from slitcli.detect import DetectParams, run_detect
-    from slitcli.io.progress import progress_bar
+    from slitcli.detect import DetectParams, run_detect, summary_line
+    from slitcli.io.progress import progress
 
     params = DetectParams(stereo=stereo_params(**matcher), fusion_mode=fusion, bin_deg=bin_deg)
-    with progress_bar(0, "detect") as bar:
-        def total(n: int) -> None:
-            bar.total = n
-            bar.refresh()
-
+    with progress("detect") as on_progress:
         summary = run_detect(source, out, rig_path=rig_path, params=params, jobs=jobs,
                              save_images=save_images, overwrite=overwrite,
                              left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
-                             on_frame=lambda: bar.update(1), on_total=total)
-    click.echo(summary.line())
+                             on_bad_frame=on_bad_frame, on_progress=on_progress)
+    echo_notes(summary.notes)
+    click.echo(summary_line(summary))

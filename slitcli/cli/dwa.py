@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 
 
 def _floats(n: int | None, what: str):

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 
 
 def _laser_defaults() -> dict[str, Any]:
@@ -22,14 +22,17 @@ _LD = _laser_defaults()
 
 
 @cli.command("laser", short_help="Laser stripe rows and ranges of a sequence.")
-@click.argument("seq", type=click.Path(path_type=Path))
+@click.argument("seq", metavar="SEQ|BAG", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
               help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Rig file (default: SEQ/rig.yaml, else the paper rig).")
+              help="Rig file (default: SEQ/rig.yaml, else the paper rig; required for bags). "
+              "A rig with a raw calibration rectifies the images first.")
 @click.option("--overlay", is_flag=True,
               help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
                    "(paper Fig. 4 style).")
+@bag_options
+@bad_frame_option
 @click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
               help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a pixel adds "
                    "above its background (unitless; grey is 0.333).")
@@ -74,22 +77,28 @@ _LD = _laser_defaults()
               help="Laser sheet thickness (Gaussian sigma across the plane), mm; a candidate "
                    "whose fitted width implies a sheet 1.6x thicker or thinner is rejected; "
                    "0 = off.")
-def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
-              **tuning: Any) -> None:
+def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool, left_topic: str,
+              right_topic: str, max_dt: float, on_bad_frame: str, **tuning: Any) -> None:
     """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
 
-    Reads the left images of the sequence SEQ and writes OUT/laser.csv: one row per
-    frame and image column with a stripe (frame, u_px, v_px, strength [DN], x_m,
-    y_m, range_m, bearing_deg in the sensor frame, in_band = 1 inside the rig's
-    laser band). Points outside the band stay in the table, flagged in_band = 0.
+    Reads the left images of the sequence folder or ROS bag SEQ and writes
+    OUT/laser.csv: one row per frame and image column with a stripe (frame, u_px,
+    v_px, strength [DN], x_m, y_m, range_m, bearing_deg in the sensor frame,
+    in_band = 1 inside the rig's laser band). Points outside the band stay in the
+    table, flagged in_band = 0.
 
-    Example: slitcli laser out/corridor -o out/laser --overlay
+    Example: slitcli laser sample_data/sequences/corridor -o out/laser --overlay
     """
+    from slitcli.io.progress import progress
     from slitcli.laser.batch import run_laser
     from slitcli.laser.params import LaserParams
 
     params = LaserParams(**tuning)
-    path = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay)
-    click.echo(f"wrote {path}")
+    with progress("laser") as on_progress:
+        summary = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay,
+                            left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
+                            on_bad_frame=on_bad_frame, on_progress=on_progress)
+    echo_notes(summary.notes)
+    click.echo(summary.line(f"{summary.counts['stripe_columns']} stripe columns"))
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 
 
 @cli.command("report", short_help="HTML report and overlay video of a detect run.")

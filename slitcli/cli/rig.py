@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 from slitcli.errors import SlitcliError
 
 

@@ -78,7 +78,7 @@ def atomic_directory(path: str | Path, *, overwrite: bool = False) -> Iterator[P
     final = Path(path)
     if final.exists() and not overwrite:
         raise SlitcliError(f"{final}: already exists; choose another output folder or pass "
-                           "--overwrite")
+                           "`overwrite`", param="overwrite")
     if final.exists() and not final.is_dir():
         raise SlitcliError(f"{final}: exists and is not a folder; choose another output path")
     _ensure_parent(final)

@@ -39,16 +39,57 @@ def _bag_root(path: Path) -> Path:
 
 @dataclass(frozen=True)
 class BagPairs:
-    """The pairing of one bag: per frame, the left and right message stamps (ns)."""
+    """The pairing of one bag: per frame, the left and right message stamps (ns).
+
+    ``all_left_ns`` and ``all_right_ns`` are every stamp of each topic (sorted), so the
+    images that found no partner within ``max_dt_s`` can be reported
+    (:meth:`pairing_report`).
+    """
 
     path: Path
     left_topic: str
     right_topic: str
     left_ns: np.ndarray
     right_ns: np.ndarray
+    all_left_ns: np.ndarray
+    all_right_ns: np.ndarray
+    max_dt_s: float
 
     def __len__(self) -> int:
         return len(self.left_ns)
+
+    @property
+    def unpaired(self) -> tuple[int, int]:
+        """Left and right images without a partner."""
+        return len(self.all_left_ns) - len(self), len(self.all_right_ns) - len(self)
+
+    def suggested_max_dt_s(self) -> float:
+        """Half the left camera's median frame period: the largest tolerance that still
+        cannot pair an image with its neighbour's partner (free-running cameras at one
+        rate are at most half a period apart)."""
+        if len(self.all_left_ns) < 2:
+            return self.max_dt_s
+        return 0.5 * float(np.median(np.diff(self.all_left_ns))) * 1e-9
+
+    def pairing_report(self) -> str | None:
+        """One line when images were left unpaired (None when every image has a
+        partner): how many of each camera, the stamp differences seen, the fix."""
+        n_l, n_r = self.unpaired
+        if n_l == 0 and n_r == 0:
+            return None
+        paired_ms = np.abs(self.right_ns - self.left_ns) * 1e-6
+        j = np.clip(np.searchsorted(self.all_right_ns, self.all_left_ns), 1,
+                    max(len(self.all_right_ns) - 1, 1))
+        near = np.minimum(np.abs(self.all_right_ns[j] - self.all_left_ns),
+                          np.abs(self.all_right_ns[j - 1] - self.all_left_ns)) * 1e-6
+        suggest = self.suggested_max_dt_s()
+        fix = (f"; for free-running cameras try `max_dt_s` {suggest:.3g} (half the frame "
+               "period)" if suggest > self.max_dt_s else "")
+        return (f"{self.path}: {n_l} of {len(self.all_left_ns)} left and {n_r} of "
+                f"{len(self.all_right_ns)} right images found no partner within `max_dt_s` "
+                f"{self.max_dt_s:g} s (paired: {np.median(paired_ms):.3g} ms apart median, "
+                f"{paired_ms.max():.3g} ms max; nearest partner of every left image: up to "
+                f"{near.max():.3g} ms){fix}")
 
 
 def _stamp_ns(msg: object, log_ns: int) -> int:
@@ -79,19 +120,20 @@ def _open(path: Path):  # returns rosbags' AnyReader, opened
 def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: float) -> BagPairs:
     """Read the stamps of both topics and pair them (first pass, no image decoding)."""
     if not max_dt_s > 0:
-        raise SlitcliError(f"--max-dt {max_dt_s} must be positive (seconds)")
+        raise SlitcliError(f"`max_dt_s` {max_dt_s} must be positive (seconds)", param="max_dt_s")
     p = Path(path)
     reader = _open(p)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         images = sorted(t for t, ty in topics.items() if ty in IMAGE_TYPES)
-        for opt, topic in (("--left-topic", left_topic), ("--right-topic", right_topic)):
+        for opt, topic in (("left_topic", left_topic), ("right_topic", right_topic)):
             if topic not in topics:
-                raise SlitcliError(f"{p}: no topic {topic!r} ({opt}); image topics in this bag: "
-                                   f"{', '.join(images) or 'none'}")
+                raise SlitcliError(f"{p}: no topic {topic!r} (`{opt}`); image topics in this bag: "
+                                   f"{', '.join(images) or 'none'}", param=opt)
             if topics[topic] not in IMAGE_TYPES:
-                raise SlitcliError(f"{p}: topic {topic!r} ({opt}) carries {topics[topic]}, not "
-                                   "images; choose one of " + (", ".join(images) or "none"))
+                raise SlitcliError(f"{p}: topic {topic!r} (`{opt}`) carries {topics[topic]}, not "
+                                   "images; choose one of " + (", ".join(images) or "none"),
+                                   param=opt)
         stamps: dict[str, list[int]] = {left_topic: [], right_topic: []}
         conns = [c for c in reader.connections if c.topic in stamps]
         for conn, log_ns, raw in reader.messages(connections=conns):
@@ -106,9 +148,10 @@ def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: floa
         raise SlitcliError(f"{p}: topic {empty!r} has no messages; the sequence is empty")
     li, ri = _pair(left, right, round(max_dt_s * 1e9))
     if len(li) == 0:
-        raise SlitcliError(f"{p}: no left/right pairs within --max-dt {max_dt_s:g} s; "
-                           + _why_unpaired(left, right, max_dt_s))
-    return BagPairs(p, left_topic, right_topic, left[li], right[ri])
+        raise SlitcliError(f"{p}: no left/right pairs within `max_dt_s` {max_dt_s:g} s; "
+                           + _why_unpaired(left, right, max_dt_s), param="max_dt_s")
+    return BagPairs(p, left_topic, right_topic, left[li], right[ri], left, right,
+                    float(max_dt_s))
 
 
 def _pair(left: np.ndarray, right: np.ndarray, max_dt_ns: int) -> tuple[np.ndarray, np.ndarray]:
@@ -142,7 +185,7 @@ def _why_unpaired(left: np.ndarray, right: np.ndarray, max_dt_s: float) -> str:
                         "stamps or driver")
     hint = ""
     if gap_s > max_dt_s:
-        hint = (f"; if the cameras are not synchronised, try --max-dt {gap_s * 1.5:.3g} "
+        hint = (f"; if the cameras are not synchronised, try `max_dt_s` {gap_s * 1.5:.3g} "
                 "(seconds, not milliseconds)")
     return f"the nearest left/right stamps are {gap_s:.3g} s apart (median){hint}"
 

@@ -69,14 +69,14 @@ class FrameBatch:
                     changed = _changed_keys(old, manifest)
                     raise SlitcliError(
                         f"{self.out}: holds {name} results made with other settings "
-                        f"(changed: {changed}); pass --overwrite to replace them or choose "
-                        "another output folder")
+                        f"(changed: {changed}); pass `overwrite` to replace them or choose "
+                        "another output folder", param="overwrite")
                 shutil.rmtree(self.dir)
         elif self.out.exists() and any(self.out.iterdir()) and not overwrite:
             existing = next(iter(self.out.iterdir())).name
             raise SlitcliError(f"{self.out}: is not empty (it holds {existing}) and was not "
                                f"written by slitcli {name}; choose another output folder or "
-                               "pass --overwrite")
+                               "pass `overwrite`", param="overwrite")
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
         except OSError as e:
@@ -89,6 +89,34 @@ class FrameBatch:
 
     def is_done(self, frame: int, kinds: Iterable[str] = ("rows",)) -> bool:
         return all(self.part_path(frame, k).exists() for k in kinds)
+
+    def mark_skipped(self, frame: int, name: str, reason: str, kinds: Iterable[str]) -> None:
+        """Record a frame that could not be read: empty parts of ``kinds`` (so the table
+        assembles) and why. A skipped frame is not finished: a re-run tries it again."""
+        for k in kinds:
+            write_text_atomic(self.part_path(frame, k), "")
+        write_text_atomic(self.part_path(frame, "skipped"), json.dumps([frame, name, reason]))
+
+    def is_skipped(self, frame: int) -> bool:
+        return self.part_path(frame, "skipped").exists()
+
+    def clear_skipped(self, frame: int) -> None:
+        self.part_path(frame, "skipped").unlink(missing_ok=True)
+
+    def write_skipped(self, n_frames: int, target: Path) -> int:
+        """Write ``target`` (frame,name,reason) listing the skipped frames, if any (an old
+        list is removed when none is left); returns how many."""
+        from slitcli.io.atomic import write_csv_atomic
+
+        rows = [json.loads(self.part_path(i, "skipped").read_text())
+                for i in range(n_frames) if self.is_skipped(i)]
+        if rows:
+            import pandas as pd
+
+            write_csv_atomic(target, pd.DataFrame(rows, columns=["frame", "name", "reason"]))
+        else:
+            target.unlink(missing_ok=True)
+        return len(rows)
 
     def assemble(self, n_frames: int, kind: str, target: Path, header: str) -> None:
         """Concatenate the parts of frames 0..n-1 (each without header) into ``target``."""
@@ -113,7 +141,7 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
     flat memory. With ``jobs == 1`` everything runs in this process.
     """
     if jobs < 1:
-        raise SlitcliError(f"--jobs {jobs} must be at least 1")
+        raise SlitcliError(f"`jobs` {jobs} must be at least 1", param="jobs")
     if jobs == 1:
         if initializer is not None:
             initializer()

@@ -1,13 +1,14 @@
 """Stereo sequences on disk (DESIGN §12): ``left/`` and ``right/`` with the same file names.
 
 A sequence folder holds ``left/`` and ``right/`` (PNG or JPEG, same names, frames in
-name order), an optional ``times.csv`` (``frame,time_s``) and an optional
-``rig.yaml``. Frames are numbered 0, 1, ... in name order; that index is the
-``frame`` column of every table.
+natural name order: ``frame_2`` before ``frame_10``), an optional ``times.csv``
+(``frame,time_s``) and an optional ``rig.yaml``. Frames are numbered 0, 1, ... in
+that order; that index is the ``frame`` column of every table.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,7 +120,7 @@ def read_frame(ref: FrameRef, rig: Rig | None = None) -> StereoFrame:
             which = "raw.image_size_px" if rig.raw is not None else "image_size_px"
             raise SlitcliError(f"{ref.left_path}: size {left.shape[1]}x{left.shape[0]} does "
                                f"not match the rig's {which} {want[0]}x{want[1]}; use the rig "
-                               "these images were taken with (--rig)")
+                               "these images were taken with (`rig`)", param="rig")
     return StereoFrame(ref.index, ref.name, ref.time_s, left, right)
 
 
@@ -135,10 +136,17 @@ def read_image(path: Path) -> np.ndarray:
     return img
 
 
+def natural_key(name: str) -> tuple:
+    """Sort key that orders the digit runs of a name by value (``frame_2`` < ``frame_10``;
+    zero-padded names keep their order)."""
+    return tuple((0, int(t), t) if t.isdigit() else (1, 0, t)
+                 for t in re.split(r"(\d+)", name) if t)
+
+
 def _images(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.iterdir()
-                  if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
-                  p.name.startswith("."))
+    return sorted((p for p in folder.iterdir()
+                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
+                   p.name.startswith(".")), key=lambda p: natural_key(p.name))
 
 
 def _read_times(path: Path, n: int) -> np.ndarray:

@@ -25,6 +25,8 @@ RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_ran
                   "stereo_has_features", "fused_range_m", "fused_source")
 SOURCES = ("laser", "stereo", "none")
 MANIFEST = Path(".slitcli") / "detect" / "manifest.json"
+# where the run's input was (written by detect beside the manifest, not part of its identity)
+SOURCE = Path(".slitcli") / "detect" / "source.json"
 
 
 @dataclass(frozen=True)
@@ -86,11 +88,12 @@ class DetectRun:
 
     def recorded_source(self) -> Path | None:
         """The input path the manifest records, if it records one."""
-        inp = self.manifest.get("input", {})
-        for key in ("path", "source"):
-            if isinstance(inp.get(key), str):
-                return Path(inp[key])
-        return None
+        try:
+            where = json.loads((self.folder / SOURCE).read_text())
+        except (OSError, ValueError):
+            return None
+        path = where.get("path") if isinstance(where, dict) else None
+        return Path(path) if isinstance(path, str) else None
 
 
 def load_run(folder: str | Path) -> DetectRun:
@@ -256,32 +259,25 @@ def resolve_source(run: DetectRun, source: str | Path | None) -> Path:
     return src
 
 
-def _raw_left_images(run: DetectRun, src: Path) -> Iterator[tuple[int, np.ndarray]]:
+def _open_source(run: DetectRun, src: Path):  # -> slitcli.io.frames.FrameSource
+    from slitcli.io.frames import open_frames
+
     inp = run.manifest.get("input", {})
-    wanted = set(run.frames.tolist())
-    if run.input_kind == "bag":
-        from slitcli.io.bags import bag_frames, pair_bag
-
-        pairs = pair_bag(src, str(inp.get("left_topic", "/stereo/left/image_raw")),
-                         str(inp.get("right_topic", "/stereo/right/image_raw")),
-                         float(inp.get("max_dt_s", 0.01)))
-        _check_count(run, src, len(pairs))
-        skip = set(range(len(pairs))) - wanted
-        for fr in bag_frames(pairs, skip=skip):
-            if not isinstance(fr, int):
-                yield fr.index, fr.left_bgr
-        return
-    from slitcli.io.sequence import StereoSequence, read_image
-
-    seq = StereoSequence(src)
-    _check_count(run, src, len(seq))
-    names = inp.get("names")
-    if isinstance(names, list) and names != [r.name for r in seq.refs]:
+    frames = open_frames(src, left_topic=str(inp.get("left_topic", "/stereo/left/image_raw")),
+                         right_topic=str(inp.get("right_topic", "/stereo/right/image_raw")),
+                         max_dt_s=float(inp.get("max_dt_s", 0.01)))
+    _check_count(run, src, len(frames))
+    if frames.manifest() != inp:
         raise SlitcliError(f"{src}: its images are not the ones the run was made from "
-                           "(other file names); give the run's own input (--source)")
-    for ref in seq.refs:
-        if ref.index in wanted:
-            yield ref.index, read_image(ref.left_path)
+                           "(other names or stamps); give the run's own input (--source)")
+    return frames
+
+
+def _raw_left_images(run: DetectRun, src: Path) -> Iterator[tuple[int, np.ndarray]]:
+    frames = _open_source(run, src)
+    skip = set(range(len(frames))) - set(run.frames.tolist())
+    for fr in frames.frames(None, skip=skip):
+        yield fr.index, fr.left_bgr
 
 
 def _check_count(run: DetectRun, src: Path, n: int) -> None:
@@ -302,16 +298,5 @@ def bag_stamps_ns(run: DetectRun, source: str | Path | None) -> np.ndarray | Non
     src = Path(source) if source is not None else run.recorded_source()
     if src is None or not src.exists():
         return None
-    from slitcli.io.bags import pair_bag
-
-    inp = run.manifest.get("input", {})
-    pairs = pair_bag(src, str(inp.get("left_topic", "/stereo/left/image_raw")),
-                     str(inp.get("right_topic", "/stereo/right/image_raw")),
-                     float(inp.get("max_dt_s", 0.01)))
-    _check_count(run, src, len(pairs))
-    recorded = inp.get("stamps")
-    if isinstance(recorded, int) and int(np.bitwise_xor.reduce(pairs.left_ns)) != recorded:
-        raise SlitcliError(f"{src}: its image stamps are not the run's; give the bag the run "
-                           "was made from (--source)")
-    return pairs.left_ns[run.frames]
+    return _open_source(run, src).pairs.left_ns[run.frames]
 

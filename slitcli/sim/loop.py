@@ -30,9 +30,11 @@ from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
 from slitcli.io.progress import progress_bar
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.ranges import RANGES, SIM_METRICS, SIM_TRAJECTORY
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import Pose2D, Scene
+from slitcli.sim.sensing import RangeScan
 from slitcli.sim.truth import Footprints, footprints, sensor_origin_xy, wedge_min_range
 from slitcli.sim.worlds import (
     PAPER_SENSING_RANGES_M,
@@ -42,25 +44,9 @@ from slitcli.sim.worlds import (
     random_world,
 )
 
-TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
-RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
-                  "stereo_has_features", "fused_range_m", "fused_source")
-METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
-                   "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
-
-
-@dataclass(frozen=True)
-class RangeScan:
-    """One sensed frame: a per-bearing range table (DESIGN §6) in the sensor frame.
-
-    ``bearing_deg`` (B,) bin centres, positive left; ``range_m`` (B,) horizontal range
-    from the sensor origin, NaN = no return; the sensor origin is ``forward_m`` ahead
-    of the robot's rotation centre.
-    """
-
-    bearing_deg: np.ndarray
-    range_m: np.ndarray
-    forward_m: float
+TRAJECTORY_COLUMNS = SIM_TRAJECTORY.columns
+RANGES_COLUMNS = RANGES.columns
+METRICS_COLUMNS = SIM_METRICS.columns
 
 
 class Sensor(Protocol):

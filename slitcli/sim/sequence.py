@@ -10,6 +10,7 @@ Layout written by :func:`render_sequence` (docs/sequence.md, docs/ground-truth.m
     OUT/gt/distance/000000.png    16-bit, depth along the optical axis in mm, 0 = none
     OUT/gt/mask/000000.png        8-bit, 255 = obstacle pixel
     OUT/gt/laser.csv     laser-table columns for the true stripe points
+    OUT/gt/laser_ranges.csv   frame,time_s,bearing_deg,laser_true_m (nearest lit point)
     OUT/gt/ranges.csv    frame,time_s,bearing_deg,range_m (true nearest obstacle)
     OUT/gt/poses.csv     frame,time_s,x_m,y_m,yaw_deg (robot rotation centre, world)
     OUT/gt/frame_000000.npz   lossless float truth (every FrameTruth array)
@@ -29,24 +30,14 @@ import pandas as pd
 import yaml
 
 from slitcli.io.atomic import atomic_directory, write_png_atomic
+from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png
 from slitcli.rig import Rig
 from slitcli.sim.camera import camera_to_scene
+from slitcli.sim.laser_truth import lit_wedge_ranges
 from slitcli.sim.render import FrameTruth, render_frame
 from slitcli.sim.scene import Box, Cylinder, Scene, Wall
 
 FRAME_NAME = "{:06d}"
-
-
-def encode_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
-    """KITTI convention: uint16 = round(disparity * 256), 0 = invalid."""
-    d = np.where(np.isfinite(disparity_px) & (disparity_px > 0), disparity_px, 0.0)
-    return np.clip(np.rint(d * 256.0), 0, 65535).astype(np.uint16)
-
-
-def encode_depth_png(depth_m: np.ndarray) -> np.ndarray:
-    """ROS 16UC1 convention: uint16 millimetres, 0 = invalid (beyond 65.535 m too)."""
-    mm = np.where(np.isfinite(depth_m) & (depth_m > 0), np.rint(depth_m * 1000.0), 0.0)
-    return np.where(mm <= 65535, mm, 0).astype(np.uint16)
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -156,7 +147,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         scene = replace(scene, seed=seed)
     poses = scene.poses(frames)
     times = scene.times_s(frames)
-    laser_tables, range_tables, pose_rows = [], [], []
+    laser_tables, range_tables, lit_tables, pose_rows = [], [], [], []
+    _, bin_lo, bin_hi = rig.bearing_bins(1.0)
     stripe_cols = 0
     with atomic_directory(out, overwrite=overwrite) as tmp:
         for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
@@ -169,13 +161,16 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
             t = fr.truth
             write_png_atomic(tmp / "gt/disparity" / name, encode_disparity_png(t.disparity_px))
             write_png_atomic(tmp / "gt/distance" / name, encode_depth_png(t.depth_m))
-            write_png_atomic(tmp / "gt/mask" / name, (t.obstacle_mask * 255).astype(np.uint8))
+            write_png_atomic(tmp / "gt/mask" / name, encode_mask_png(t.obstacle_mask))
             write_truth_npz(tmp / "gt" / f"frame_{FRAME_NAME.format(i)}.npz", t)
             laser_tables.append(truth_laser_rows(i, t))
             stripe_cols += int(np.isfinite(t.stripe_v_px).sum())
             range_tables.append(pd.DataFrame({"frame": i, "time_s": times[i],
                                               "bearing_deg": t.bearing_deg,
                                               "range_m": t.range_m}))
+            lit_tables.append(pd.DataFrame({
+                "frame": i, "time_s": times[i], "bearing_deg": t.bearing_deg,
+                "laser_true_m": lit_wedge_ranges(scene, rig, pose, bin_lo, bin_hi)}))
             pose_rows.append((i, times[i], pose.x_m, pose.y_m, math.degrees(pose.yaw_rad)))
             if on_frame is not None:
                 on_frame(i + 1, len(poses))
@@ -184,6 +179,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
             tmp / "times.csv", index=False, float_format=fmt, lineterminator="\n")
         pd.concat(laser_tables).to_csv(tmp / "gt/laser.csv", index=False, float_format=fmt,
                                        lineterminator="\n")
+        pd.concat(lit_tables).to_csv(tmp / "gt/laser_ranges.csv", index=False,
+                                     float_format=fmt, lineterminator="\n", na_rep="")
         ranges = pd.concat(range_tables)
         ranges.to_csv(tmp / "gt/ranges.csv", index=False, float_format=fmt,
                       lineterminator="\n", na_rep="")

@@ -1,0 +1,151 @@
+"""The ``slitcli`` command group, its error funnel and the options commands share.
+
+Every command calls one library function. The library's own :class:`SlitcliError`
+becomes exit status 2 with one line on stderr; click's usage errors too; any other
+exception is an internal error (exit 1, one line; the traceback with ``--debug``).
+"""
+
+from __future__ import annotations
+
+import sys
+import traceback
+from typing import Any
+
+import click
+
+from slitcli import __version__
+from slitcli.errors import SlitcliError
+
+# Library parameter names (SlitcliError.param) and the options that set them. One
+# table for every command: a parameter keeps its meaning, so its option keeps its name.
+PARAM_FLAGS: dict[str, str] = {
+    "bin_deg": "--bin-deg", "rig_path": "--rig", "rig": "--rig", "jobs": "--jobs",
+    "overwrite": "--overwrite", "max_dt_s": "--max-dt", "left_topic": "--left-topic",
+    "right_topic": "--right-topic", "fusion_mode": "--fusion",
+    "range_column": "--range-column", "memory_s": "--memory-s",
+    "memory_cell_m": "--memory-cell-m", "goal_xy_m": "--goal",
+    "sensing_range_m": "--sensing-range",
+    "matcher": "--matcher", "prefilter": "--prefilter", "subpixel": "--subpixel",
+    "num_disparities": "--num-disparities", "min_disparity": "--min-disparity",
+    "window_w_px": "--window", "window_h_px": "--window", "window": "--window",
+    "texture_min_dn": "--texture-min", "uniqueness_ratio": "--uniqueness",
+    "lr_max_diff_px": "--lr-max-diff", "support_min_zncc": "--support-min",
+    "support_cross_min_zncc": "--support-cross-min",
+    "speckle_window_px": "--speckle-window", "speckle_range_px": "--speckle-range",
+    "floor_margin_m": "--floor-margin", "robot_height_m": "--robot-height",
+    "max_range_m": "--max-range", "frames": "--frames", "seed": "--seed",
+    "on_bad": "--on-bad-frame", "on_bad_frame": "--on-bad-frame",
+}
+
+
+def to_flags(text: str, names: tuple[str, ...] | None = None) -> str:
+    """``text`` with the library parameters it quotes in backticks (`bin_deg`) replaced
+    by CLI flags (``names``: only these; default every known parameter). A parameter the
+    command line has no option for keeps its library name, unquoted."""
+    for name in PARAM_FLAGS if names is None else names:
+        text = text.replace(f"`{name}`", PARAM_FLAGS.get(name, name))
+    return text
+
+
+def user_message(e: SlitcliError) -> str:
+    """The error's message with its library parameter names replaced by CLI flags."""
+    return to_flags(str(e), e.params)
+
+
+def echo_notes(notes: tuple[str, ...]) -> None:
+    """A run's notes on stderr, one line each, in the command line's terms."""
+    for note in notes:
+        click.echo(f"slitcli: note: {to_flags(note)}", err=True)
+
+
+class _Group(click.Group):
+    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs)."""
+
+    def main(self, args: Any = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True,
+             **extra: Any) -> Any:
+        argv = list(sys.argv[1:] if args is None else args)
+        debug = "--debug" in argv
+        try:
+            rv = super().main(args=argv, prog_name=prog_name or "slitcli",
+                              complete_var=complete_var, standalone_mode=False, **extra)
+        except SlitcliError as e:
+            if debug:
+                traceback.print_exc()
+            click.echo(f"slitcli: error: {user_message(e)}", err=True)
+            sys.exit(2)
+        except click.exceptions.NoArgsIsHelpError as e:
+            click.echo(e.ctx.get_help() if e.ctx else str(e), err=True)
+            sys.exit(2)
+        except click.UsageError as e:
+            where = f" (see '{e.ctx.command_path} --help')" if e.ctx is not None else ""
+            click.echo(f"slitcli: error: {e.format_message()}{where}", err=True)
+            sys.exit(2)
+        except click.ClickException as e:
+            click.echo(f"slitcli: error: {e.format_message()}", err=True)
+            sys.exit(e.exit_code)
+        except click.exceptions.Abort:
+            click.echo("slitcli: interrupted", err=True)
+            sys.exit(130)
+        except KeyboardInterrupt:
+            click.echo("slitcli: interrupted", err=True)
+            sys.exit(130)
+        except Exception as e:
+            if debug:
+                traceback.print_exc()
+            msg = str(e).splitlines()[0] if str(e) else ""
+            click.echo(f"slitcli: internal error: {e.__class__.__name__}: {msg} "
+                       "(run with --debug for the traceback)", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"],
+                                           "max_content_width": 100})
+@click.option("--debug", is_flag=True, help="Print the full traceback on errors.")
+@click.version_option(__version__, prog_name="slitcli")
+def cli(debug: bool) -> None:
+    """Obstacle detection with a stereo camera and a red laser slit, and a modified DWA.
+
+    \b
+    Typical session:
+      slitcli rig init rig.yaml              # the paper's rig, edit to taste
+      slitcli render sample_data/corridor.yaml out/corridor
+      slitcli detect out/corridor -o out/det # per-bearing range table
+      slitcli simulate-dwa --scenario paper -o out/dwa
+
+    Frames: sensor x forward, y left, z up, origin on the floor below the left camera.
+    """
+
+
+def bag_options(f: Any) -> Any:
+    """The options that read a ROS bag as a frame source (``laser``, ``stereo``, ``detect``)."""
+    from slitcli.io.frames import DEFAULT_LEFT_TOPIC, DEFAULT_MAX_DT_S, DEFAULT_RIGHT_TOPIC
+
+    options = [
+        click.option("--left-topic", default=DEFAULT_LEFT_TOPIC, show_default=True,
+                     help="Bag topic of the left images."),
+        click.option("--right-topic", default=DEFAULT_RIGHT_TOPIC, show_default=True,
+                     help="Bag topic of the right images."),
+        click.option("--max-dt", type=float, default=DEFAULT_MAX_DT_S, show_default=True,
+                     help="Largest left/right stamp difference that pairs two bag images, "
+                     "seconds. Synchronised cameras: a few ms; free-running cameras: half the "
+                     "frame period (0.05 at 10 Hz). Unpaired images are reported."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def bad_frame_option(f: Any) -> Any:
+    """``--on-bad-frame {stop,skip}`` (``laser``, ``stereo``, ``detect``)."""
+    return click.option(
+        "--on-bad-frame", "on_bad_frame", type=click.Choice(["stop", "skip"]), default="stop",
+        show_default=True, help="A frame that cannot be read (unreadable image, wrong size): "
+        "stop = exit 2 naming the file (finished frames are kept for a re-run); skip = "
+        "leave it out, list it in OUT/skipped_frames.csv and go on.")(f)
+
+
+def main() -> None:
+    """Console-script entry point (also ``python -m slitcli``)."""
+    cli.main()
