@@ -22,8 +22,15 @@ import numpy as np
 import yaml
 
 from slitcli.errors import SlitcliError
+from slitcli.io.yamlfile import brief, finite_float
 
 SCHEMA_VERSION = 1
+MAX_IMAGE_SIDE_PX = 16384
+"""Largest image width or height a rig may give, pixels."""
+MAX_IMAGE_PIXELS = 50_000_000
+"""Largest image area a rig may give (width x height), pixels."""
+MAX_FOCAL_PX = 1e7
+"""Largest focal length accepted, pixels (a 0.1-degree field of view on 16k pixels)."""
 
 
 @dataclass(frozen=True)
@@ -429,10 +436,9 @@ class _Reader:
             if default is None:
                 raise SlitcliError(f"{self.source}: missing key '{name}'; add it")
             return default
-        v = m[key]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise self.fail(name, f"= {v!r} is not a finite number", "give a number")
-        v = float(v)
+        v = finite_float(m[key])
+        if v is None:
+            raise self.fail(name, f"= {brief(m[key])} is not a finite number", "give a number")
         if low is not None and (v < low or (low_open and v == low)):
             sign = ">" if low_open else ">="
             raise self.fail(name, f"= {v:g} is out of range", f"it must be {sign} {low:g}")
@@ -444,11 +450,12 @@ class _Reader:
     def vector(self, value: Any, key: str, shape: tuple[int, ...]) -> np.ndarray:
         try:
             a = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise self.fail(key, "is not a numeric matrix", f"give a list of shape {shape}") \
-                from None
-        ok = a.ndim == len(shape) and all(s == -1 or s == n for s, n in zip(shape, a.shape,
-                                                                          strict=False))
+        except (TypeError, ValueError, OverflowError):
+            raise self.fail(key, "is not a numeric matrix of finite numbers",
+                            f"give a list of shape {shape}") from None
+        # an open dimension is a list of distortion coefficients: OpenCV uses at most 14
+        ok = a.ndim == len(shape) and all((s == -1 and 1 <= n <= 14) or s == n
+                                          for s, n in zip(shape, a.shape, strict=False))
         if not ok or not np.all(np.isfinite(a)):
             want = "x".join("N" if s == -1 else str(s) for s in shape)
             raise self.fail(key, f"has shape {'x'.join(map(str, a.shape)) or 'scalar'}",
@@ -473,21 +480,19 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
     top = r.mapping(data, "", _TOP_KEYS, ("slitcli_rig", "image_size_px", "left",
                                           "baseline_m", "mount", "laser"))
     version = top["slitcli_rig"]
-    if version != SCHEMA_VERSION:
-        raise r.fail("slitcli_rig", f"= {version!r} is not a schema version this slitcli reads",
-                     f"use {SCHEMA_VERSION} (write a fresh file with `slitcli rig init`)")
-    name = str(top.get("name", Path(source).stem))
-    size = top["image_size_px"]
-    if (not isinstance(size, list | tuple) or len(size) != 2
-            or not all(isinstance(s, int) and not isinstance(s, bool) for s in size)
-            or min(size) < 8):
-        raise r.fail("image_size_px", f"= {size!r} is not a valid size",
-                     "give [width, height] as whole numbers of at least 8 pixels")
-    w, h = int(size[0]), int(size[1])
+    # `true` == 1 in Python: a boolean is not a version number
+    if isinstance(version, bool) or version != SCHEMA_VERSION:
+        raise r.fail("slitcli_rig", f"= {brief(version)} is not a schema version this slitcli "
+                     "reads", f"use {SCHEMA_VERSION} (write a fresh file with `slitcli rig init`)")
+    name = top.get("name", Path(source).stem)
+    if not isinstance(name, str | int | float) or isinstance(name, bool) or len(str(name)) > 200:
+        raise r.fail("name", f"= {brief(name)} is not a short name", "give a string")
+    name = str(name)
+    w, h = _image_size(r, top["image_size_px"], "image_size_px")
     lm = r.mapping(top["left"], "left", _LEFT_KEYS, _LEFT_KEYS)
     left = Intrinsics(
-        fx_px=r.number(lm, "fx_px", "left", low=0.0, low_open=True),
-        fy_px=r.number(lm, "fy_px", "left", low=0.0, low_open=True),
+        fx_px=r.number(lm, "fx_px", "left", low=0.0, low_open=True, high=MAX_FOCAL_PX),
+        fy_px=r.number(lm, "fy_px", "left", low=0.0, low_open=True, high=MAX_FOCAL_PX),
         cx_px=r.number(lm, "cx_px", "left", low=0.0, high=float(w - 1)),
         cy_px=r.number(lm, "cy_px", "left", low=0.0, high=float(h - 1)),
     )
@@ -510,29 +515,61 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
     laser = Laser(
         normal=_freeze(normal),
         offset_m=r.number(la, "offset_m", "laser", low=0.0, low_open=True, high=20.0),
-        min_range_m=r.number(la, "min_range_m", "laser", default=0.6, low=0.0),
-        max_range_m=r.number(la, "max_range_m", "laser", default=1.0, low=0.0, low_open=True),
+        min_range_m=r.number(la, "min_range_m", "laser", default=0.6, low=0.0, high=100.0),
+        max_range_m=r.number(la, "max_range_m", "laser", default=1.0, low=0.0, low_open=True,
+                             high=100.0),
     )
     if laser.min_range_m >= laser.max_range_m:
         raise r.fail("laser.min_range_m", f"= {laser.min_range_m:g} is not below "
                      f"laser.max_range_m = {laser.max_range_m:g}", "swap or correct them")
+    _check_sheet_above_floor(r, mount, laser)
     st = top.get("stereo") or {}
     st = r.mapping(st, "stereo", _STEREO_KEYS, ())
     stereo = StereoLimits(max_range_m=r.number(st, "max_range_m", "stereo", default=3.0,
-                                               low=0.0, low_open=True))
+                                               low=0.0, low_open=True, high=1000.0))
     raw = None
     if top.get("raw") is not None:
         rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES),
                        ("image_size_px", *_RAW_SHAPES))
-        rs = rm["image_size_px"]
-        if (not isinstance(rs, list | tuple) or len(rs) != 2
-                or not all(isinstance(s, int) and s >= 8 for s in rs)):
-            raise r.fail("raw.image_size_px", f"= {rs!r} is not a valid size",
-                         "give [width, height] in pixels")
+        rw, rh = _image_size(r, rm["image_size_px"], "raw.image_size_px")
         arrays = {k: _freeze(r.vector(rm[k], f"raw.{k}", s)) for k, s in _RAW_SHAPES.items()}
-        raw = RawCalibration(image_size_px=(int(rs[0]), int(rs[1])), **arrays)
+        raw = RawCalibration(image_size_px=(rw, rh), **arrays)
     return Rig(name=name, image_size_px=(w, h), left=left, baseline_m=baseline, mount=mount,
                laser=laser, stereo=stereo, raw=raw)
+
+
+def _image_size(r: _Reader, size: Any, key: str) -> tuple[int, int]:
+    """``[width, height]``: whole numbers of 8 to MAX_IMAGE_SIDE_PX pixels, bounded area."""
+    if (not isinstance(size, list | tuple) or len(size) != 2
+            or not all(isinstance(s, int) and not isinstance(s, bool) for s in size)
+            or min(size) < 8 or max(size) > MAX_IMAGE_SIDE_PX
+            or size[0] * size[1] > MAX_IMAGE_PIXELS):
+        raise r.fail(key, f"= {brief(size)} is not a valid size",
+                     f"give [width, height] as whole numbers of 8 to {MAX_IMAGE_SIDE_PX} pixels "
+                     f"(at most {MAX_IMAGE_PIXELS} pixels in all)")
+    return int(size[0]), int(size[1])
+
+
+def _check_sheet_above_floor(r: _Reader, mount: Mount, laser: Laser) -> None:
+    """Refuse a laser sheet that lies below the floor over the whole trusted band.
+
+    Where the sheet is not vertical, its height above the floor straight ahead at
+    forward distance x solves ``n_s . (x, 0, z) = d_s``; if it is below z = 0 at both
+    ends of ``[min_range_m, max_range_m]`` (a plane is linear in x, so everywhere
+    between), no obstacle in the band can ever be lit.
+    """
+    probe = Rig(name="probe", image_size_px=(8, 8), left=Intrinsics(1.0, 1.0, 3.5, 3.5),
+                baseline_m=1.0, mount=mount, laser=laser)
+    n_s, d_s = probe.laser_plane_sensor()
+    if abs(n_s[2]) < 1e-9:
+        return
+    z = [(d_s - n_s[0] * x) / n_s[2] for x in (laser.min_range_m, laser.max_range_m)]
+    if max(z) < 0:
+        raise r.fail("laser.offset_m", f"= {laser.offset_m:g} puts the laser sheet "
+                     f"{-max(z):.3g} m below the floor between {laser.min_range_m:g} and "
+                     f"{laser.max_range_m:g} m ahead",
+                     "a horizontal sheet needs laser.offset_m < mount.height_m "
+                     f"({mount.height_m:g}); check the sign of laser.normal")
 
 
 def load_rig(path: str | Path) -> Rig:
