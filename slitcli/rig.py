@@ -29,6 +29,10 @@ MAX_IMAGE_SIDE_PX = 16384
 """Largest image width or height a rig may give, pixels."""
 MAX_IMAGE_PIXELS = 50_000_000
 """Largest image area a rig may give (width x height), pixels."""
+MIN_BIN_DEG = 0.05
+"""Narrowest bearing bin, degrees (below it bins are finer than a pixel of a 4k image)."""
+MAX_BIN_DEG = 10.0
+"""Widest bearing bin, degrees."""
 MAX_FOCAL_PX = 1e7
 """Largest focal length accepted, pixels (a 0.1-degree field of view on 16k pixels)."""
 
@@ -320,8 +324,10 @@ class Rig:
         centres, lower, upper : ndarray, shape (B,)
             Degrees, sensor frame, positive left, ascending (right to left).
         """
-        if not bin_deg > 0:
-            raise ValueError("bin_deg must be positive")
+        if not MIN_BIN_DEG <= bin_deg <= MAX_BIN_DEG:
+            # a width is also a count: 1e-6 deg would make 6e7 bins of a 60-deg view
+            raise SlitcliError(f"bearing bin width bin_deg = {bin_deg!r} is out of range; give "
+                               f"{MIN_BIN_DEG:g} to {MAX_BIN_DEG:g} degrees")
         right, left = self.bearing_limits_deg()
         k0 = math.ceil(right / bin_deg - 1e-9)
         k1 = math.floor(left / bin_deg + 1e-9)

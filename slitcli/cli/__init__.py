@@ -7,14 +7,49 @@ exception is an internal error (exit 1, one line; the traceback with ``--debug``
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
 import traceback
+import warnings
+from collections.abc import Iterator
 from typing import Any
 
 import click
 
 from slitcli import __version__
 from slitcli.errors import SlitcliError
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: unwinds like Ctrl-C, so temporary outputs are removed."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _process_settings() -> Iterator[None]:
+    """For one command: SIGTERM unwinds like Ctrl-C, numpy's floating-point warnings hidden.
+
+    The warnings (overflow, invalid value, empty slices) arise on extreme but accepted
+    numbers whose results are handled (NaN = no return); they are not the user's
+    business and must not interleave with progress and data.
+    """
+    previous = None
+    with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings(
+                "ignore", category=RuntimeWarning,
+                message=r"(overflow|invalid value|divide by zero|underflow) encountered|"
+                        r"Mean of empty slice|All-NaN (slice|axis)|Degrees of freedom")
+            yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 class _Group(click.Group):
@@ -26,8 +61,9 @@ class _Group(click.Group):
         argv = list(sys.argv[1:] if args is None else args)
         debug = "--debug" in argv
         try:
-            rv = super().main(args=argv, prog_name=prog_name or "slitcli",
-                              complete_var=complete_var, standalone_mode=False, **extra)
+            with _process_settings():
+                rv = super().main(args=argv, prog_name=prog_name or "slitcli",
+                                  complete_var=complete_var, standalone_mode=False, **extra)
         except SlitcliError as e:
             if debug:
                 traceback.print_exc()
@@ -49,14 +85,38 @@ class _Group(click.Group):
         except KeyboardInterrupt:
             click.echo("slitcli: interrupted", err=True)
             sys.exit(130)
-        except Exception as e:
+        except Terminated:
+            click.echo("slitcli: terminated (SIGTERM); finished results are kept, temporary "
+                       "files removed", err=True)
+            sys.exit(143)
+        except MemoryError:
+            click.echo("slitcli: error: out of memory; give smaller inputs or fewer --jobs",
+                       err=True)
+            sys.exit(2)
+        except OSError as e:
+            from slitcli.io.atomic import os_error_message
+
+            msg = os_error_message(e)
+            if msg is None:
+                _internal_error(e, debug)
             if debug:
                 traceback.print_exc()
-            msg = str(e).splitlines()[0] if str(e) else ""
-            click.echo(f"slitcli: internal error: {e.__class__.__name__}: {msg} "
-                       "(run with --debug for the traceback)", err=True)
-            sys.exit(1)
+            click.echo(f"slitcli: error: {msg}", err=True)
+            sys.exit(2)
+        except Exception as e:
+            _internal_error(e, debug)
         sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _internal_error(e: BaseException, debug: bool) -> None:
+    """A bug: one line (the traceback with --debug), exit status 1."""
+    if debug:
+        traceback.print_exc()
+    text = str(e)
+    msg = text.splitlines()[0][:300] if text else ""
+    click.echo(f"slitcli: internal error: {e.__class__.__name__}: {msg} "
+               "(run with --debug for the traceback)", err=True)
+    sys.exit(1)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"],

@@ -136,10 +136,10 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               callback=_floats(None, "comma-separated ranges in metres"), default=None,
               help="Sensing range(s), m, one run each, e.g. 0.6,1,1.5,2. Default: the "
                    "scenario's, 3 for a WORLD file.")
-@click.option("--worlds", type=int, default=100, show_default=True,
-              help="Number of random worlds (--scenario random).")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="Seed of the first random world.")
+@click.option("--worlds", type=click.IntRange(1, 10_000), default=100, show_default=True,
+              help="Number of random worlds, 1-10000 (--scenario random).")
+@click.option("--seed", type=click.IntRange(0, 2**62), default=0, show_default=True,
+              help="Seed of the first random world (>= 0).")
 @click.option("--start", metavar="X,Y,YAW_DEG", default=None,
               callback=_floats(3, "three numbers X,Y,YAW_DEG"),
               help="Override the world's start: X,Y in m, heading in deg.")
@@ -148,8 +148,8 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Override the world's goal X,Y, m.")
 @click.option("--rig", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig file (field of view, mount.forward_m). Default: the paper rig.")
-@click.option("--bin-deg", type=float, default=1.0, show_default=True,
-              help="Bearing bin width of the sensed range table, deg.")
+@click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,
+              help="Bearing bin width of the sensed range table, deg (0.05-10).")
 @click.option("--safety-margin-m", type=float, default=0.05, show_default=True,
               help="Planner footprint = robot radius + this, m.")
 @click.option("--memory-s", type=float, default=10.0, show_default=True,

@@ -13,10 +13,10 @@ from slitcli.cli import cli
 @click.argument("scene_file", metavar="SCENE.yaml",
                 type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("out", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--frames", type=click.IntRange(min=1), default=None,
-              help="Frames to render [default: the scene's robot.frames].")
-@click.option("--seed", type=int, default=None,
-              help="Replace the scene's seed (textures and sensor noise).")
+@click.option("--frames", type=click.IntRange(1, 100_000), default=None,
+              help="Frames to render, 1-100000 [default: the scene's robot.frames].")
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=None,
+              help="Replace the scene's seed (textures and sensor noise), a whole number >= 0.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file [default: the paper rig].")
 @click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")

@@ -45,6 +45,10 @@ from slitcli.sim.worlds import (
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
 RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
                   "stereo_has_features", "fused_range_m", "fused_source")
+MAX_STEPS = 100_000
+"""Most control steps of one run (the paper's 300 s at 0.2 s: 1500)."""
+MAX_WORLDS = 10_000
+"""Most random worlds of one call."""
 METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
                    "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
 
@@ -155,8 +159,10 @@ class SimParams:
 
     def __post_init__(self) -> None:
         checks = {"safety_margin_m": self.safety_margin_m >= 0, "memory_s": self.memory_s >= 0,
-                  "memory_cell_m": self.memory_cell_m > 0, "substeps": self.substeps >= 1,
-                  "max_time_s": self.max_time_s > 0, "stuck_timeout_s": self.stuck_timeout_s > 0,
+                  "memory_cell_m": self.memory_cell_m > 0,
+                  "substeps": 1 <= self.substeps <= 1000,
+                  "max_time_s": 0 < self.max_time_s <= 86400.0,
+                  "stuck_timeout_s": self.stuck_timeout_s > 0,
                   "stuck_progress_m": self.stuck_progress_m > 0}
         for name, ok in checks.items():
             value = getattr(self, name)
@@ -351,8 +357,8 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
         w = paper_world()
         return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
     if scenario == "random":
-        if worlds < 1:
-            raise SlitcliError(f"--worlds {worlds} must be at least 1")
+        if not 1 <= worlds <= MAX_WORLDS:
+            raise SlitcliError(f"--worlds {worlds} must be 1 to {MAX_WORLDS}")
         ranges = ranges or [3.0]
         out = []
         for s in range(seed, seed + worlds):
@@ -374,8 +380,13 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                  goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
                  overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
     """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
-    if not (0 < bin_deg <= 10):
-        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in (0, 10] degrees")
+    if not (0.05 <= bin_deg <= 10):
+        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in [0.05, 10] degrees")
+    steps = sim.max_time_s / dwa.dt_s
+    if steps > MAX_STEPS:
+        raise SlitcliError(f"--max-time-s {sim.max_time_s:g} / --dt-s {dwa.dt_s:g} = {steps:.3g} "
+                           f"control steps per run, more than {MAX_STEPS}; raise --dt-s or "
+                           "lower --max-time-s")
     cases = build_cases(world_path=world_path, scenario=scenario,
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)

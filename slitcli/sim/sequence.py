@@ -28,10 +28,11 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_png_atomic
 from slitcli.rig import Rig
 from slitcli.sim.render import FrameTruth, render_frame
-from slitcli.sim.scene import Box, Cylinder, Scene, Wall
+from slitcli.sim.scene import MAX_SEED, Box, Cylinder, Scene, Wall
 
 FRAME_NAME = "{:06d}"
 
@@ -143,6 +144,9 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
     dict with ``frames``, ``obstacle_bins`` and ``stripe_columns`` summaries.
     """
     if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise SlitcliError(f"seed = {seed!r} is out of range; give a whole number from 0 "
+                               f"to {MAX_SEED}")
         scene = replace(scene, seed=seed)
     poses = scene.poses(frames)
     times = scene.times_s(frames)
