@@ -367,10 +367,16 @@ def import_raw(paths: list[str | Path], fmt: str = "auto") -> RawCalibration:
 
 
 def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "auto",
-                   base_rig: str | Path | None = None, name: str | None = None) -> Rig:
-    """``slitcli rig import``: calibration files to a rig file (written atomically)."""
+                   base_rig: str | Path | None = None, name: str | None = None,
+                   overwrite: bool = False) -> Rig:
+    """``slitcli rig import``: calibration files to a rig file (written atomically).
+
+    ``out_rig`` must be none of the inputs and must not exist unless ``overwrite``.
+    """
+    from slitcli.io.atomic import check_output_file
     from slitcli.rig import save_rig
 
+    check_output_file(out_rig, inputs=[*paths, base_rig], overwrite=overwrite)
     raw = import_raw(paths, fmt)
     base = load_rig(base_rig) if base_rig is not None else None
     rig = rig_with_raw(raw, base, name=name or (base.name if base else "imported"),
@@ -433,6 +439,10 @@ def run_rig_export(rig_path: str | Path, fmt: str, out_dir: str | Path) -> list[
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SlitcliError(f"{out}: exists and is not a folder; give an output folder")
+    from slitcli.io.atomic import check_output_file
+
+    for name in texts:  # existing exports are replaced, the rig file itself never
+        check_output_file(out / name, inputs=[rig_path], overwrite=True)
     written = []
     for name, text in texts.items():
         write_text_atomic(out / name, text)

@@ -200,17 +200,13 @@ def _refuse_inputs(final: Path, names: Iterable[str], inputs: list[Path]) -> Non
                                    "elsewhere or choose another output folder")
 
 
-@contextlib.contextmanager
-def atomic_directory(path: str | Path, *, overwrite: bool = False,
-                     inputs: Iterable[str | Path] = ()) -> Iterator[Path]:
-    """Yield a temporary folder next to ``path``; move its entries into ``path`` on success.
+def check_output_folder(path: str | Path, *, overwrite: bool = False,
+                        inputs: Iterable[str | Path] = ()) -> list[Path]:
+    """The checks :func:`atomic_directory` makes first, for callers that compute before writing.
 
-    A new ``path`` appears complete, in one rename. If ``path`` exists it is an error
-    unless ``overwrite`` is set; then the entries the new run wrote, and those an earlier
-    slitcli run listed in ``OWNED_LIST``, are replaced once the new run is complete, and
-    every other file in ``path`` is left alone. An entry of the same name that slitcli
-    did not write, or one of ``inputs`` inside an entry to be replaced, is refused
-    (:class:`SlitcliError`) before anything is changed.
+    Refuses (:class:`SlitcliError`) an existing ``path`` without ``overwrite``, a ``path``
+    that is a file, equals an input or lies inside one, and an input inside an entry an
+    earlier slitcli run wrote into ``path``. Returns the inputs, resolved.
     """
     final = Path(path)
     srcs = [_resolved(s) for s in inputs if s is not None]
@@ -225,6 +221,23 @@ def atomic_directory(path: str | Path, *, overwrite: bool = False,
                                "output folder")
     if final.exists():
         _refuse_inputs(final, _owned(final), srcs)
+    return srcs
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | Path, *, overwrite: bool = False,
+                     inputs: Iterable[str | Path] = ()) -> Iterator[Path]:
+    """Yield a temporary folder next to ``path``; move its entries into ``path`` on success.
+
+    A new ``path`` appears complete, in one rename. If ``path`` exists it is an error
+    unless ``overwrite`` is set; then the entries the new run wrote, and those an earlier
+    slitcli run listed in ``OWNED_LIST``, are replaced once the new run is complete, and
+    every other file in ``path`` is left alone. An entry of the same name that slitcli
+    did not write, or one of ``inputs`` inside an entry to be replaced, is refused
+    (:class:`SlitcliError`) before anything is changed.
+    """
+    final = Path(path)
+    srcs = check_output_folder(final, overwrite=overwrite, inputs=inputs)
     _ensure_parent(final)
     sweep_temp(final.parent)
     tmp = final.parent / temp_name()

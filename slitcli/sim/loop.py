@@ -27,7 +27,12 @@ import yaml
 
 from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
-from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.io.atomic import (
+    atomic_directory,
+    check_output_folder,
+    write_csv_atomic,
+    write_text_atomic,
+)
 from slitcli.io.progress import progress_bar
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 from slitcli.rig import Rig
@@ -378,8 +383,13 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                  sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
                  seed: int = 0, start: tuple[float, float, float] | None = None,
                  goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
-                 overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
-    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
+                 overwrite: bool = False, save_ranges: bool = False,
+                 inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
+    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`.
+
+    ``inputs`` (the world and rig files) are never replaced by ``overwrite``.
+    """
+    check_output_folder(out_dir, overwrite=overwrite, inputs=[world_path, *inputs])
     if not (0.05 <= bin_deg <= 10):
         raise SlitcliError(f"--bin-deg {bin_deg:g} must be in [0.05, 10] degrees")
     steps = sim.max_time_s / dwa.dt_s
@@ -391,12 +401,14 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)
     return simulate_to_folder(cases, out_dir, rig, dwa, sim, sensing=sensing,
-                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges)
+                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges,
+                              inputs=[world_path, *inputs])
 
 
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
                        sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
-                       bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
+                       bin_deg: float = 1.0, save_ranges: bool = False,
+                       inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
     """Run the cases and write OUT/ atomically (docs/dwa.md).
 
     Files: ``trajectory_<case>.csv``, ``metrics.csv``, the world(s) (``world.yaml``, or
@@ -409,7 +421,7 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     _sensor_factory(sensing)
     metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}
-    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+    with atomic_directory(out_dir, overwrite=overwrite, inputs=inputs) as tmp:
         for name, res in trajs.items():
             write_csv_atomic(tmp / f"trajectory_{name}.csv",
                              res.trajectory[list(TRAJECTORY_COLUMNS)])

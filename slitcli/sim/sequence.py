@@ -20,7 +20,7 @@ The folder is rendered into a temporary sibling and renamed into place at the en
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -124,7 +124,8 @@ def write_truth_npz(path: Path, truth: FrameTruth) -> None:
 
 def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | None = None,
                     seed: int | None = None, overwrite: bool = False,
-                    on_frame: Callable[[int, int], None] | None = None) -> dict:
+                    on_frame: Callable[[int, int], None] | None = None,
+                    inputs: Sequence[str | Path] = ()) -> dict:
     """Render every frame of a scene into a sequence folder with ground truth.
 
     Parameters
@@ -138,6 +139,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         Replaces the scene's seed (textures and noise).
     on_frame : callable(done, total), optional
         Progress callback.
+    inputs : paths
+        The files the scene and rig were read from: ``overwrite`` never replaces them.
 
     Returns
     -------
@@ -152,7 +155,7 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
     times = scene.times_s(frames)
     laser_tables, range_tables, pose_rows = [], [], []
     stripe_cols = 0
-    with atomic_directory(out, overwrite=overwrite) as tmp:
+    with atomic_directory(out, overwrite=overwrite, inputs=inputs) as tmp:
         for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
             (tmp / sub).mkdir(parents=True)
         for i, pose in enumerate(poses):
