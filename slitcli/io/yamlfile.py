@@ -26,11 +26,14 @@ from yaml.events import AliasEvent, MappingStartEvent, SequenceStartEvent
 
 from slitcli.errors import SlitcliError
 
-MAX_BYTES = 16 * 1024 * 1024
-"""Largest YAML file read, bytes. A rig is about 2 kB, a scene with 10,000 poses 0.5 MB."""
+MAX_BYTES = 2 * 1024 * 1024
+"""Largest YAML file read, bytes. A rig is about 2 kB, a scene with 10,000 poses 0.4 MB.
+
+PyYAML's safe loader is pure Python (tens of microseconds a value): the byte and node
+bounds keep the worst file to a few seconds."""
 MAX_DEPTH = 32
 """Deepest nesting of sequences and mappings accepted (slitcli's files use at most 5)."""
-MAX_NODES = 2_000_000
+MAX_NODES = 60_000
 """Most YAML nodes (scalars, sequences, mappings) in one file."""
 
 

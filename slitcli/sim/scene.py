@@ -29,8 +29,8 @@ MAX_ABS = 1e6
 geometry loses the precision rendering needs, and squares overflow nothing below 1e150."""
 MAX_FRAMES = 100_000
 """Most frames a scene may ask for (about 3 hours at 10 Hz)."""
-MAX_ITEMS = 10_000
-"""Most objects, highlights or listed poses in a scene."""
+MAX_ITEMS = 5_000
+"""Most objects, highlights or listed poses in a scene (longer runs: motion straight)."""
 MAX_SEED = 2**63 - 1
 
 
@@ -467,8 +467,7 @@ def _robot(r: _Keys, v: Any) -> Robot:
     if not isinstance(motion, str) or motion not in ("static", "straight", "poses"):
         raise r.err("robot.motion", f"= {brief(motion)} is unknown",
                     "use static, straight or poses")
-    listed = r.items(m.get("poses"), "robot.poses", "[x_m, y_m, yaw_deg] poses",
-                     limit=MAX_FRAMES)
+    listed = r.items(m.get("poses"), "robot.poses", "[x_m, y_m, yaw_deg] poses")
     poses = tuple(_pose(r, p, f"robot.poses[{i}]") for i, p in enumerate(listed))
     if motion == "poses" and not poses:
         raise r.err("robot.poses", "is empty", "list at least one [x_m, y_m, yaw_deg] pose")
