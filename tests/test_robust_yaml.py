@@ -5,13 +5,13 @@ from __future__ import annotations
 import time
 
 import pytest
-
 from robust_helpers import invoke, one_error_line, rig_dict, scene_dict, write_yaml
+
 from slitcli.errors import SlitcliError
 from slitcli.io.yamlfile import MAX_DEPTH, brief, finite_float, load_yaml_text
 
 # A "billion laughs": 683 bytes that expand to 10^9 strings if aliases are followed.
-LAUGHS = "a: &a [\"lol\",\"lol\",\"lol\",\"lol\",\"lol\",\"lol\",\"lol\",\"lol\",\"lol\"]\n" + "".join(
+LAUGHS = "a: &a [" + ", ".join(['"lol"'] * 9) + "]\n" + "".join(
     f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join(['*' + chr(97 + i)] * 9)}]\n" for i in range(8))
 
 
