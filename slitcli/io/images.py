@@ -1,8 +1,9 @@
 """Reading input images safely: the header is checked before anything is decoded.
 
 A PNG or JPEG header states the image size in a few bytes; decoding allocates what it
-states. :func:`read_image_bgr` therefore reads the header first (Pillow's lazy open
-parses PNG's IHDR and JPEG's SOF without decoding), refuses sizes above a pixel limit,
+states. :func:`read_image_bgr` therefore reads the header first (PNG's IHDR and JPEG's
+SOF are parsed here; other formats through Pillow's lazy open, which does not decode),
+refuses sizes above a pixel limit,
 files that are not regular files and files far larger than any image of the allowed
 size could be (a 20 GB sparse file named .png), and only then decodes, with OpenCV as
 before. libpng writes its own warnings straight to the process's stderr; they are
@@ -29,6 +30,8 @@ MAX_PIXELS = 50_000_000
 _BYTES_PER_PIXEL_BOUND = 8
 """No PNG or JPEG of N pixels is larger than 8 N bytes (16-bit RGBA, incompressible)."""
 _HEADER_SLACK_BYTES = 4 * 1024 * 1024
+_HEAD_BYTES = 1024 * 1024
+"""Bytes read to find the size: a JPEG's SOF follows its metadata (EXIF <= 64 kB each)."""
 """Room for metadata chunks (EXIF, ICC profiles, thumbnails) beyond the pixel bound."""
 
 
@@ -56,10 +59,15 @@ def image_size_px(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[in
     if st.st_size == 0:
         raise SlitcliError(f"{p}: empty file, not an image; re-export or remove it")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(p) as im:
-                width, height = (int(v) for v in im.size)
+        with p.open("rb") as fh:
+            head = fh.read(_HEAD_BYTES)
+        size = _png_size(head) or _jpeg_size(head)
+        if size is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                with Image.open(p) as im:
+                    size = (int(im.size[0]), int(im.size[1]))
+        width, height = size
     except Image.DecompressionBombError:
         raise SlitcliError(f"{p}: the header claims an image of more than {max_pixels} "
                            "pixels; slitcli reads smaller images (re-export or remove it)") \
@@ -75,6 +83,40 @@ def image_size_px(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[in
         raise SlitcliError(f"{p}: {st.st_size} bytes is far more than a {width}x{height} "
                            "image can take; the file is damaged or not an image")
     return width, height
+
+
+def _png_size(head: bytes) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR (always the first chunk), or None if not a PNG."""
+    if head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR" or len(head) < 24:
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def _jpeg_size(head: bytes) -> tuple[int, int] | None:
+    """(width, height) from a JPEG's first SOF marker segment, or None.
+
+    Segments are walked by their lengths (a few per file: APPn, DQT, DHT, SOF); the SOF
+    holds precision (1 byte), height and width (2 bytes each, big-endian).
+    """
+    if head[:2] != b"\xff\xd8":
+        return None
+    pos = 2
+    while pos + 9 <= len(head):
+        if head[pos] != 0xFF:
+            return None
+        marker = head[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        seg_len = int.from_bytes(head[pos + 2:pos + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            height = int.from_bytes(head[pos + 5:pos + 7], "big")
+            width = int.from_bytes(head[pos + 7:pos + 9], "big")
+            return width, height
+        if seg_len < 2:
+            return None
+        pos += 2 + seg_len
+    return None
 
 
 def read_image_bgr(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> np.ndarray:
