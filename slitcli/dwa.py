@@ -140,10 +140,12 @@ class DwaParams:
             raise _bad("dt_s", self.dt_s, "is below 1 ms; give a control period of at least 0.001")
         pairs = window_size_bound(self)
         if pairs > MAX_WINDOW_PAIRS:
-            raise _bad("v_res_mps", self.v_res_mps,
-                       f"and w_res_dps = {self.w_res_dps!r} sample the window into up to "
-                       f"{pairs:.3g} (v, w) pairs, more than {MAX_WINDOW_PAIRS}; give coarser "
-                       "resolutions")
+            nv = self.v_max_mps / self.v_res_mps
+            nw = 2 * self.w_max_dps / self.w_res_dps
+            name = "v_res_mps" if nv >= nw else "w_res_dps"
+            raise _bad(name, getattr(self, name),
+                       f"samples the window into up to {pairs:.3g} (v, w) pairs, more than "
+                       f"{MAX_WINDOW_PAIRS}; give a coarser resolution")
         if self.v_res_mps > self.v_max_mps or self.w_res_dps > self.w_max_dps:
             raise _bad("v_res_mps" if self.v_res_mps > self.v_max_mps else "w_res_dps",
                        self.v_res_mps if self.v_res_mps > self.v_max_mps else self.w_res_dps,
