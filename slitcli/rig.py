@@ -426,7 +426,7 @@ class _Reader:
                 hint = f"did you mean '{close[0]}'?" if close else \
                     f"allowed keys are {', '.join(allowed)}"
                 name = f"{key}.{k}" if key else str(k)
-                raise SlitcliError(f"{self.source}: unknown key '{name}'; {hint}")
+                raise SlitcliError(f"{self.source}: unknown key {brief(name)}; {hint}")
         for k in required:
             if k not in value:
                 name = f"{key}.{k}" if key else k

@@ -67,7 +67,7 @@ class _Group(click.Group):
         except SlitcliError as e:
             if debug:
                 traceback.print_exc()
-            click.echo(f"slitcli: error: {e}", err=True)
+            click.echo(f"slitcli: error: {_one_line(str(e))}", err=True)
             sys.exit(2)
         except click.exceptions.NoArgsIsHelpError as e:
             click.echo(e.ctx.get_help() if e.ctx else str(e), err=True)
@@ -106,6 +106,12 @@ class _Group(click.Group):
         except Exception as e:
             _internal_error(e, debug)
         sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _one_line(text: str, limit: int = 2000) -> str:
+    """A message as one bounded line, whatever a library message echoed."""
+    flat = " ".join(text.split("\n"))
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
 
 
 def _internal_error(e: BaseException, debug: bool) -> None:

@@ -254,7 +254,7 @@ class _Keys:
                 close = difflib.get_close_matches(str(k), allowed, n=1)
                 hint = f"did you mean '{close[0]}'?" if close else \
                     f"allowed keys: {', '.join(allowed)}"
-                raise SlitcliError(f"{self.source}: unknown key '{key}.{k}'; {hint}")
+                raise SlitcliError(f"{self.source}: unknown key {brief(f'{key}.{k}')}; {hint}")
         return v
 
     def num(self, m: Mapping[str, Any], k: str, key: str, default: float | None = None, *,
@@ -391,7 +391,7 @@ def scene_from_dict(data: Any, source: str = "scene") -> Scene:
 
             close = difflib.get_close_matches(str(k), _TOP, n=1)
             hint = f"did you mean '{close[0]}'?" if close else f"allowed keys: {', '.join(_TOP)}"
-            raise SlitcliError(f"{source}: unknown key '{k}'; {hint}")
+            raise SlitcliError(f"{source}: unknown key {brief(str(k))}; {hint}")
     version = data.get("slitcli_scene")
     if isinstance(version, bool) or version != SCHEMA_VERSION:
         raise r.err("slitcli_scene", f"= {brief(version)} is not a schema version "
