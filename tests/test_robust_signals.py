@@ -44,3 +44,23 @@ def test_signal_mid_render_cleans_up(tmp_path, sig, code, word):
     lines = [x for x in err.splitlines() if x.strip()]
     assert len(lines) == 1 and lines[0].startswith("slitcli: ") and word in lines[0], err
     assert os.listdir(tmp_path) == ["s.yaml"]
+
+
+def test_debris_of_a_killed_render_is_swept_by_the_next_run(tmp_path):
+    write_yaml(tmp_path / "s.yaml", {**scene_dict(), "robot": {"frames": 500}})
+    write_yaml(tmp_path / "one.yaml", {**scene_dict(), "robot": {"frames": 1}})
+    proc = subprocess.Popen([sys.executable, "-m", "slitcli", "render", "s.yaml", "OUT"],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_for_temp_folder(proc, tmp_path)
+        time.sleep(0.5)
+        proc.kill()  # SIGKILL: no handler runs, the temporary folder stays
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert any(n.startswith(".slitcli-") for n in os.listdir(tmp_path))
+    done = subprocess.run([sys.executable, "-m", "slitcli", "render", "one.yaml", "OUT"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert sorted(os.listdir(tmp_path)) == ["OUT", "one.yaml", "s.yaml"]
