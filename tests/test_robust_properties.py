@@ -194,7 +194,7 @@ SIM_OPTIONS = ["--v-max-mps", "--dt-s", "--v-res-mps", "--w-res-dps", "--bin-deg
                "--memory-cell-m", "--stuck-timeout-s", "--start", "--goal"]
 
 
-@settings(SETTINGS, max_examples=max(10, EXAMPLES // 5))
+@SETTINGS
 @given(st.dictionaries(st.sampled_from(SIM_OPTIONS), OPTION_VALUES, min_size=1, max_size=3))
 def test_generated_simulate_dwa_option_sets_never_an_internal_error(tmp_path_factory, outcomes,
                                                                   options):
