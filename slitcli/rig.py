@@ -11,9 +11,7 @@ The paper's rig (Hombot, §4 of the paper) is :func:`paper_rig`.
 
 from __future__ import annotations
 
-import difflib
 import math
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,13 +20,10 @@ import numpy as np
 import yaml
 
 from slitcli.errors import SlitcliError
-from slitcli.io.yamlfile import brief, finite_float
+from slitcli.io.keys import KeyReader, image_size
+from slitcli.io.yamlfile import brief
 
 SCHEMA_VERSION = 1
-MAX_IMAGE_SIDE_PX = 16384
-"""Largest image width or height a rig may give, pixels."""
-MAX_IMAGE_PIXELS = 50_000_000
-"""Largest image area a rig may give (width x height), pixels."""
 MIN_BIN_DEG = 0.05
 """Narrowest bearing bin, degrees (below it bins are finer than a pixel of a 4k image)."""
 MAX_BIN_DEG = 10.0
@@ -407,68 +402,6 @@ _LASER_KEYS = ("normal", "offset_m", "min_range_m", "max_range_m")
 _STEREO_KEYS = ("max_range_m",)
 
 
-class _Reader:
-    """Walks the YAML mapping and raises one-line errors naming file and key."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, key: str, problem: str, fix: str) -> SlitcliError:
-        return SlitcliError(f"{self.source}: key '{key}' {problem}; {fix}")
-
-    def mapping(self, value: Any, key: str, allowed: tuple[str, ...],
-                required: tuple[str, ...]) -> Mapping[str, Any]:
-        if not isinstance(value, Mapping):
-            raise self.fail(key, "must be a mapping", f"give it the keys {', '.join(allowed)}")
-        for k in value:
-            if k not in allowed:
-                close = difflib.get_close_matches(str(k), allowed, n=1)
-                hint = f"did you mean '{close[0]}'?" if close else \
-                    f"allowed keys are {', '.join(allowed)}"
-                name = f"{key}.{k}" if key else str(k)
-                raise SlitcliError(f"{self.source}: unknown key {brief(name)}; {hint}")
-        for k in required:
-            if k not in value:
-                name = f"{key}.{k}" if key else k
-                raise SlitcliError(f"{self.source}: missing key '{name}'; add it "
-                                   "(see `slitcli rig init` for a complete example)")
-        return value
-
-    def number(self, m: Mapping[str, Any], key: str, prefix: str, *, default: float | None = None,
-               low: float | None = None, high: float | None = None, low_open: bool = False,
-               high_open: bool = False) -> float:
-        name = f"{prefix}.{key}" if prefix else key
-        if key not in m:
-            if default is None:
-                raise SlitcliError(f"{self.source}: missing key '{name}'; add it")
-            return default
-        v = finite_float(m[key])
-        if v is None:
-            raise self.fail(name, f"= {brief(m[key])} is not a finite number", "give a number")
-        if low is not None and (v < low or (low_open and v == low)):
-            sign = ">" if low_open else ">="
-            raise self.fail(name, f"= {v:g} is out of range", f"it must be {sign} {low:g}")
-        if high is not None and (v > high or (high_open and v == high)):
-            sign = "<" if high_open else "<="
-            raise self.fail(name, f"= {v:g} is out of range", f"it must be {sign} {high:g}")
-        return v
-
-    def vector(self, value: Any, key: str, shape: tuple[int, ...]) -> np.ndarray:
-        try:
-            a = np.asarray(value, dtype=float)
-        except (TypeError, ValueError, OverflowError):
-            raise self.fail(key, "is not a numeric matrix of finite numbers",
-                            f"give a list of shape {shape}") from None
-        # an open dimension is a list of distortion coefficients: OpenCV uses at most 14
-        ok = a.ndim == len(shape) and all((s == -1 and 1 <= n <= 14) or s == n
-                                          for s, n in zip(shape, a.shape, strict=False))
-        if not ok or not np.all(np.isfinite(a)):
-            want = "x".join("N" if s == -1 else str(s) for s in shape)
-            raise self.fail(key, f"has shape {'x'.join(map(str, a.shape)) or 'scalar'}",
-                            f"give a finite {want} list")
-        return a
-
-
 def _freeze(a: np.ndarray) -> tuple:
     return tuple(_freeze(x) for x in a) if a.ndim > 1 else tuple(float(x) for x in a)
 
@@ -482,7 +415,7 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
         Naming ``source`` and the offending key, for unknown or missing keys, a
         wrong schema version and impossible values.
     """
-    r = _Reader(source)
+    r = KeyReader(source)
     top = r.mapping(data, "", _TOP_KEYS, ("slitcli_rig", "image_size_px", "left",
                                           "baseline_m", "mount", "laser"))
     version = top["slitcli_rig"]
@@ -494,7 +427,7 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
     if not isinstance(name, str | int | float) or isinstance(name, bool) or len(str(name)) > 200:
         raise r.fail("name", f"= {brief(name)} is not a short name", "give a string")
     name = str(name)
-    w, h = _image_size(r, top["image_size_px"], "image_size_px")
+    w, h = image_size(r, top["image_size_px"], "image_size_px")
     lm = r.mapping(top["left"], "left", _LEFT_KEYS, _LEFT_KEYS)
     left = Intrinsics(
         fx_px=r.number(lm, "fx_px", "left", low=0.0, low_open=True, high=MAX_FOCAL_PX),
@@ -537,26 +470,14 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
     if top.get("raw") is not None:
         rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES),
                        ("image_size_px", *_RAW_SHAPES))
-        rw, rh = _image_size(r, rm["image_size_px"], "raw.image_size_px")
+        rw, rh = image_size(r, rm["image_size_px"], "raw.image_size_px")
         arrays = {k: _freeze(r.vector(rm[k], f"raw.{k}", s)) for k, s in _RAW_SHAPES.items()}
         raw = RawCalibration(image_size_px=(rw, rh), **arrays)
     return Rig(name=name, image_size_px=(w, h), left=left, baseline_m=baseline, mount=mount,
                laser=laser, stereo=stereo, raw=raw)
 
 
-def _image_size(r: _Reader, size: Any, key: str) -> tuple[int, int]:
-    """``[width, height]``: whole numbers of 8 to MAX_IMAGE_SIDE_PX pixels, bounded area."""
-    if (not isinstance(size, list | tuple) or len(size) != 2
-            or not all(isinstance(s, int) and not isinstance(s, bool) for s in size)
-            or min(size) < 8 or max(size) > MAX_IMAGE_SIDE_PX
-            or size[0] * size[1] > MAX_IMAGE_PIXELS):
-        raise r.fail(key, f"= {brief(size)} is not a valid size",
-                     f"give [width, height] as whole numbers of 8 to {MAX_IMAGE_SIDE_PX} pixels "
-                     f"(at most {MAX_IMAGE_PIXELS} pixels in all)")
-    return int(size[0]), int(size[1])
-
-
-def _check_sheet_above_floor(r: _Reader, mount: Mount, laser: Laser) -> None:
+def _check_sheet_above_floor(r: KeyReader, mount: Mount, laser: Laser) -> None:
     """Refuse a laser sheet that lies below the floor over the whole trusted band.
 
     Where the sheet is not vertical, its height above the floor straight ahead at
