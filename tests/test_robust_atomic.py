@@ -109,3 +109,25 @@ def test_unknown_os_errors_stay_internal():
     assert os_error_message(OSError(errno.EBADF, "Bad file descriptor")) is None
     msg = os_error_message(OSError(errno.ENOSPC, "No space left on device", "/x/y"))
     assert msg is not None and msg.startswith("/x/y: No space left on device;")
+
+
+@pytest.mark.parametrize("code", [errno.EROFS, errno.ENOSPC])
+def test_creating_the_temporary_is_reported_at_the_final_path(tmp_path, monkeypatch, code):
+    def refuse(*args, **kwargs):
+        raise OSError(code, os.strerror(code), str(args[0]))
+
+    monkeypatch.setattr(atomic.os, "open", refuse)
+    with pytest.raises(OSError) as info:
+        write_text_atomic(tmp_path / "a.csv", "x")
+    assert info.value.filename == str(tmp_path / "a.csv")
+    real_mkdir = Path.mkdir
+
+    def mkdir(self, *args, **kwargs):
+        if self.name.startswith(".slitcli-"):
+            refuse(str(self))
+        real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", mkdir)
+    with pytest.raises(OSError) as info, atomic_directory(tmp_path / "OUT"):
+        pass
+    assert info.value.filename == str(tmp_path / "OUT")

@@ -49,7 +49,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     final = Path(path)
     _ensure_parent(final)
     tmp_path = final.parent / temp_name()
-    fd = os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # umask applies
+    with _naming(tmp_path, final):
+        fd = os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # umask applies
     os.close(fd)
     try:
         with _naming(tmp_path, final):
@@ -241,7 +242,8 @@ def atomic_directory(path: str | Path, *, overwrite: bool = False,
     _ensure_parent(final)
     sweep_temp(final.parent)
     tmp = final.parent / temp_name()
-    tmp.mkdir(mode=0o777)  # umask applies
+    with _naming(tmp, final):
+        tmp.mkdir(mode=0o777)  # umask applies
     try:
         with _naming(tmp, final):
             yield tmp
