@@ -133,6 +133,19 @@ class DwaParams:
             raise _bad("alpha", self.alpha, "and beta, gamma are all 0; give one a weight > 0")
         if not 0 < self.heading_clamp_deg <= 180:
             raise _bad("heading_clamp_deg", self.heading_clamp_deg, "must be in (0, 180]")
+        for name, high in _HIGH.items():
+            if getattr(self, name) > high:
+                raise _bad(name, getattr(self, name), f"is out of range; give at most {high:g}")
+        if self.dt_s < 1e-3:
+            raise _bad("dt_s", self.dt_s, "is below 1 ms; give a control period of at least 0.001")
+        pairs = window_size_bound(self)
+        if pairs > MAX_WINDOW_PAIRS:
+            nv = self.v_max_mps / self.v_res_mps
+            nw = 2 * self.w_max_dps / self.w_res_dps
+            name = "v_res_mps" if nv >= nw else "w_res_dps"
+            raise _bad(name, getattr(self, name),
+                       f"samples the window into up to {pairs:.3g} (v, w) pairs, more than "
+                       f"{MAX_WINDOW_PAIRS}; give a coarser resolution")
         if self.v_res_mps > self.v_max_mps or self.w_res_dps > self.w_max_dps:
             raise _bad("v_res_mps" if self.v_res_mps > self.v_max_mps else "w_res_dps",
                        self.v_res_mps if self.v_res_mps > self.v_max_mps else self.w_res_dps,
@@ -147,6 +160,25 @@ class DwaParams:
     def ang_acc_rps2(self) -> float:
         """Angular acceleration limit in rad/s^2."""
         return math.radians(self.ang_acc_dps2)
+
+
+# Upper bounds: beyond them a parameter is no robot's (and squares, counts and the
+# window's sample count stop being representable or affordable).
+_HIGH = MappingProxyType({
+    "v_max_mps": 100.0, "w_max_dps": 3600.0, "acc_mps2": 1000.0, "ang_acc_dps2": 1e5,
+    "dt_s": 10.0, "heading_horizon_s": 1000.0, "goal_close_m": 1000.0,
+    "footprint_radius_m": 100.0, "d_max_m": 1000.0, "alpha": 1e6, "beta": 1e6, "gamma": 1e6,
+})
+MAX_WINDOW_PAIRS = 200_000
+"""Most (v, w) pairs one window may hold (the paper's sampling gives 1359)."""
+
+
+def window_size_bound(params: DwaParams) -> float:
+    """Most (v, w) pairs any dynamic window of ``params`` can hold (lattice counts + 1)."""
+    p = params
+    nv = min(p.v_max_mps, 2 * p.acc_mps2 * p.dt_s) / p.v_res_mps + 1
+    nw = min(2 * p.w_max_dps, 2 * p.ang_acc_dps2 * p.dt_s) / p.w_res_dps + 1
+    return nv * nw
 
 
 def _bad(name: str, value: object, problem: str) -> SlitcliError:

@@ -210,7 +210,7 @@ def test_simulate_dwa_and_offline_replay_end_to_end(tmp_path):
     r = CliRunner().invoke(cli, ["simulate-dwa", "--scenario", "paper", "--sensing-range",
                                  "1.5", "--save-ranges", "-o", str(out)])
     assert r.exit_code == 0, r.output
-    names = sorted(p.name for p in out.iterdir())
+    names = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     assert names == ["metrics.csv", "params.yaml", "ranges_range_1.5m.csv",
                      "trajectory_range_1.5m.csv", "world.yaml"]
     m = pd.read_csv(out / "metrics.csv")

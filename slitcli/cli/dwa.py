@@ -91,10 +91,14 @@ def _dwa_params(kw: dict[str, Any], footprint_radius_m: float | None = None) -> 
               help="Remember obstacle points this long, s (0 = off).")
 @click.option("--memory-cell-m", type=float, default=0.05, show_default=True,
               help="One remembered point per grid cell of this size, m.")
+@click.option("--period-s", type=float, default=None,
+              help="Time between frames, s, for a table whose time_s is empty (detect on a "
+                   "sequence without times.csv): time_s = frame x this.")
+@click.option("--overwrite", is_flag=True, help="Replace CMDS.csv if it exists.")
 @_dwa_options
 def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None,
             range_column: str, footprint_radius_m: float, memory_s: float, memory_cell_m: float,
-            **kw: Any) -> None:
+            period_s: float | None, overwrite: bool, **kw: Any) -> None:
     """Offline modified DWA (Eqs. 12-13) over a recorded range table.
 
     RANGES is a range table written by `slitcli detect` (columns frame, time_s,
@@ -113,7 +117,8 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
     the_rig = load_rig(rig) if rig is not None else paper_rig()
     cmds = dwa_offline(ranges, goal, out, params, range_column=range_column,
                        forward_m=the_rig.mount.forward_m, memory_s=memory_s,
-                       memory_cell_m=memory_cell_m)
+                       memory_cell_m=memory_cell_m, period_s=period_s,
+                       overwrite=overwrite, inputs=[rig])
     counts = cmds["status"].value_counts().to_dict()
     click.echo(f"wrote {out}: {len(cmds)} frames ("
                + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())) + ")")
@@ -136,10 +141,10 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               callback=_floats(None, "comma-separated ranges in metres"), default=None,
               help="Sensing range(s), m, one run each, e.g. 0.6,1,1.5,2. Default: the "
                    "scenario's, 3 for a WORLD file.")
-@click.option("--worlds", type=int, default=100, show_default=True,
-              help="Number of random worlds (--scenario random).")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="Seed of the first random world.")
+@click.option("--worlds", type=click.IntRange(1, 10_000), default=100, show_default=True,
+              help="Number of random worlds, 1-10000 (--scenario random).")
+@click.option("--seed", type=click.IntRange(0, 2**62), default=0, show_default=True,
+              help="Seed of the first random world (>= 0).")
 @click.option("--start", metavar="X,Y,YAW_DEG", default=None,
               callback=_floats(3, "three numbers X,Y,YAW_DEG"),
               help="Override the world's start: X,Y in m, heading in deg.")
@@ -148,8 +153,8 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Override the world's goal X,Y, m.")
 @click.option("--rig", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig file (field of view, mount.forward_m). Default: the paper rig.")
-@click.option("--bin-deg", type=float, default=1.0, show_default=True,
-              help="Bearing bin width of the sensed range table, deg.")
+@click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,
+              help="Bearing bin width of the sensed range table, deg (0.05-10).")
 @click.option("--safety-margin-m", type=float, default=0.05, show_default=True,
               help="Planner footprint = robot radius + this, m.")
 @click.option("--memory-s", type=float, default=10.0, show_default=True,
@@ -164,7 +169,8 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
 @click.option("--save-ranges", is_flag=True,
               help="Also write OUT/ranges_<case>.csv, the sensed range table of each run "
                    "(replay it with slitcli dwa).")
-@click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace what an earlier simulate-dwa wrote in OUT (other files are kept).")
 @_dwa_options
 def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensing: str,
                      sensing_range: tuple[float, ...] | None, worlds: int, seed: int,
@@ -196,7 +202,7 @@ def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensin
     metrics = simulate_dwa(out, the_rig, params, sim, sensing=sensing, world_path=world,
                            scenario=scenario, sensing_ranges_m=sensing_range, worlds=worlds,
                            seed=seed, start=start, goal_xy_m=goal, bin_deg=bin_deg,
-                           overwrite=overwrite, save_ranges=save_ranges)
+                           overwrite=overwrite, save_ranges=save_ranges, inputs=[rig])
     n = len(metrics)
     reached = int(metrics["reached_goal"].sum())
     collided = int(metrics["collided"].sum())

@@ -74,8 +74,9 @@ def rig_show(file: Path | None) -> None:
               help="Rig whose mount, laser plane and range limits are kept "
                    "[default: the paper rig's].")
 @click.option("--name", default=None, help="Rig name [default: the base rig's, or 'imported'].")
+@click.option("--overwrite", is_flag=True, help="Replace the output rig file if it exists.")
 def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
-               name: str | None) -> None:
+               name: str | None, overwrite: bool) -> None:
     """Build a rig from ROS, OpenCV or Kalibr stereo calibration files.
 
     \b
@@ -88,7 +89,8 @@ def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
     """
     from slitcli.calibrate.formats import run_rig_import
 
-    rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name)
+    rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name,
+                         overwrite=overwrite)
     click.echo(f"rectified: fx {rig.left.fx_px:.3f} px, baseline_m {rig.baseline_m:.5f}, "
                f"{rig.image_size_px[0]}x{rig.image_size_px[1]} px")
     click.echo(f"wrote {out}")

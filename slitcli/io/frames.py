@@ -170,7 +170,7 @@ class FolderFrames(FrameSource):
         if rig_path is not None:
             return load_rig(rig_path)
         own = self.path / "rig.yaml"
-        if own.exists():
+        if own.exists() or own.is_symlink():  # a dangling link is an error, not "no rig"
             return load_rig(own)
         if self.layout != "slitcli":
             raise SlitcliError(f"{self.path}: a {self.layout} folder carries no slitcli rig; "

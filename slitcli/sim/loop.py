@@ -27,7 +27,12 @@ import yaml
 
 from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
-from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.io.atomic import (
+    atomic_directory,
+    check_output_folder,
+    write_csv_atomic,
+    write_text_atomic,
+)
 from slitcli.io.progress import progress_bar
 from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
 from slitcli.ranges import RANGES, SIM_METRICS, SIM_TRAJECTORY
@@ -47,6 +52,10 @@ from slitcli.sim.worlds import (
 TRAJECTORY_COLUMNS = SIM_TRAJECTORY.columns
 RANGES_COLUMNS = RANGES.columns
 METRICS_COLUMNS = SIM_METRICS.columns
+MAX_STEPS = 100_000
+"""Most control steps of one run (the paper's 300 s at 0.2 s: 1500)."""
+MAX_WORLDS = 10_000
+"""Most random worlds of one call."""
 
 
 class Sensor(Protocol):
@@ -141,8 +150,10 @@ class SimParams:
 
     def __post_init__(self) -> None:
         checks = {"safety_margin_m": self.safety_margin_m >= 0, "memory_s": self.memory_s >= 0,
-                  "memory_cell_m": self.memory_cell_m > 0, "substeps": self.substeps >= 1,
-                  "max_time_s": self.max_time_s > 0, "stuck_timeout_s": self.stuck_timeout_s > 0,
+                  "memory_cell_m": self.memory_cell_m > 0,
+                  "substeps": 1 <= self.substeps <= 1000,
+                  "max_time_s": 0 < self.max_time_s <= 86400.0,
+                  "stuck_timeout_s": self.stuck_timeout_s > 0,
                   "stuck_progress_m": self.stuck_progress_m > 0}
         for name, ok in checks.items():
             value = getattr(self, name)
@@ -337,8 +348,8 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
         w = paper_world()
         return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
     if scenario == "random":
-        if worlds < 1:
-            raise SlitcliError(f"--worlds {worlds} must be at least 1")
+        if not 1 <= worlds <= MAX_WORLDS:
+            raise SlitcliError(f"--worlds {worlds} must be 1 to {MAX_WORLDS}")
         ranges = ranges or [3.0]
         out = []
         for s in range(seed, seed + worlds):
@@ -358,20 +369,32 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                  sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
                  seed: int = 0, start: tuple[float, float, float] | None = None,
                  goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
-                 overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
-    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
-    if not (0 < bin_deg <= 10):
-        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in (0, 10] degrees")
+                 overwrite: bool = False, save_ranges: bool = False,
+                 inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
+    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`.
+
+    ``inputs`` (the world and rig files) are never replaced by ``overwrite``.
+    """
+    check_output_folder(out_dir, overwrite=overwrite, inputs=[world_path, *inputs])
+    if not (0.05 <= bin_deg <= 10):
+        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in [0.05, 10] degrees")
+    steps = sim.max_time_s / dwa.dt_s
+    if steps > MAX_STEPS:
+        raise SlitcliError(f"--max-time-s {sim.max_time_s:g} / --dt-s {dwa.dt_s:g} = {steps:.3g} "
+                           f"control steps per run, more than {MAX_STEPS}; raise --dt-s or "
+                           "lower --max-time-s")
     cases = build_cases(world_path=world_path, scenario=scenario,
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)
     return simulate_to_folder(cases, out_dir, rig, dwa, sim, sensing=sensing,
-                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges)
+                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges,
+                              inputs=[world_path, *inputs])
 
 
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
                        sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
-                       bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
+                       bin_deg: float = 1.0, save_ranges: bool = False,
+                       inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
     """Run the cases and write OUT/ atomically (docs/dwa.md).
 
     Files: ``trajectory_<case>.csv``, ``metrics.csv``, the world(s) (``world.yaml``, or
@@ -384,7 +407,7 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     _sensor_factory(sensing)
     metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}
-    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+    with atomic_directory(out_dir, overwrite=overwrite, inputs=inputs) as tmp:
         for name, res in trajs.items():
             write_csv_atomic(tmp / f"trajectory_{name}.csv",
                              res.trajectory[list(TRAJECTORY_COLUMNS)])
