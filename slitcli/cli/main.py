@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import traceback
+from pathlib import Path
 from typing import Any
 
 import click
@@ -58,8 +59,54 @@ def echo_notes(notes: tuple[str, ...]) -> None:
         click.echo(f"slitcli: note: {to_flags(note)}", err=True)
 
 
+def _load_config(ctx: click.Context, param: click.Parameter, value: Path | None) -> None:
+    """``--config FILE``: option values from a YAML mapping become the command's defaults
+    (click's ``default_map``), so options on the command line still win."""
+    if value is None:
+        return
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(value).read_text())
+    except OSError as e:
+        raise click.BadParameter(f"{value}: cannot read it ({e.strerror})") from None
+    except yaml.YAMLError as e:
+        raise click.BadParameter(f"{value}: not YAML ({str(e).splitlines()[0]})") from None
+    if data is None:
+        return
+    if not isinstance(data, dict):
+        raise click.BadParameter(f"{value}: give a mapping of option names to values, e.g. "
+                                 "'bin-deg: 2'")
+    names = {p.name for p in ctx.command.params if p.name and p.name != "config"}
+    values = {}
+    for key, v in data.items():
+        name = str(key).lstrip("-").replace("-", "_")
+        if name not in names:
+            raise click.BadParameter(f"{value}: {key!r} is not an option of "
+                                     f"'{ctx.command_path}'; use one of "
+                                     f"{', '.join(sorted(n.replace('_', '-') for n in names))}")
+        values[name] = v
+    ctx.default_map = {**(ctx.default_map or {}), **values}
+
+
+class _Command(click.Command):
+    """A command that also takes ``--config FILE`` (YAML of option values)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.params.append(click.Option(
+            ["--config"], type=click.Path(dir_okay=False, path_type=Path), is_eager=True,
+            expose_value=False, callback=_load_config,
+            help="YAML file of option values (e.g. 'bin-deg: 2'); options given on the "
+            "command line win."))
+
+
 class _Group(click.Group):
-    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs)."""
+    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs);
+    its commands (and its subgroups' commands) take ``--config``."""
+
+    command_class = _Command
+    group_class = type
 
     def main(self, args: Any = None, prog_name: str | None = None,
              complete_var: str | None = None, standalone_mode: bool = True,
