@@ -73,7 +73,7 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
     columns, the stripe is searched again with the first and last channels swapped;
     finding at least ``min_cols`` columns there (two of the extractor's shortest
-    segments, 8 columns each), four times as many as as given, means the channels are
+    segments, 8 columns each), four times as many as given, means the channels are
     swapped. A scene without any lit obstacle or floor in view costs one more
     extraction and passes; a real blue light would have to form a thin line on the
     laser plane's rows to be taken for the stripe.

@@ -13,6 +13,7 @@ import sys
 import traceback
 import warnings
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import click
@@ -92,9 +93,53 @@ def _process_settings() -> Iterator[None]:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
+def _load_config(ctx: click.Context, param: click.Parameter, value: Path | None) -> None:
+    """``--config FILE``: option values from a YAML mapping become the command's defaults
+    (click's ``default_map``), so options on the command line still win."""
+    if value is None:
+        return
+    from slitcli.io.yamlfile import read_yaml
+
+    try:
+        data = read_yaml(value, kind="config file",
+                         missing_hint="give a YAML file of option values")
+    except SlitcliError as e:
+        raise click.BadParameter(str(e)) from None
+    if data is None:
+        return
+    if not isinstance(data, dict):
+        raise click.BadParameter(f"{value}: give a mapping of option names to values, e.g. "
+                                 "'bin-deg: 2'")
+    names = {p.name for p in ctx.command.params if p.name and p.name != "config"}
+    values = {}
+    for key, v in data.items():
+        name = str(key).lstrip("-").replace("-", "_")
+        if name not in names:
+            raise click.BadParameter(f"{value}: {key!r} is not an option of "
+                                     f"'{ctx.command_path}'; use one of "
+                                     f"{', '.join(sorted(n.replace('_', '-') for n in names))}")
+        values[name] = v
+    ctx.default_map = {**(ctx.default_map or {}), **values}
+
+
+class _Command(click.Command):
+    """A command that also takes ``--config FILE`` (YAML of option values)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.params.append(click.Option(
+            ["--config"], type=click.Path(dir_okay=False, path_type=Path), is_eager=True,
+            expose_value=False, callback=_load_config,
+            help="YAML file of option values (e.g. 'bin-deg: 2'); options given on the "
+            "command line win."))
+
 
 class _Group(click.Group):
-    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs)."""
+    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs);
+    its commands (and its subgroups' commands) take ``--config``."""
+
+    command_class = _Command
+    group_class = type
 
     def main(self, args: Any = None, prog_name: str | None = None,
              complete_var: str | None = None, standalone_mode: bool = True,

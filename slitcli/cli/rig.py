@@ -66,7 +66,7 @@ def rig_show(file: Path | None) -> None:
 # ---------------------------------------------------------------------------- rig import/export
 @rig_group.command("import")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--output", "out", required=True,
+@click.option("-o", "--out", "--output", "out", required=True,
               type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
 @click.option("--format", "fmt", type=click.Choice(["auto", "ros", "opencv", "kalibr"]),
               default="auto", show_default=True, help="Format of FILES (auto: from content).")
@@ -101,7 +101,7 @@ def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
 @click.option("--format", "fmt", required=True, type=click.Choice(["ros", "opencv", "kalibr"]),
               help="ros: left.yaml + right.yaml; opencv: intrinsics.yml + extrinsics.yml; "
                    "kalibr: camchain.yaml.")
-@click.option("-o", "--output", "out", required=True,
+@click.option("-o", "--out", "--output", "out", required=True,
               type=click.Path(file_okay=False, path_type=Path), help="Folder to write into.")
 def rig_export(rig_file: Path, fmt: str, out: Path) -> None:
     """Write a rig's stereo calibration as ROS, OpenCV or Kalibr files.
