@@ -97,6 +97,10 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
             param="colour_order")
 
 
+# --save-images: 16-bit data images, the obstacle mask, and colour previews with a bar
+IMAGE_FOLDERS = ("disparity", "distance", "mask", "disparity_preview", "distance_preview")
+
+
 @dataclass(frozen=True, kw_only=True)
 class DetectParams:
     """Everything that defines a detection run besides the rig and the input.
@@ -265,9 +269,18 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
     i = task.info.index
     if save_images:
         name = f"{task.info.name}.png"
+        from slitcli.report.preview import disparity_preview, distance_preview
+
+        m = detector.params.stereo.matcher
+        previews = (
+            ("disparity_preview", disparity_preview(
+                res.stereo.disparity_px,
+                max_disparity_px=m.min_disparity_px + m.num_disparities)),
+            ("distance_preview", distance_preview(
+                res.stereo.depth_m, max_range_m=detector.rig.stereo.max_range_m)))
         for sub, img in (("disparity", encode_disparity_png(res.stereo.disparity_px)),
                          ("distance", encode_depth_png(res.stereo.depth_m)),
-                         ("mask", encode_mask_png(res.stereo.obstacle_mask))):
+                         ("mask", encode_mask_png(res.stereo.obstacle_mask)), *previews):
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
@@ -318,7 +331,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                       json.dumps({"path": str(Path(source).resolve())}))
     kinds = ("rows", "laser") if save_images else ("rows",)
     if save_images:
-        for sub in ("disparity", "distance", "mask"):
+        for sub in IMAGE_FOLDERS:
             (batch.out / sub).mkdir(exist_ok=True)
     digests = [src.frame_digest(i) for i in range(n)]
     finished = frozenset(i for i in range(n) if batch.is_done(i, (*kinds, "input"))

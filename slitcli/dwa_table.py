@@ -102,7 +102,7 @@ def _check_values(p: Path, table: pd.DataFrame, range_column: str) -> None:
          "frame", "is not a whole number >= 0", "give frame indices"),
         (~np.isfinite(bearing) | (np.abs(bearing) > 180), "bearing_deg",
          "is outside [-180, 180]", "give bearings in degrees"),
-        (~np.isfinite(time) | (np.abs(time) > 1e9), "time_s", "is not a finite time",
+        (~np.isfinite(time) | (np.abs(time) > 1e12), "time_s", "is not a finite time",
          "give seconds"),
     )
     for bad, column, problem, fix in checks:

@@ -63,5 +63,9 @@ def test_parameter_names_become_flags():
     # a word that happens to be a parameter's name is left alone
     e = SlitcliError("the rig's images are 320x240 (`rig`)", param="rig")
     assert user_message(e) == "the rig's images are 320x240 (--rig)"
-    res = CliRunner().invoke(cli, ["detect", str(BUNDLED), "-o", "x", "--bin-deg", "20"])
-    assert res.exit_code == 2 and "--bin-deg 20.0 is out of range" in res.stderr
+    # through the command line: a bound only the library checks comes back as the flag
+    table = BUNDLED.parent.parent / "missing_ranges.csv"
+    res = CliRunner().invoke(cli, ["dwa", str(table), "--goal", "4,0", "-o", "x.csv",
+                                   "--memory-cell-m", "1e9"])
+    assert res.exit_code == 2 and "--memory-cell-m 1000000000.0 must be in" in res.stderr
+    assert "`" not in res.stderr
