@@ -81,7 +81,8 @@ def _load() -> str:
 
 
 def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
-    from slitcli.stereo.matcher import MatcherParams, _kernel_threads, compute_disparity
+    from slitcli.stereo.bands import kernel_threads
+    from slitcli.stereo.matcher import MatcherParams, compute_disparity
 
     lg, rg, _, _ = _motorcycle(size)
     tag = f"{size[0]}x{size[1]}/{num}d/9x9{label}"
@@ -95,7 +96,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
     threads = []
 
     def nssd_default() -> None:
-        threads.append(_kernel_threads())
+        threads.append(kernel_threads())
         compute_disparity(lg, rg, nssd)
 
     before = _load()

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.fusion import FusedRanges, FusionParams, fuse
 from slitcli.io.atomic import write_png_atomic, write_text_atomic
@@ -36,13 +37,13 @@ from slitcli.laser import nearest_range_per_bin as laser_bins
 from slitcli.laser.frame import EdgeParams, segment_edges
 from slitcli.rig import Rig
 from slitcli.sim.sequence import encode_depth_png, encode_disparity_png
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
     check_stereo_params,
     process_stereo_pair,
 )
-from slitcli.stereo.rectify import rectify_pair
 
 RANGE_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
                  "stereo_has_features", "fused_range_m", "fused_source")
@@ -116,6 +117,8 @@ class Detector:
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
+        self._rectification = RectificationMaps.for_rig(rig) if rig.raw is not None else None
+        self._stereo_geometry = StereoGeometry.for_rig(self.rectified_rig, p.bin_deg)
         self.fusion = FusionParams(
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
@@ -138,13 +141,14 @@ class Detector:
         The previous stripe is re-extracted from it without a prior of its own, so a
         frame's result depends on two images only: batches stay parallel and resumable.
         """
-        left, right = rectify_pair(left_bgr, right_bgr, self.rig)
+        left, right = rectify_pair(self.rig, left_bgr, right_bgr, maps=self._rectification)
         prev = None
         if previous_left_bgr is not None:
-            prev_left, _ = rectify_pair(previous_left_bgr, previous_left_bgr, self.rig)
+            prev_left, _ = rectify_pair(self.rig, previous_left_bgr, maps=self._rectification)
             prev = self.laser(prev_left)
         las = self.laser(left, prev)
-        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
+        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
+                                 geometry=self._stereo_geometry)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg, edges=edges)
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,

@@ -13,9 +13,15 @@ from stereo_synth import plane_pair
 
 from slitcli.cli import cli
 from slitcli.rig import paper_rig, save_rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.obstacles import ObstacleParams, obstacle_points
 
 DISPARITIES = (11.0, 14.5, 18.25)  # fronto-parallel planes at 2.0, 1.52 and 1.21 m
+
+
+def geo(rig):
+    """The rig's stereo geometry with 1-degree bins."""
+    return StereoGeometry.for_rig(rig)
 
 
 def make_sequence(root: Path, disparities=DISPARITIES, size=(320, 240)) -> Path:
@@ -58,7 +64,7 @@ def test_stereo_writes_the_design_folders(tmp_path):
         assert ((dist_png > 0) == valid).all()
         # the mask is the obstacle test of the written disparity (hand-checked geometry)
         _, _, expect, _ = obstacle_points(np.where(valid, disp_png / 256.0, np.nan)
-                                          .astype(np.float32), rig, ObstacleParams())
+                                          .astype(np.float32), geo(rig), ObstacleParams())
         assert ((mask_png == 255) == expect).mean() >= 0.999
         assert expect.sum() > 1000
     table = pd.read_csv(out / "stereo_ranges.csv")

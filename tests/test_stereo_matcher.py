@@ -9,13 +9,11 @@ from stereo_synth import occlusion_pair, plane_pair, quantise, texture
 
 from slitcli.errors import SlitcliError
 from slitcli.stereo.matcher import (
-    REASON_BOUNDARY,
-    REASON_LEFT_RIGHT,
-    REASON_VALID,
     MatcherParams,
     compute_disparity,
     prefilter_image,
 )
+from slitcli.stereo.reasons import Reason
 
 PLAIN = dict(prefilter="none", texture_min_dn=0.0, uniqueness_ratio=0.0, lr_max_diff_px=-1,
              support_min_zncc=0.0, boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
@@ -190,10 +188,10 @@ def test_left_right_check_marks_the_occluded_band():
     occluded = np.zeros_like(res.valid)
     occluded[66:174, 128:140] = True  # away from the square's top and bottom edges
     assert (~res.valid[occluded]).mean() >= 0.8
-    assert (res.invalid_reason[occluded] == REASON_LEFT_RIGHT).mean() >= 0.3
+    assert (res.invalid_reason[occluded] == Reason.LEFT_RIGHT).mean() >= 0.3
     seen = res.valid & ~occluded
     assert np.median(np.abs(res.disparity_px[seen] - truth[seen])) <= 0.1
-    assert (res.invalid_reason[~occluded] == REASON_VALID).mean() >= 0.85
+    assert (res.invalid_reason[~occluded] == Reason.VALID).mean() >= 0.85
 
 
 def _fattening(res, fg_px: float, bg_px: float, box: tuple[int, int, int, int]):
@@ -246,7 +244,7 @@ def test_depth_edge_test_marks_its_pixels():
                                         foreground_contrast_dn=60.0,
                                         background_contrast_dn=10.0)
     res = compute_disparity(left, right, MatcherParams(num_disparities=32))
-    marked = res.invalid_reason == REASON_BOUNDARY
+    marked = res.invalid_reason == Reason.BOUNDARY
     assert marked.sum() >= 50
     # it never removes a pixel of the square: every marked pixel sees the background,
     # next to the square (within the 12 px band hidden from the right camera plus half
@@ -266,7 +264,7 @@ def test_opencv_matchers_behind_the_same_interface(matcher):
                             MatcherParams(matcher=matcher, num_disparities=48))
     assert res.disparity_px.dtype == np.float32
     valid = np.isfinite(res.disparity_px)
-    assert (res.invalid_reason[valid] == REASON_VALID).all()
+    assert (res.invalid_reason[valid] == Reason.VALID).all()
     assert np.median(np.abs(res.disparity_px[valid] - d)) <= 0.3
     assert valid[:, 64:-8].mean() >= 0.9
 
@@ -346,7 +344,7 @@ def test_second_thread_only_when_another_core_is_free(monkeypatch):
     # hold right now (/proc/loadavg's running count includes the calling thread)
     import io
 
-    import slitcli.stereo.matcher as matcher
+    import slitcli.stereo.bands as matcher
 
     real_open = open
 
@@ -361,7 +359,7 @@ def test_second_thread_only_when_another_core_is_free(monkeypatch):
     monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 2)
     for running, expected in ((1, 2), (2, 1), (5, 1)):
         monkeypatch.setattr("builtins.open", fake_loadavg(running))
-        assert matcher._kernel_threads() == expected
+        assert matcher.kernel_threads() == expected
     monkeypatch.setattr("builtins.open", fake_loadavg(1))
     monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 1)
-    assert matcher._kernel_threads() == 1
+    assert matcher.kernel_threads() == 1

@@ -32,6 +32,7 @@ from slitcli.io.batch import FrameBatch, file_digest
 from slitcli.io.sequence import FrameRef, StereoSequence, read_frame
 from slitcli.rig import Rig
 from slitcli.sim.sequence import encode_depth_png, encode_disparity_png
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
@@ -168,6 +169,7 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
     if on_frame is not None and skipped:
         on_frame(skipped, n)
     valid: list[float] = []
+    geometry = StereoGeometry.for_rig(rig, p.obstacles.bin_width_deg)
     # reading the next pair and encoding / writing the last frame's PNGs run on a
     # helper thread (OpenCV releases the GIL) while this thread matches
     with ThreadPoolExecutor(max_workers=1) as io_pool:
@@ -177,7 +179,7 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
             frame = reads.popleft().result()
             if k + 2 < len(todo):
                 reads.append(io_pool.submit(read_frame, todo[k + 2], rig))
-            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
+            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p, geometry=geometry)
             writes.append(io_pool.submit(_write_frame, out, batch, ref, res))
             while len(writes) > 1:
                 writes.popleft().result()
