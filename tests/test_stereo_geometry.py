@@ -177,7 +177,7 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     disp[140:200, 170:174] = 20.0            # fattening: floor pixels at the object's disparity
     mask = np.zeros((h, w), bool)
     mask[140:200, 150:174] = True
-    out = floor_check(mask, left, right, disp, geo(rig), ObstacleParams())
+    out = floor_check(mask, left, right, disp, geo(rig), ObstacleParams(floor_check_ratio=0.5))
     # the object is kept wherever its 5-row column lies on it (its top and bottom 2 rows
     # straddle the floor: either hypothesis may win there)
     assert out[142:198, 150:170].all()
@@ -188,7 +188,7 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     assert far.size >= 30
     assert not out[far][:, 170:174].any()
     assert mask[140:200, 150:174].all()      # input not modified
-    off = floor_check(mask, left, right, disp, geo(rig), ObstacleParams(floor_check_ratio=0.0))
+    off = floor_check(mask, left, right, disp, geo(rig), ObstacleParams())  # off by default
     assert (off == mask).all()
     with pytest.raises(SlitcliError, match="floor check"):
         ObstacleParams(floor_check_half_px=-1)

@@ -51,6 +51,11 @@ class ObstacleParams:
     """How obstacle points and per-bearing ranges are drawn from a disparity image.
 
     ``max_range_m`` of None uses the rig's ``stereo.max_range_m`` (the paper's 3 m).
+    ``floor_check_ratio`` 0 (the default) leaves :func:`floor_check` off; 0.5 is the
+    ratio it was tuned with. Off because, measured against the renderer's truth on the
+    sample scenes and 16 random textureless scenes (26 frames), it removed 2594 obstacle
+    pixels of which 2198 were right (disparity within 1 px and truly an obstacle) and
+    396 wrong: it removes more right pixels than wrong ones.
     """
 
     _: KW_ONLY
@@ -66,7 +71,7 @@ class ObstacleParams:
     silhouette_reach_px: int = 8
     silhouette_step_dn: float = 8.0
     silhouette_same_px: float = 1.0
-    floor_check_ratio: float = 0.5
+    floor_check_ratio: float = 0.0
     floor_check_half_px: int = 2
     floor_check_min_px: float = 1.0
 
