@@ -154,7 +154,8 @@ def test_a_partial_near_object_is_ranged_from_its_own_points():
         ObstacleParams(surface_gap_px=-1.0)
 
 
-def test_floor_pixels_given_an_objects_disparity_are_floor():
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_floor_pixels_given_an_objects_disparity_are_floor(seed):
     # A hand-made rectified pair: the right image a random texture, the left image the
     # floor seen through the rig (each left pixel is the right image at the floor's
     # disparity, Eq. 8 on the floor plane), except an object over columns 150-169,
@@ -162,7 +163,7 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     # columns (170-173) with the object's disparity: they see floor.
     rig = paper_rig()
     w, h = rig.image_size_px
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     right = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)), (0, 0), 1.0)
     dfl = StereoGeometry.for_rig(rig).floor_disparity_px.astype(np.float64)
     # the floor's disparity is Eq. 8 at the depth where the pixel's ray meets the floor
@@ -230,14 +231,48 @@ def test_obstacle_runs_are_cut_back_to_the_silhouette_on_plain_backgrounds():
     assert np.array_equal(out, mask)
 
 
-def test_floor_test_allows_for_disparity_noise():
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_floor_test_allows_for_disparity_noise(seed):
     rig = paper_rig()
     disp, sees_wall = wall_and_floor_disparity(rig, 2.9)
-    noisy = disp + np.random.default_rng(1).normal(0.0, 0.25, disp.shape)
+    noisy = disp + np.random.default_rng(seed).normal(0.0, 0.25, disp.shape)
     _, _pts, obstacle, _ = obstacle_points(noisy.astype(np.float32), geo(rig), ObstacleParams())
     # 0.25 px of disparity noise lifts far floor points by centimetres; the test widens
     # its margin with depth, so almost no floor pixel becomes an obstacle
     assert obstacle[~sees_wall].mean() <= 0.01
+
+
+@pytest.mark.parametrize("bin_deg", [0.5, 1.0, 2.0])
+def test_stereo_pixels_use_the_one_bin_rule(bin_deg):
+    # every pixel's bin is slitcli.ranges' floor(b / w + 1/2): a bearing on a boundary
+    # goes to the larger-bearing bin, as for the laser and the truth
+    from slitcli.ranges import BearingBins
+
+    rig = paper_rig()
+    g = StereoGeometry.for_rig(rig, bin_deg)
+    bins = BearingBins.for_rig(rig, bin_deg)
+    np.testing.assert_array_equal(g.pixel_bin, bins.index(g.bearing_deg))
+    np.testing.assert_array_equal(g.bins.centres_deg, bins.centres_deg)
+    # the pixel nearest a boundary on each side of it lands in the bins on either side,
+    # and an obstacle placed on a pixel is counted in that pixel's bin
+    b = g.bearing_deg.astype(np.float64)
+    edge = (bins.first + 3 + 0.5) * bin_deg
+    row = 120
+    left_of = np.flatnonzero(b[row] >= edge)
+    right_of = np.flatnonzero(b[row] < edge)
+    u_in, u_out = left_of.max(), right_of.min()
+    assert g.pixel_bin[row, u_in] == 4 and g.pixel_bin[row, u_out] == 3
+    pts = np.full((*g.bearing_deg.shape, 3), np.nan, np.float32)
+    mask = np.zeros(g.bearing_deg.shape, bool)
+    rows = np.arange(60, 80)
+    mask[rows, u_in] = True
+    pts[rows, u_in] = [1.0, 0.0, 0.3]
+    p = ObstacleParams(bin_width_deg=bin_deg)
+    br = bearing_ranges(pts, mask, mask, g, p)
+    assert br.obstacle_px[4] == rows.size - (g.pixel_bin[rows, u_in] != 4).sum()
+    assert br.obstacle_px.sum() == rows.size
+    with pytest.raises(SlitcliError, match="another rig or bin width"):
+        bearing_ranges(pts, mask, mask, g, ObstacleParams(bin_width_deg=bin_deg * 2))
 
 
 # ------------------------------------------------------------------ rectification
