@@ -10,9 +10,19 @@ pixels are split by where their 9 x 9 window finds texture: within 1.5 px of the
 object's silhouette, within half a window (4.5 px) of it, within half a window of the
 stripe, or elsewhere (shading, a crease between two faces).
 
-Not part of `make bench` (about a minute).
+``--compare`` scores the matcher settings of :data:`SETTINGS` (the local Eq. 10
+matcher and semi-global aggregation, issue 23) side by side on the same frames, by
+surface (truth ``object_id``, within 3 m): textured objects and walls (density, median
+|error|, share > 1 px), the slanted floor (density, share > 1 px, median signed error,
+share of wrong pixels that are too near), plain surfaces (invalid, wrong > 1 px), and
+per plain object at 1.2-3 m whether stereo ranges it: a bin counts as detected when
+the full pipeline's range lies within max(5 cm, 5 %) of the nearest point of that
+object in the bin (from the truth depth).
+
+Not part of `make bench` (about a minute; --compare a few).
 
     .venv/bin/python bench/textureless_eval.py [--cache out/textureless_eval] [--scenes 16]
+    .venv/bin/python bench/textureless_eval.py --compare
 """
 
 from __future__ import annotations
@@ -26,7 +36,9 @@ import numpy as np
 from slitcli.rig import paper_rig
 from slitcli.sim.render import render_frame
 from slitcli.sim.scene import scene_from_dict
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.matcher import MatcherParams, compute_disparity
+from slitcli.stereo.pipeline import StereoParams, process_stereo_pair
 
 ROOT = Path(__file__).resolve().parent.parent
 WALLS = 3  # the corridor's walls come first in the object list
@@ -111,12 +123,94 @@ def score_objects(d: dict, z: dict[str, np.ndarray], params: MatcherParams) -> l
     return rows
 
 
+#: Matcher settings compared by ``--compare`` (name -> MatcherParams keywords).
+SETTINGS: dict[str, dict] = {
+    "local (none)": {},
+    "sgm": {"aggregation": "sgm"},
+    "sgm, no support": {"aggregation": "sgm", "support_min_zncc": 0.0},
+    "sgm 7x7, no support": {"aggregation": "sgm", "support_min_zncc": 0.0,
+                            "window_w_px": 7, "window_h_px": 7},
+}
+
+
+def _object_ranges(z: dict[str, np.ndarray], geo: StereoGeometry, obj: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Per bin: nearest horizontal range (m) of object ``obj``'s pixels (NaN: none)."""
+    on = (z["object_id"] == obj) & np.isfinite(z["depth_m"])
+    pts = geo.rays_sensor_xyz[on] * z["depth_m"][on][:, None]
+    r = np.hypot(pts[:, 0], pts[:, 1] - 0.0)
+    idx = geo.pixel_bin[on]
+    out = np.full(len(geo.bins), np.inf)
+    ok = idx >= 0
+    np.minimum.at(out, idx[ok], r[ok])
+    return np.where(np.isfinite(out), out, np.nan), np.bincount(idx[ok], minlength=len(
+        geo.bins))
+
+
+def compare(frames: list[tuple[dict, dict[str, np.ndarray]]]) -> None:
+    """Print the surface scores of every setting of :data:`SETTINGS`."""
+    rig = paper_rig()
+    geo = StereoGeometry.for_rig(rig)
+    for name, kw in SETTINGS.items():
+        acc: dict[str, float] = dict.fromkeys(
+            ("tex", "tex_valid", "tex_bad", "floor", "floor_valid", "floor_bad",
+             "floor_near", "plain", "plain_valid", "plain_wrong", "bins", "bins_hit"), 0.0)
+        tex_err: list[np.ndarray] = []
+        floor_err: list[np.ndarray] = []
+        params = StereoParams(matcher=MatcherParams(**kw))
+        for d, z in frames:
+            res = process_stereo_pair(z["left"], z["right"], rig, params, geometry=geo)
+            disp, gt = res.disparity_px, z["disparity_px"]
+            near = np.isfinite(gt) & (z["depth_m"] <= 3.0)
+            valid = np.isfinite(disp)
+            err = disp - gt
+            tex = near & z["textured"] & (z["object_id"] > 0)
+            floor = near & (z["object_id"] == 0)
+            plain = near & ~z["textured"] & (z["object_id"] > 0)
+            acc["tex"] += tex.sum()
+            acc["tex_valid"] += (tex & valid).sum()
+            acc["tex_bad"] += (tex & valid & (np.abs(err) > 1)).sum()
+            tex_err.append(np.abs(err[tex & valid]))
+            acc["floor"] += floor.sum()
+            acc["floor_valid"] += (floor & valid).sum()
+            acc["floor_bad"] += (floor & valid & (np.abs(err) > 1)).sum()
+            acc["floor_near"] += (floor & valid & (err > 1)).sum()
+            floor_err.append(err[floor & valid])
+            acc["plain"] += plain.sum()
+            acc["plain_valid"] += (plain & valid).sum()
+            acc["plain_wrong"] += (plain & valid & (np.abs(err) > 1)).sum()
+            for k, obj in enumerate(d["objects"][WALLS:]):
+                if obj["surface"]["texture"] != "plain":
+                    continue
+                r_obj, npx = _object_ranges(z, geo, WALLS + k + 1)
+                want = np.isfinite(r_obj) & (r_obj >= 1.2) & (r_obj <= 3.0) & (npx >= 20)
+                hit = want & (np.abs(res.range_m - r_obj) <= np.maximum(0.05, 0.05 * r_obj))
+                acc["bins"] += want.sum()
+                acc["bins_hit"] += hit.sum()
+        te = np.concatenate(tex_err)
+        fe = np.concatenate(floor_err)
+        print(f"{name:22s} textured: density {acc['tex_valid'] / acc['tex']:.3f} median "
+              f"|err| {np.median(te):.3f} px, > 1 px {acc['tex_bad'] / acc['tex_valid']:.4f}"
+              f" | floor: density {acc['floor_valid'] / acc['floor']:.3f}, > 1 px "
+              f"{acc['floor_bad'] / acc['floor_valid']:.4f} (too near "
+              f"{acc['floor_near'] / max(acc['floor_bad'], 1):.0%}), median signed "
+              f"{np.median(fe):+.3f} px | plain: valid "
+              f"{acc['plain_valid'] / acc['plain']:.3f}, wrong > 1 px "
+              f"{acc['plain_wrong'] / acc['plain']:.4f} ({int(acc['plain_wrong'])} px) | "
+              f"plain objects 1.2-3 m: {int(acc['bins_hit'])} of {int(acc['bins'])} bins")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default=str(ROOT / "out" / "textureless_eval"),
                     help="folder for the rendered frames (reused when present)")
     ap.add_argument("--scenes", type=int, default=16, help="number of random scenes")
+    ap.add_argument("--compare", action="store_true",
+                    help="score the matcher settings of SETTINGS side by side")
     args = ap.parse_args()
+    if args.compare:
+        compare([_frame(Path(args.cache), seed) for seed in range(args.scenes)])
+        return 0
     params = MatcherParams()
     rows = []
     for seed in range(args.scenes):

@@ -79,6 +79,7 @@ from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.reasons import Reason
 
 MATCHERS = ("nssd", "bm", "sgbm")
+AGGREGATIONS = ("none", "sgm")
 PREFILTERS = ("none", "mean", "xsobel", "log")
 SUBPIXEL = ("parabola", "none")
 
@@ -125,6 +126,10 @@ class MatcherParams:
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
+    aggregation: str = "none"
+    sgm_paths: int = 8
+    sgm_p1: float = 0.05
+    sgm_p2: float = 0.4
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -137,6 +142,18 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if p.prefilter not in PREFILTERS:
         raise SlitcliError(f"--prefilter {p.prefilter!r} is unknown; use one of "
                            f"{', '.join(PREFILTERS)}")
+    if p.aggregation not in AGGREGATIONS:
+        raise SlitcliError(f"aggregation {p.aggregation!r} is unknown; use one of "
+                           f"{', '.join(AGGREGATIONS)}")
+    if p.aggregation == "sgm" and p.matcher != "nssd":
+        raise SlitcliError(f"aggregation 'sgm' aggregates the Eq. 10 cost of matcher "
+                           f"'nssd', not {p.matcher!r}; use matcher 'nssd' or aggregation "
+                           "'none'")
+    if p.sgm_paths not in (4, 8):
+        raise SlitcliError(f"sgm_paths {p.sgm_paths} must be 4 or 8")
+    if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
+        raise SlitcliError(f"sgm_p1 {p.sgm_p1} and sgm_p2 {p.sgm_p2} must satisfy "
+                           "0 <= sgm_p1 <= sgm_p2 <= 8 (Eq. 10 cost units)")
     if p.subpixel not in SUBPIXEL:
         raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
                            f"{', '.join(SUBPIXEL)}")
@@ -378,6 +395,10 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.window_h_px > lg.shape[0]:
         raise SlitcliError(f"--window height {p.window_h_px} is taller than the image "
                            f"({lg.shape[0]} px); use a smaller odd window")
+    if p.matcher == "nssd" and p.aggregation == "sgm":
+        from slitcli.stereo.sgm import match_sgm
+
+        return match_sgm(lg, rg, p)
     if p.matcher == "nssd":
         return match_nssd(lg, rg, p)
     return match_opencv(lg, rg, p)
