@@ -106,6 +106,23 @@ def test_opencv_matchers_through_the_command(tmp_path, matcher):
     assert np.median(np.abs(disp[disp > 0] / 256.0 - 14.5)) <= 0.3
 
 
+def test_sgm_aggregation_through_the_command(tmp_path):
+    import json
+
+    seq = make_sequence(tmp_path, disparities=(14.5,))
+    out = tmp_path / "out"
+    res = run("stereo", seq, "-o", out, "--aggregation", "sgm")
+    assert res.exit_code == 0, res.output
+    disp = cv2.imread(str(out / "disparity" / "f000.png"), cv2.IMREAD_UNCHANGED)
+    assert (disp > 0)[:, 40:].mean() >= 0.95
+    assert np.median(np.abs(disp[disp > 0] / 256.0 - 14.5)) <= 0.1
+    # the settings are recorded, so a re-run can tell
+    manifest = json.loads((out / ".slitcli" / "stereo" / "manifest.json").read_text())
+    assert manifest["params"]["matcher"]["aggregation"] == "sgm"
+    # another aggregation is another setting: refused without --overwrite
+    assert run("stereo", seq, "-o", out).exit_code == 2
+
+
 def _one_line_exit_2(res, out: Path, fragment: str) -> None:
     assert res.exit_code == 2, res.output
     lines = res.output.strip().splitlines()
@@ -149,6 +166,7 @@ def test_missing_right_frame(tmp_path):
     (["--window", "nine"], "--window 'nine'"),
     (["--num-disparities", "400"], "exceeds the image width"),
     (["--matcher", "bm", "--num-disparities", "40"], "multiple of 16"),
+    (["--matcher", "bm", "--aggregation", "sgm"], "aggregation 'sgm'"),
 ])
 def test_bad_options(tmp_path, args, fragment):
     seq = make_sequence(tmp_path, disparities=(12.0,))
