@@ -127,7 +127,7 @@ class MatcherParams:
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
     aggregation: str = "none"
-    sgm_paths: int = 8
+    sgm_paths: int = 4
     sgm_p1: float = 0.05
     sgm_p2: float = 0.4
 
