@@ -224,8 +224,13 @@ def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy
     """
     _, width, num = s_a.shape
     big = np.float32(3.0e38)
-    row = np.empty((width, num), np.float32)
+    t = np.empty(num, np.float32)
+    # the row's sums by disparity (D, W + D + |dmin|): the right view reads, for each
+    # disparity, a contiguous run of left columns (a vectorised loop per disparity)
+    off = num + abs(dmin)
+    by_d = np.full((num, width + 2 * off), big, np.float32)
     best_i = np.empty(width, np.int32)
+    rbest_v = np.empty(width, np.float32)
     rbest_i = np.empty(width, np.int32)
     uq = np.empty(width, np.bool_)
     for y in range(y0, y1):
@@ -233,11 +238,12 @@ def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy
             sa = s_a[y, x]
             sb = s_b[y, x]
             cv = cost[y, x]
-            t = row[x]
             # candidates: partner inside the right image and a window with energy
             for i in range(num):
                 v = np.float32(sa[i]) + np.float32(sb[i])
                 t[i] = v if cv[i] < top else big
+            for i in range(num):
+                by_d[i, off + x] = t[i]
             bv = t[0]
             for i in range(1, num):
                 bv = min(bv, t[i])
@@ -268,18 +274,20 @@ def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy
             uq[x] = (uniq > 0) & (second < bv * (np.float32(1.0) + uniq))
             tex = (energy_min > 0) & (el[y, x] < energy_min * count[y, x])
             reason_out[y, x] = REASON_TEXTURE if tex else REASON_VALID
-        # the right view: right pixel xr takes its best left match x = xr + d
+        # the right view: right pixel xr takes its best left match x = xr + dmin + i
+        # (columns outside the image hold +big, so they never win)
         for xr in range(width):
-            i0 = max(0, -dmin - xr)
-            i1 = min(num, width - xr - dmin)
-            rv = big
-            ri = -1
-            for i in range(i0, i1):
-                v = row[xr + dmin + i, i]
-                ri = i if v < rv else ri
-                rv = min(rv, v)
-            rbest_i[xr] = ri
-            rdisp_out[y, xr] = np.float32(dmin + ri) if ri >= 0 else np.nan
+            rbest_v[xr] = big
+            rbest_i[xr] = -1
+        for i in range(num):
+            row_i = by_d[i, off + dmin + i:off + dmin + i + width]
+            for xr in range(width):
+                v = row_i[xr]
+                better = v < rbest_v[xr]
+                rbest_i[xr] = i if better else rbest_i[xr]
+                rbest_v[xr] = v if better else rbest_v[xr]
+        for xr in range(width):
+            rdisp_out[y, xr] = np.float32(dmin + rbest_i[xr]) if rbest_i[xr] >= 0 else np.nan
         # precedence as in the local matcher: uniqueness over left-right over texture
         for x in range(width):
             bi = best_i[x]
