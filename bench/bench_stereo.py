@@ -114,7 +114,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
                                 "support (centred, one-sided, cross), depth edges, speckle; "
                                 "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
-        "nssd sgm": "Eq. 10 + 8-path semi-global aggregation + the default filters; "
+        "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters; "
                     "issue 23: <= sgbm at 320x240",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
