@@ -208,6 +208,39 @@ def aggregate_pass(cost, p1, p2, eight, reverse, out):
         tr_min, tr_min_c = tr_min_c, tr_min
 
 
+@nb.njit(cache=True, nogil=True, fastmath=_FASTMATH, inline="always")
+def _right_view(by_d, off, dmin, num, width, big, rbest_v, rbest_i):
+    """Right pixel xr takes its best left match x = xr + dmin + i over the row's sums
+    stored by disparity (columns outside the image hold ``big``, so never win)."""
+    for xr in range(width):
+        rbest_v[xr] = big
+        rbest_i[xr] = -1
+    for i in range(num):
+        row_i = by_d[i, off + dmin + i:off + dmin + i + width]
+        for xr in range(width):
+            v = row_i[xr]
+            better = v < rbest_v[xr]
+            rbest_i[xr] = i if better else rbest_i[xr]
+            rbest_v[xr] = v if better else rbest_v[xr]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=_FASTMATH, inline="always")
+def _row_codes(best_i, rbest_i, uq, dmin, width, lr_tol, codes):
+    """Left-right and uniqueness codes of one row, in the local matcher's precedence
+    (uniqueness over left-right over texture)."""
+    for x in range(width):
+        bi = best_i[x]
+        if bi < 0:
+            continue
+        if lr_tol >= 0:
+            xr = x - dmin - bi
+            ok = (xr >= 0) and (xr < width)
+            if not ok or rbest_i[xr] < 0 or abs(rbest_i[xr] - bi) > lr_tol:
+                codes[x] = REASON_LEFT_RIGHT
+        if uq[x]:
+            codes[x] = REASON_UNIQUENESS
+
+
 @nb.njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy_min, top,
                  scale, y0, y1, disp_out, cost_out, reason_out, rdisp_out):
@@ -274,29 +307,7 @@ def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy
             uq[x] = (uniq > 0) & (second < bv * (np.float32(1.0) + uniq))
             tex = (energy_min > 0) & (el[y, x] < energy_min * count[y, x])
             reason_out[y, x] = REASON_TEXTURE if tex else REASON_VALID
-        # the right view: right pixel xr takes its best left match x = xr + dmin + i
-        # (columns outside the image hold +big, so they never win)
-        for xr in range(width):
-            rbest_v[xr] = big
-            rbest_i[xr] = -1
-        for i in range(num):
-            row_i = by_d[i, off + dmin + i:off + dmin + i + width]
-            for xr in range(width):
-                v = row_i[xr]
-                better = v < rbest_v[xr]
-                rbest_i[xr] = i if better else rbest_i[xr]
-                rbest_v[xr] = v if better else rbest_v[xr]
+        _right_view(by_d, off, dmin, num, width, big, rbest_v, rbest_i)
         for xr in range(width):
             rdisp_out[y, xr] = np.float32(dmin + rbest_i[xr]) if rbest_i[xr] >= 0 else np.nan
-        # precedence as in the local matcher: uniqueness over left-right over texture
-        for x in range(width):
-            bi = best_i[x]
-            if bi < 0:
-                continue
-            if lr_tol >= 0:
-                xr = x - dmin - bi
-                ok = (xr >= 0) and (xr < width)
-                if not ok or rbest_i[xr] < 0 or abs(rbest_i[xr] - bi) > lr_tol:
-                    reason_out[y, x] = REASON_LEFT_RIGHT
-            if uq[x]:
-                reason_out[y, x] = REASON_UNIQUENESS
+        _row_codes(best_i, rbest_i, uq, dmin, width, lr_tol, reason_out[y])
