@@ -176,7 +176,7 @@ def test_cross_support_rejects_plain_pixels_beside_texture_keeps_a_thin_pole(see
     off = compute_disparity(left, right, MatcherParams(support_cross_min_zncc=0.0))
     band_off = np.concatenate([off.valid[:, 122:125], off.valid[:, 215:218]], axis=1)
     n = band.size
-    # documented rate (docs/stereo.md) <= 0.3 %, plus 3 sigma of its Poisson count
+    # documented rate (docs/notes/stereo-kernels.md) <= 0.3 %, plus 3 sigma of its Poisson count
     assert band.sum() <= 0.003 * n + 3.0 * np.sqrt(0.003 * n)
     # the cross test removes at least half of what passes without it (>= 10 pixels at
     # a 1 % rate: P(Poisson(29) < 10) ~ 3e-4, so the comparison has power)

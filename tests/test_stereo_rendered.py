@@ -92,7 +92,7 @@ def test_textureless_surfaces_are_invalid_not_guessed(corridor):
 
 
 # One textureless object of each kind before the textured corridor of SCENE, lit by the
-# laser; measured (docs/stereo.md): 97.4 %, 96.1 %, 96.2 % and 98.6 % invalid.
+# laser; measured (docs/notes/stereo-kernels.md): 97.4 %, 96.1 %, 96.2 % and 98.6 % invalid.
 _PLAIN_OBJECTS = {
     "box 0.5 m wide at 1.2 m": [
         {"type": "box", "centre_xy_m": [1.2, 0.0], "size_m": [0.4, 0.5, 0.6],

@@ -24,7 +24,7 @@ def kernel_threads() -> int:
     band of rows handed to a core that another process holds waits for that core's
     time slice, and every kernel of the frame waits for its slowest band: measured on
     the 2-core development machine under a competing busy loop, a second thread made
-    a frame slower, not faster (docs/stereo.md).
+    a frame slower, not faster (docs/notes/stereo-kernels.md).
     """
     wanted = int(numba.get_num_threads())
     if wanted <= 1:

@@ -19,7 +19,7 @@ instead drops its ``num_disparities - 1`` leftmost columns).
 After winner-take-all the disparity is refined to subpixel by a parabola through
 the costs at d - 1, d, d + 1 (Eq. 10 is a normalised sum of squares, locally
 quadratic in the shift, so the parabola is its natural model). Validity filters,
-all optional and each measured in docs/stereo.md:
+all optional and each measured in docs/notes/stereo-kernels.md:
 
 - prefilter: ``mean`` (subtract the local mean and clip, as StereoBM's
   normalised-response prefilter), ``xsobel`` (horizontal derivative, clipped) or
