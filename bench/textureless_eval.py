@@ -1,4 +1,4 @@
-"""Textureless study behind docs/notes/stereo-kernels.md: issue 5's "invalid, not guessed" on random scenes.
+"""Textureless study (docs/notes/stereo-kernels.md): issue 5's "invalid, not guessed", and SGM.
 
 Renders (once, into a cache folder) random scenes of 1-3 plain (textureless) boxes and
 cylinders, 0.1-0.5 m across, at 0.7-3 m in a corridor with textured walls and floor
