@@ -383,9 +383,11 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0) 
         group = "kitti" if name.startswith("kitti/") else "all"
         line = [f"{name:28s} {left.shape[1]}x{left.shape[0]}/{num}d"]
         for m in methods:
+            run_method(methods[m], left, right, num)   # warm-up: compile / load kernels
             t0 = time.perf_counter()
-            sc = score(run_method(methods[m], left, right, num), gt)
+            disp = run_method(methods[m], left, right, num)
             dt = time.perf_counter() - t0
+            sc = score(disp, gt)
             acc = pooled.setdefault((group, m), {"gt": 0, "valid": 0, "bad": 0, "s": 0.0})
             for k in ("gt", "valid", "bad"):
                 acc[k] += sc[k]
