@@ -157,3 +157,16 @@ def test_sgm_parameters_are_checked():
         MatcherParams(matcher="bm", aggregation="sgm")
     with pytest.raises(SlitcliError, match="aggregation"):
         MatcherParams(aggregation="global")
+    with pytest.raises(SlitcliError, match="at least 2 disparities"):
+        MatcherParams(aggregation="sgm", num_disparities=1)
+
+
+@pytest.mark.parametrize("dmin", [-4, 0, 2])
+def test_disparity_range_offsets(dmin):
+    # the same plane found whatever the range's start (negative ranges included)
+    left, right = plane_pair(5.3, noise_dn=1.0)
+    res = compute_disparity(left, right, MatcherParams(num_disparities=16, min_disparity_px=dmin,
+                                                       aggregation="sgm"))
+    valid = np.isfinite(res.disparity_px)
+    assert valid[:, 20:].mean() >= 0.95
+    assert np.median(np.abs(res.disparity_px[valid] - 5.3)) <= 0.1
