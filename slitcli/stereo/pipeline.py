@@ -94,7 +94,9 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     params : StereoParams, optional
     geometry : StereoGeometry, optional
         ``StereoGeometry.for_rig(rig, params.obstacles.bin_width_deg)``, built once per
-        rig by callers that process many frames; built here when None.
+        rig by callers that process many frames (and that check the parameters once
+        with :func:`check_stereo_params`); built, and the parameters checked, here
+        when None.
 
     Returns
     -------
@@ -110,10 +112,11 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
         raise SlitcliError(f"left image {left_bgr.shape[1]}x{left_bgr.shape[0]} and right "
                            f"image {right_bgr.shape[1]}x{right_bgr.shape[0]} differ in size; "
                            "a stereo pair needs two images of the same size")
-    check_stereo_params(rig, p)
     if geometry is None:
+        check_stereo_params(rig, p)
         geometry = StereoGeometry.for_rig(rig, p.obstacles.bin_width_deg)
     else:
+        # built once per run by a caller that checked the parameters then
         geometry.check_for(rig, p.obstacles.bin_width_deg)
     left, right = rectify_pair(rig, left_bgr, right_bgr, maps=geometry.rectification)
     disp = compute_disparity(left, right, p.matcher)
