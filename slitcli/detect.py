@@ -24,6 +24,7 @@ import numpy as np
 if TYPE_CHECKING:
     import pandas as pd
 
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.fusion import FusedRanges, FusionParams, fuse
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
@@ -51,13 +52,13 @@ from slitcli.laser.frame import (
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import LASER, RANGES, BearingBins, RangeTable, csv_rows
 from slitcli.rig import Rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
     check_stereo_params,
     process_stereo_pair,
 )
-from slitcli.stereo.rectify import rectify_pair
 
 COLOUR_ORDERS = ("bgr", "rgb")
 SKIPPED_FILE = "skipped_frames.csv"
@@ -201,6 +202,8 @@ class Detector:
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
+        self._rectification = RectificationMaps.for_rig(rig) if rig.raw is not None else None
+        self._stereo_geometry = StereoGeometry.for_rig(self.rectified_rig, p.bin_deg)
         self.fusion = FusionParams(
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
@@ -224,7 +227,8 @@ class Detector:
                                    param=(name, "rig"))
         if self.colour_order == "rgb":
             left, right = left[..., ::-1], right[..., ::-1]
-        return rectify_pair(np.ascontiguousarray(left), np.ascontiguousarray(right), self.rig)
+        return rectify_pair(self.rig, np.ascontiguousarray(left), np.ascontiguousarray(right),
+                            maps=self._rectification)
 
     def laser(self, left_rect_bgr: np.ndarray) -> LaserFrame:
         """The laser stripe of a rectified left image (Eqs. 1-7), checked for colour order."""
@@ -243,7 +247,8 @@ class Detector:
         """
         left, right = self.prepare(left_bgr, right_bgr)
         las = self.laser(left)
-        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
+        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
+                                 geometry=self._stereo_geometry)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)
