@@ -82,6 +82,33 @@ def segment(points_xy: np.ndarray, gap_m: float) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(jump)]).astype(np.int64)
 
 
+def register(old_xy: np.ndarray, new_xy: np.ndarray, guess_xy: np.ndarray, *,
+             iterations: int = 10, keep: float = 0.7) -> np.ndarray:
+    """Translation (2,) that moves the points ``old_xy`` (M, 2) onto ``new_xy`` (N, 2).
+
+    Translation-only ICP from ``guess_xy``: each iteration matches every new point to
+    its nearest moved old point and adds the mean residual of the best ``keep`` share
+    (the parts seen only in one of the two frames find no true partner). The visible
+    part of a body changes as the line of sight turns, which biases a centroid; the
+    points of the two frames still lie on the same outline, and the registration
+    follows the outline, not the visible part's centre.
+    """
+    shift = np.asarray(guess_xy, dtype=float).copy()
+    n_keep = max(1, int(keep * len(new_xy)))
+    for _ in range(iterations):
+        moved = old_xy + shift
+        d = new_xy[:, None, :] - moved[None, :, :]                      # (N, M, 2)
+        dist = np.hypot(d[..., 0], d[..., 1])
+        nn = dist.argmin(axis=1)
+        res = d[np.arange(len(new_xy)), nn]
+        best = np.argsort(dist[np.arange(len(new_xy)), nn])[:n_keep]
+        step = res[best].mean(axis=0)
+        shift += step
+        if np.hypot(*step) < 1e-4:
+            break
+    return shift
+
+
 @dataclass
 class _Track:
     track_id: int
@@ -223,10 +250,16 @@ class Tracker:
         ok = np.array(tr.whole)
         t = np.array(tr.times_s)[ok]
         if len(t) >= 2 and t[-1] > t[0]:
-            # least-squares slope of the centroid over the frames seen whole
+            # least-squares slope of the centroid over the frames seen whole, refined by
+            # registering the oldest such frame's points onto the newest
             c = np.array(tr.centroids)[ok]
             tc = t - t.mean()
-            tr.velocity_xy = (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / (tc * tc).sum()
+            v0 = (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / (tc * tc).sum()
+            first = int(np.flatnonzero(ok)[0])
+            span = t[-1] - t[0]
+            if whole and span >= p.min_history_s - 1e-9:
+                v0 = register(tr.points[first], pts, v0 * span) / span
+            tr.velocity_xy = v0
         if tr.times_s[-1] - tr.times_s[0] < p.min_history_s - 1e-9:
             return
         st = state(tr.points[0])
