@@ -26,6 +26,7 @@ from dataclasses import dataclass, fields
 from types import MappingProxyType
 
 import numpy as np
+from numba import njit
 
 from slitcli.errors import SlitcliError
 
@@ -362,23 +363,43 @@ def moving_contact_time(v_mps: np.ndarray, w_rps: np.ndarray, moving: MovingDisc
         (negative where they meet).
     """
     v = np.asarray(v_mps, dtype=float)
-    out = np.full(v.shape, np.inf)
     if len(moving.radius_m) == 0:
-        return out, np.full(v.shape, np.inf)
+        return np.full(v.shape, np.inf), np.full(v.shape, np.inf)
     t = np.arange(0.0, horizon_s + 1e-9, step_s)
     robot = arc_positions(v, w_rps, t)                                         # (P, K, 2)
     disc = moving.centre_xy[None, :, :] + t[:, None, None] * moving.velocity_xy[None]  # (K, T, 2)
-    gap = np.hypot(robot[:, :, None, 0] - disc[None, :, :, 0],
-                   robot[:, :, None, 1] - disc[None, :, :, 1])                # (P, K, T)
-    rel = v[:, None] + np.hypot(*moving.velocity_xy.T)[None, :]                # (P, T)
-    reach = radius_m + moving.radius_m[None, :] + 0.5 * step_s * rel
-    free = gap - reach[:, None, :]
-    hit = (free[:, 1:] < 0) & (gap[:, 1:] < gap[:, :-1])
-    hit_any = hit.any(axis=2)                                                  # (P, K-1)
-    first = np.argmax(hit_any, axis=1)
-    found = hit_any[np.arange(len(v)), first]
-    out[found] = t[1:][first[found]]
-    return out, free[:, 1:].min(axis=(1, 2))
+    reach = radius_m + moving.radius_m[None, :] + 0.5 * step_s * (
+        v[:, None] + np.hypot(*moving.velocity_xy.T)[None, :])                 # (P, T)
+    return _contact_kernel(robot, disc, reach, t)
+
+
+@njit(cache=True, nogil=True)
+def _contact_kernel(robot: np.ndarray, disc: np.ndarray, reach: np.ndarray, t: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    # pairs x instants x discs with an early exit at the first contact: the (P, K, T)
+    # arrays of the numpy form (about 1e6 elements for a person) are never built
+    n_p, n_k = robot.shape[0], robot.shape[1]
+    n_t = disc.shape[1]
+    t_c = np.full(n_p, np.inf)
+    free = np.full(n_p, np.inf)
+    prev = np.empty(n_t)
+    for i in range(n_p):
+        for j in range(n_t):
+            dx = robot[i, 0, 0] - disc[0, j, 0]
+            dy = robot[i, 0, 1] - disc[0, j, 1]
+            prev[j] = math.sqrt(dx * dx + dy * dy)
+        for k in range(1, n_k):
+            for j in range(n_t):
+                dx = robot[i, k, 0] - disc[k, j, 0]
+                dy = robot[i, k, 1] - disc[k, j, 1]
+                gap = math.sqrt(dx * dx + dy * dy)
+                f = gap - reach[i, j]
+                if f < free[i]:
+                    free[i] = f
+                if f < 0.0 and gap < prev[j] and t_c[i] == np.inf:
+                    t_c[i] = t[k]
+                prev[j] = gap
+    return t_c, free
 
 
 def admissible(v_mps: np.ndarray, w_rps: np.ndarray, d_collision_m: np.ndarray,
@@ -621,21 +642,26 @@ def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndar
         status = "wait"
     else:
         status = "rotate"
-        i = _rotate_away(sc, points_xy)
+        i = _rotate_away(sc, points_xy, v_mps, w_rps)
     return DwaCommand(float(sc.v_mps[i]), float(sc.w_rps[i]), status, float(sc.d_collision_m[i]),
                       float(sc.score[i]), sc.v_mps.size, n_ok)
 
 
-def _rotate_away(sc: PairScores, points_xy: np.ndarray) -> int:
+def _rotate_away(sc: PairScores, points_xy: np.ndarray, v_mps: float = 1.0,
+                 w_rps: float = 0.0) -> int:
     """Index of the in-place rotation with the largest turn rate away from the nearest point.
 
     Turning away from the nearest point is self-consistent (as the robot turns, that
     point moves further to the other side), so the robot does not dither between
-    turning left and right in front of a symmetric obstacle.
+    turning left and right in front of a symmetric obstacle. A robot already rotating
+    in place keeps its direction: between two obstacles the nearest point can swap
+    sides as it turns, and re-deciding every step then dithers on the spot for ever.
     """
     pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
     side = 1.0
-    if len(pts):
+    if v_mps <= 0 and w_rps != 0:
+        side = math.copysign(1.0, w_rps)
+    elif len(pts):
         nearest = pts[np.argmin(np.hypot(pts[:, 0], pts[:, 1]))]
         side = -1.0 if nearest[1] > 0 else 1.0
     cand = np.flatnonzero((sc.v_mps <= 0) & sc.admissible)
