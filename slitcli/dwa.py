@@ -635,8 +635,7 @@ def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndar
         status = "goal"
     elif sc.v_mps[i] > 0:
         status = "move"
-    elif np.any((sc.v_mps > 0) & np.isfinite(sc.t_contact_s)
-                & admissible(sc.v_mps, sc.w_rps, sc.d_collision_m, params)):
+    elif np.any((sc.v_mps > 0) & np.isfinite(sc.t_contact_s)):
         # forward pairs are blocked by a moving obstacle's predicted path, not by a
         # wall: stand (turning to the goal at most) and let it pass
         status = "wait"

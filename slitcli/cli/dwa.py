@@ -197,6 +197,9 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
 @click.option("--save-ranges", is_flag=True,
               help="Also write OUT/ranges_<case>.csv, the sensed range table of each run "
                    "(replay it with slitcli dwa).")
+@click.option("--plots", is_flag=True,
+              help="Also draw OUT/plots/<case>.png: Figs. 8/9 per case, with the path of "
+                   "every moving object (needs matplotlib).")
 @click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
 @_dwa_options
 def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensing: str,
@@ -206,8 +209,8 @@ def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensin
                      safety_margin_m: float, memory: str, memory_s: float,
                      memory_cell_m: float, max_time_s: float, stuck_timeout_s: float,
                      stuck_new_ground_m: float, recovery_after_s: float,
-                     recovery_back_m: float, save_ranges: bool, overwrite: bool,
-                     **kw: Any) -> None:
+                     recovery_back_m: float, save_ranges: bool, plots: bool,
+                     overwrite: bool, **kw: Any) -> None:
     """Closed-loop modified DWA: sense -> plan -> move, per world and sensing range.
 
     WORLD is a scene file (docs/scene.md) whose robot.start and goal_xy_m are the
@@ -234,6 +237,10 @@ def simulate_dwa_cmd(world: Path | None, out: Path, scenario: str | None, sensin
                            scenario=scenario, sensing_ranges_m=sensing_range, worlds=worlds,
                            seed=seed, start=start, goal_xy_m=goal, bin_deg=bin_deg,
                            overwrite=overwrite, save_ranges=save_ranges)
+    if plots:
+        from slitcli.figures import dwa_run_figures
+
+        dwa_run_figures(out)
     n = len(metrics)
     reached = int(metrics["reached_goal"].sum())
     collided = int(metrics["collided"].sum())
