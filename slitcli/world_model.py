@@ -21,7 +21,7 @@ rule: keep every point for ``memory_s`` seconds, no tracking; for comparison) or
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,7 +46,7 @@ class WorldModelParams:
     memory_s: float = 10.0
     cell_m: float = 0.05
     predict: bool = True
-    track: TrackParams = TrackParams()
+    track: TrackParams = field(default_factory=TrackParams)
 
 
 class WorldModel:

@@ -105,7 +105,7 @@ def moving_contact(v: float, w: float, discs: list[tuple[float, float, float, fl
 
     Same instants and contact rule as slitcli.dwa.moving_contact_time, written as loops.
     """
-    n = int(math.floor(p.predict_horizon_s / p.predict_step_s + 1e-9))
+    n = math.floor(p.predict_horizon_s / p.predict_step_s + 1e-9)
     prev = [math.hypot(x, y) for x, y, _, _, _ in discs]
     t_c, min_free = math.inf, math.inf
     for k in range(1, n + 1):
