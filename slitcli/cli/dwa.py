@@ -170,7 +170,7 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Rig file (field of view, mount.forward_m). Default: the paper rig.")
 @click.option("--bin-deg", type=float, default=1.0, show_default=True,
               help="Bearing bin width of the sensed range table, deg.")
-@click.option("--safety-margin-m", type=float, default=0.05, show_default=True,
+@click.option("--safety-margin-m", type=float, default=0.07, show_default=True,
               help="Planner footprint = robot radius + this, m.")
 @click.option("--memory", type=click.Choice(["clearing", "expiry", "off"]), default="clearing",
               show_default=True,

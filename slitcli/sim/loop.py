@@ -174,7 +174,7 @@ class SimParams:
         room, and planning resumes (0 s = no recovery).
     """
 
-    safety_margin_m: float = 0.05
+    safety_margin_m: float = 0.07
     memory: str = "clearing"
     memory_s: float = 10.0
     memory_cell_m: float = 0.05
