@@ -70,7 +70,7 @@ class TrackParams:
     min_in_view: int = 3
     shape_cell_m: float = 0.05
     coast_s: float = 15.0
-    min_history_s: float = 1.0
+    min_history_s: float = 0.6
 
 
 def segment(points_xy: np.ndarray, gap_m: float) -> np.ndarray:
@@ -248,18 +248,19 @@ class Tracker:
             for hist in (tr.times_s, tr.centroids, tr.points, tr.whole):
                 hist.pop(0)
         ok = np.array(tr.whole)
-        t = np.array(tr.times_s)[ok]
-        if len(t) >= 2 and t[-1] > t[0]:
-            # least-squares slope of the centroid over the frames seen whole, refined by
-            # registering the oldest such frame's points onto the newest
+        t = np.array(tr.times_s)
+        v0 = tr.velocity_xy
+        if ok.sum() >= 2 and t[ok][-1] > t[ok][0]:
+            # least-squares slope of the centroid over the frames seen whole
             c = np.array(tr.centroids)[ok]
-            tc = t - t.mean()
+            tc = t[ok] - t[ok].mean()
             v0 = (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / (tc * tc).sum()
-            first = int(np.flatnonzero(ok)[0])
-            span = t[-1] - t[0]
-            if whole and span >= p.min_history_s - 1e-9:
-                v0 = register(tr.points[first], pts, v0 * span) / span
-            tr.velocity_xy = v0
+        span = t[-1] - t[0]
+        if span >= p.min_history_s - 1e-9:
+            # refined by registering the oldest view onto the newest: outlines, not the
+            # visible parts' centroids, so it works on views cut by the field of view too
+            v0 = register(tr.points[0], pts, v0 * span) / span
+        tr.velocity_xy = v0
         if tr.times_s[-1] - tr.times_s[0] < p.min_history_s - 1e-9:
             return
         st = state(tr.points[0])
