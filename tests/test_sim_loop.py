@@ -238,9 +238,12 @@ def test_simulate_dwa_and_offline_replay_end_to_end(tmp_path):
     assert scene.objects == paper_world().scene.objects and scene.goal_xy_m == (6.0, 0.0)
     assert yaml.safe_load((out / "params.yaml").read_text())["dwa"]["v_max_mps"] == 0.2
     # Offline DWA over the sensed range table: the simulated robot moved exactly as
-    # commanded, so the offline planner must reproduce every command and pose.
+    # commanded, so the offline planner must reproduce every command and pose, given
+    # the same footprint (0.25 m robot + 0.07 m margin) and the same trust in "no
+    # return" (perfect sensing: nothing within its 1.5 m range)
     cmds = tmp_path / "cmds.csv"
     r = CliRunner().invoke(cli, ["dwa", str(out / "ranges_range_1.5m.csv"), "--goal", "6,0",
+                                 "--footprint-radius-m", "0.32", "--free-range-m", "1.5",
                                  "-o", str(cmds)])
     assert r.exit_code == 0, r.output
     c = pd.read_csv(cmds)

@@ -92,7 +92,7 @@ def _dwa_params(kw: dict[str, Any], footprint_radius_m: float | None = None) -> 
 @click.option("--range-column", default="fused_range_m", show_default=True,
               type=click.Choice(["fused_range_m", "laser_range_m", "stereo_range_m"]),
               help="Which range of the table the planner uses.")
-@click.option("--footprint-radius-m", type=float, default=0.3, show_default=True,
+@click.option("--footprint-radius-m", type=float, default=0.32, show_default=True,
               help="Robot radius plus safety margin, m.")
 @click.option("--memory", type=click.Choice(["clearing", "expiry", "off"]), default="clearing",
               show_default=True,
