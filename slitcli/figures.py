@@ -191,6 +191,7 @@ def draw_dynamic_case(axes: Sequence[Axes], traj: pd.DataFrame, world, *, title:
             c = centre_at(ob.motion, float(m))
             r = ob.radius_m if isinstance(ob, Cylinder) else 0.5 * math.hypot(*ob.size_m[:2])
             xy.add_patch(Circle(c, r, fill=False, ec="tab:red", lw=0.6, alpha=0.6))
+            xy.annotate(f"{m:g}", c, fontsize=6, color="tab:red", ha="center", va="center")
     for m, j in zip(marks, idx, strict=True):
         xy.annotate(f"{m:g}", (traj["x_m"].iloc[j], traj["y_m"].iloc[j]), fontsize=6,
                     xytext=(2, 2), textcoords="offset points")
