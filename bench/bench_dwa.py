@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from slitcli.dwa import DwaParams, MovingDiscs, plan_step, window_pairs
+from slitcli.dwa import DwaParams, plan_step, window_pairs
+from slitcli.prediction import MovingDiscs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import dwa_reference as ref  # the reference lives with the tests

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slitcli.dwa import MovingDiscs
 from slitcli.local_map import ObstacleMap, PointMemory, ScanRays, scan_points, to_world
+from slitcli.prediction import MovingDiscs
 from slitcli.tracking import Tracker, TrackParams
 
 MEMORY_MODES = ("clearing", "expiry", "off")

@@ -367,7 +367,7 @@ def test_tracker_velocity_of_a_walking_disc_and_static_box(seed):
 
 # ---------------------------------------------------------------- prediction
 def test_moving_contact_time_hand_values():
-    from slitcli.dwa import MovingDiscs, moving_contact_time
+    from slitcli.prediction import MovingDiscs, moving_contact_time
 
     v, w = np.array([0.2, 0.0, 0.2]), np.array([0.0, 0.0, 0.3])
     # a person walking at the robot along its line at 0.5 m/s from 3 m: the two discs
@@ -393,7 +393,7 @@ def test_moving_contact_time_hand_values():
 
 @pytest.mark.parametrize("seed", range(5))
 def test_array_step_with_prediction_matches_loop_reference(seed):
-    from slitcli.dwa import MovingDiscs
+    from slitcli.prediction import MovingDiscs
 
     rng = np.random.default_rng(100 + seed)
     pts = rng.uniform([-0.5, -2.0], [3.0, 2.0], size=(30, 2))
@@ -411,7 +411,7 @@ def test_array_step_with_prediction_matches_loop_reference(seed):
 
 
 def test_a_person_crossing_ahead_makes_the_robot_wait_not_rotate():
-    from slitcli.dwa import MovingDiscs
+    from slitcli.prediction import MovingDiscs
 
     # standing robot, goal straight ahead, a person just in front (0.56 m: 1 cm outside
     # the 0.3 + 0.25 m contact distance, within the half-step slack) walking left at

@@ -30,6 +30,7 @@ from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
 from slitcli.io.progress import progress_bar
 from slitcli.local_map import to_robot, unicycle
+from slitcli.prediction import MovingDiscs
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import Pose2D, Scene
@@ -262,6 +263,28 @@ def _backup(pose: tuple[float, float, float], static_world: np.ndarray, sim: Sim
     return 0.0 if behind.any() else -sim.recovery_speed_mps
 
 
+def _end(here: float, dist: float, v: float, last: bool, may_be_stuck: bool,
+         rows: list[tuple[float, ...]], dwa: DwaParams, sim: SimParams) -> str:
+    """Why the run ends at this step ('' = it goes on)."""
+    if here <= 0:
+        return "collided"
+    if dist <= dwa.goal_close_m and abs(v) <= 1e-12:
+        return "reached"
+    if may_be_stuck and _stuck(np.array([r[1:3] for r in rows]),
+                               np.array([r[0] for r in rows]), sim):
+        return "stuck"
+    return "timeout" if last else ""
+
+
+def _plan(pose: tuple[float, float, float], v: float, w: float, goal: np.ndarray,
+          static_w: np.ndarray, moving_w: MovingDiscs, dwa: DwaParams
+          ) -> tuple[float, float, str]:
+    """One planning step from the world model (world frame) at ``pose``."""
+    cmd = plan_step(max(v, 0.0), w, to_robot(pose, goal[None])[0], to_robot(pose, static_w),
+                    dwa, moving_to_robot(pose, moving_w))
+    return cmd.v_mps, cmd.w_rps, cmd.status
+
+
 def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
     """Drive the robot from the world's start towards its goal (one closed-loop run).
 
@@ -304,16 +327,8 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
             t_goal = t
         if dist < best_goal - sim.stuck_progress_m:
             best_goal, best_t = dist, t
-        end = ""
-        if here <= 0:
-            end = "collided"
-        elif dist <= dwa.goal_close_m and abs(v) <= 1e-12:
-            end = "reached"
-        elif t - best_t > sim.stuck_timeout_s and k % 5 == 0 and _stuck(
-                np.array([r[1:3] for r in rows]), np.array([r[0] for r in rows]), sim):
-            end = "stuck"
-        elif k == steps:
-            end = "timeout"
+        end = _end(here, dist, v, k == steps, t - best_t > sim.stuck_timeout_s and k % 5 == 0,
+                   rows, dwa, sim)
         if end:
             rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
             statuses.append("goal" if end == "reached" else end)
@@ -330,14 +345,9 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
             backing = math.ceil(sim.recovery_back_m / (sim.recovery_speed_mps * dwa.dt_s))
             still_t = t
         v_back = _backup(pose, static_w, sim, dwa.footprint_radius_m) if backing else 0.0
-        if v_back < 0:
-            backing -= 1
-            cmd_v, cmd_w, status = v_back, 0.0, "recover"
-        else:
-            backing = 0
-            cmd = plan_step(max(v, 0.0), w, to_robot(pose, goal[None])[0],
-                            to_robot(pose, static_w), dwa, moving_to_robot(pose, moving_w))
-            cmd_v, cmd_w, status = cmd.v_mps, cmd.w_rps, cmd.status
+        backing = backing - 1 if v_back < 0 else 0
+        cmd_v, cmd_w, status = (v_back, 0.0, "recover") if v_back < 0 else \
+            _plan(pose, v, w, goal, static_w, moving_w, dwa)
         rows.append((t, *pose[:2], math.degrees(pose[2]), cmd_v, math.degrees(cmd_w), here))
         statuses.append(status)
         along = unicycle(pose, cmd_v, cmd_w, sub_t)
