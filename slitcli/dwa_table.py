@@ -21,8 +21,9 @@ import pandas as pd
 from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import check_output_file, write_csv_atomic
-from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.local_map import to_robot, unicycle
 from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS, format_time_s
+from slitcli.world_model import MEMORY_MODES, WorldModel, WorldModelParams, moving_to_robot
 
 CMDS_COLUMNS = DWA_COMMANDS.columns
 
@@ -113,7 +114,8 @@ def _check_values(p: Path, table: pd.DataFrame, range_column: str) -> None:
 
 def plan_range_table(table: pd.DataFrame, goal_xy_m: tuple[float, float], params: DwaParams, *,
                      forward_m: float = 0.0, memory_s: float = 10.0,
-                     memory_cell_m: float = 0.05) -> pd.DataFrame:
+                     memory_cell_m: float = 0.05, memory: str = "clearing",
+                     free_m: float = 0.0) -> pd.DataFrame:
     """One DWA command per frame of a range table (columns of :func:`read_range_table`).
 
     Parameters
@@ -125,8 +127,11 @@ def plan_range_table(table: pd.DataFrame, goal_xy_m: tuple[float, float], params
     params : DwaParams
     forward_m : float
         Sensor origin ahead of the rotation centre (the rig's ``mount.forward_m``).
-    memory_s, memory_cell_m : float
-        Obstacle memory, as in the closed loop (0 s = none).
+    memory_s, memory_cell_m, memory : float, float, str
+        Obstacle memory, as in the closed loop (:mod:`slitcli.world_model`).
+    free_m : float
+        Range up to which a bin with no return counts as free space (0: never, the
+        safe choice for vision range tables).
 
     Returns
     -------
@@ -141,18 +146,17 @@ def plan_range_table(table: pd.DataFrame, goal_xy_m: tuple[float, float], params
     goal = np.asarray(goal_xy_m, dtype=float)
     pose = (0.0, 0.0, 0.0)
     v = w = 0.0
-    memory = PointMemory.empty()
+    model = WorldModel(WorldModelParams(memory=memory, memory_s=memory_s, cell_m=memory_cell_m))
     rows = []
     for i, (a, b) in enumerate(zip(starts, ends, strict=True)):
         if i:
             pose = tuple(float(x) for x in unicycle(pose, v, w, [times[i] - times[i - 1]])[0])
-        seen = to_world(pose, scan_points(bearing[a:b], rng[a:b], forward_m))
-        memory = memory.update(seen, times[i], keep_s=memory_s, cell_m=memory_cell_m)
+        static, moving = model.update(pose, bearing[a:b], rng[a:b], forward_m, free_m, times[i])
         g = to_robot(pose, goal[None])[0]
-        cmd = plan_step(v, w, g, to_robot(pose, memory.points_xy), params)
+        cmd = plan_step(v, w, g, to_robot(pose, static), params, moving_to_robot(pose, moving))
         rows.append((frames[a], times[i], pose[0], pose[1], math.degrees(pose[2]),
                      math.hypot(*g), cmd.v_mps, cmd.w_dps, cmd.status, cmd.d_collision_m,
-                     len(memory.points_xy)))
+                     len(static) + len(moving.radius_m)))
         v, w = cmd.v_mps, cmd.w_rps
     out = pd.DataFrame(rows, columns=list(CMDS_COLUMNS))
     out["frame"] = out["frame"].astype(np.int64)
@@ -161,8 +165,8 @@ def plan_range_table(table: pd.DataFrame, goal_xy_m: tuple[float, float], params
 
 def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv: str | Path,
                 params: DwaParams, *, range_column: str = "fused_range_m", forward_m: float = 0.0,
-                memory_s: float = 10.0, memory_cell_m: float = 0.05,
-                period_s: float | None = None, overwrite: bool = False,
+                memory_s: float = 10.0, memory_cell_m: float = 0.05, memory: str = "clearing",
+                free_m: float = 0.0, period_s: float | None = None, overwrite: bool = False,
                 inputs: Sequence[str | Path | None] = ()) -> pd.DataFrame:
     """``slitcli dwa``: read the range table, plan every frame, write CMDS.csv atomically.
 
@@ -170,6 +174,11 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
     must not exist unless ``overwrite``. ``period_s`` dates a table without times.
     """
     check_output_file(out_csv, inputs=[ranges_csv, *inputs], overwrite=overwrite)
+    if memory not in MEMORY_MODES:
+        raise SlitcliError(f"`memory` {memory!r} is unknown; use one of "
+                           f"{', '.join(MEMORY_MODES)}", param="memory")
+    if not (free_m >= 0 and math.isfinite(free_m)):
+        raise SlitcliError(f"`free_m` {free_m!r} must be >= 0 m", param="free_m")
     if not (memory_s >= 0 and math.isfinite(memory_s)):
         raise SlitcliError(f"`memory_s` {memory_s!r} must be >= 0 (0 turns the memory off)",
                            param="memory_s")
@@ -181,7 +190,7 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
                            param="goal_xy_m")
     table = read_range_table(ranges_csv, range_column, period_s=period_s)
     cmds = plan_range_table(table, goal_xy_m, params, forward_m=forward_m, memory_s=memory_s,
-                            memory_cell_m=memory_cell_m)
+                            memory_cell_m=memory_cell_m, memory=memory, free_m=free_m)
     # times keep every digit of their stamps (a wall-clock 1.7e9 s with %.6g loses them)
     write_csv_atomic(out_csv, cmds.assign(time_s=[format_time_s(t) for t in cmds["time_s"]]))
     return cmds

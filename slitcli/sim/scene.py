@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -50,15 +50,23 @@ class Surface:
     seed: int | None = None
 
 
+Waypoint = tuple[float, float, float]  # (t_s, x_m, y_m) of a moving object's centre
+
+
 @dataclass(frozen=True)
 class Box:
-    """An upright box: centre of its footprint, size (along x, along y, height), yaw."""
+    """An upright box: centre of its footprint, size (along x, along y, height), yaw.
+
+    ``motion`` lists waypoints (t_s, x_m, y_m) of a moving box's centre (empty: static);
+    see :func:`centre_at`.
+    """
 
     centre_xy_m: tuple[float, float]
     size_m: tuple[float, float, float]
     yaw_deg: float = 0.0
     z_min_m: float = 0.0
     surface: Surface = field(default_factory=Surface)
+    motion: tuple[Waypoint, ...] = ()
 
     @property
     def z_max_m(self) -> float:
@@ -67,13 +75,14 @@ class Box:
 
 @dataclass(frozen=True)
 class Cylinder:
-    """An upright cylinder."""
+    """An upright cylinder; ``motion`` as for :class:`Box`."""
 
     centre_xy_m: tuple[float, float]
     radius_m: float
     height_m: float
     z_min_m: float = 0.0
     surface: Surface = field(default_factory=Surface)
+    motion: tuple[Waypoint, ...] = ()
 
     @property
     def z_max_m(self) -> float:
@@ -96,6 +105,23 @@ class Wall:
 
 
 Obstacle = Box | Cylinder | Wall
+
+
+def centre_at(motion: tuple[Waypoint, ...], t_s: float) -> tuple[float, float]:
+    """Centre (x_m, y_m) of a moving object at time ``t_s`` (s since the run/sequence start).
+
+    Linear in time between waypoints, held before the first and after the last.
+    """
+    t = np.array([w[0] for w in motion])
+    return (float(np.interp(t_s, t, [w[1] for w in motion])),
+            float(np.interp(t_s, t, [w[2] for w in motion])))
+
+
+def object_at(ob: Obstacle, t_s: float) -> Obstacle:
+    """The object placed where it is at ``t_s`` (itself when it does not move)."""
+    if isinstance(ob, Wall) or not ob.motion:
+        return ob
+    return replace(ob, centre_xy_m=centre_at(ob.motion, t_s))
 
 
 @dataclass(frozen=True)
@@ -191,6 +217,17 @@ class Scene:
     robot: Robot = field(default_factory=Robot)
     goal_xy_m: tuple[float, float] | None = None
     max_range_m: float = 5.0
+
+    @property
+    def is_dynamic(self) -> bool:
+        """Does any object move (a ``motion:`` key)?"""
+        return any(not isinstance(o, Wall) and o.motion for o in self.objects)
+
+    def at_time(self, t_s: float) -> Scene:
+        """The scene with every moving object placed where it is at ``t_s`` seconds."""
+        if not self.is_dynamic:
+            return self
+        return replace(self, objects=tuple(object_at(o, t_s) for o in self.objects))
 
     def poses(self, frames: int | None = None) -> list[Pose2D]:
         """Robot pose per frame (``frames`` overrides the scene's own count)."""
@@ -346,6 +383,43 @@ def _pose(r: _Keys, v: Any, key: str) -> Pose2D:
                   math.radians(r.num(m, "yaw_deg", key, 0.0)))
 
 
+def _motion(r: _Keys, v: Any, key: str) -> tuple[Waypoint, ...]:
+    """``motion: {waypoints: [{t_s, xy_m}, ...]}``: times strictly increasing."""
+    if v is None:
+        return ()
+    m = r.mapping(v, key, ("waypoints",))
+    wps = m.get("waypoints")
+    if not isinstance(wps, list) or not wps:
+        raise r.err(f"{key}.waypoints", "must be a non-empty list",
+                    "give [{t_s: 0.0, xy_m: [x, y]}, ...]")
+    out = []
+    for i, w in enumerate(wps):
+        wk = f"{key}.waypoints[{i}]"
+        wm = r.mapping(w, wk, ("t_s", "xy_m"))
+        t = r.num(wm, "t_s", wk)
+        xy = r.vec(wm, "xy_m", wk, 2)
+        if out and t <= out[-1][0]:
+            raise r.err(f"{wk}.t_s", f"= {t:g} is not after the previous waypoint's",
+                        "list waypoints in increasing time")
+        out.append((t, xy[0], xy[1]))
+    return tuple(out)
+
+
+def _centre(r: _Keys, m: Mapping[str, Any], key: str,
+            motion: tuple[Waypoint, ...]) -> tuple[float, float]:
+    # a moving object's centre_xy_m may be omitted; it is its position at t = 0
+    if not motion:
+        return r.vec(m, "centre_xy_m", key, 2)  # type: ignore[return-value]
+    at0 = centre_at(motion, 0.0)
+    if "centre_xy_m" in m:
+        c = r.vec(m, "centre_xy_m", key, 2)
+        if math.hypot(c[0] - at0[0], c[1] - at0[1]) > 1e-3:
+            raise r.err(f"{key}.centre_xy_m", f"= {list(c)} is not where the motion puts the "
+                        f"object at t = 0 ({at0[0]:g}, {at0[1]:g})",
+                        "omit centre_xy_m for a moving object")
+    return at0
+
+
 def _obstacle(r: _Keys, v: Any, key: str) -> Obstacle:
     if not isinstance(v, Mapping) or "type" not in v:
         raise r.err(key, "needs a 'type'", "use type: box, cylinder or wall")
@@ -355,21 +429,23 @@ def _obstacle(r: _Keys, v: Any, key: str) -> Obstacle:
     rest = {k: x for k, x in v.items() if k != "type"}
     common = ("z_min_m", "surface")
     if kind == "box":
-        m = r.mapping(rest, key, ("centre_xy_m", "size_m", "yaw_deg", *common))
+        m = r.mapping(rest, key, ("centre_xy_m", "size_m", "yaw_deg", "motion", *common))
         size = r.vec(m, "size_m", key, 3)
         if min(size) <= 0:
             raise r.err(f"{key}.size_m", f"= {brief(list(size))} has a non-positive size",
                         "give positive lengths in metres")
-        return Box(r.vec(m, "centre_xy_m", key, 2), size, r.num(m, "yaw_deg", key, 0.0),
+        motion = _motion(r, m.get("motion"), f"{key}.motion")
+        return Box(_centre(r, m, key, motion), size, r.num(m, "yaw_deg", key, 0.0),
                    r.num(m, "z_min_m", key, 0.0, low=0.0), _surface(r, m.get("surface"),
-                                                                   f"{key}.surface"))
+                                                                   f"{key}.surface"), motion)
     if kind == "cylinder":
-        m = r.mapping(rest, key, ("centre_xy_m", "radius_m", "height_m", *common))
-        return Cylinder(r.vec(m, "centre_xy_m", key, 2),
+        m = r.mapping(rest, key, ("centre_xy_m", "radius_m", "height_m", "motion", *common))
+        motion = _motion(r, m.get("motion"), f"{key}.motion")
+        return Cylinder(_centre(r, m, key, motion),
                         r.num(m, "radius_m", key, low=0.0, strict=True),
                         r.num(m, "height_m", key, low=0.0, strict=True),
                         r.num(m, "z_min_m", key, 0.0, low=0.0),
-                        _surface(r, m.get("surface"), f"{key}.surface"))
+                        _surface(r, m.get("surface"), f"{key}.surface"), motion)
     if kind == "wall":
         m = r.mapping(rest, key, ("from_xy_m", "to_xy_m", "height_m", *common))
         a, b = r.vec(m, "from_xy_m", key, 2), r.vec(m, "to_xy_m", key, 2)

@@ -63,6 +63,8 @@ def scene_to_dict(scene: Scene) -> dict:
             o = {"type": "wall", "from_xy_m": list(ob.from_xy_m), "to_xy_m": list(ob.to_xy_m),
                  "height_m": ob.height_m}
         o["z_min_m"] = ob.z_min_m
+        if not isinstance(ob, Wall) and ob.motion:
+            o["motion"] = {"waypoints": [{"t_s": t, "xy_m": [x, y]} for t, x, y in ob.motion]}
         o["surface"] = surf(ob.surface)
         objects.append(o)
     r = scene.robot
@@ -161,7 +163,8 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
             (tmp / sub).mkdir(parents=True)
         for i, pose in enumerate(poses):
-            fr = render_frame(scene, rig, pose, frame_index=i)
+            # moving objects are where they are at the frame's time (truth follows)
+            fr = render_frame(scene.at_time(float(times[i])), rig, pose, frame_index=i)
             name = FRAME_NAME.format(i) + ".png"
             write_png_atomic(tmp / "left" / name, fr.left_bgr)
             write_png_atomic(tmp / "right" / name, fr.right_bgr)
