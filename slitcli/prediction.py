@@ -9,11 +9,9 @@ metres, seconds.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 
 @dataclass(frozen=True)
@@ -78,33 +76,6 @@ def moving_contact_time(v_mps: np.ndarray, w_rps: np.ndarray, moving: MovingDisc
     disc = moving.centre_xy[None, :, :] + t[:, None, None] * moving.velocity_xy[None]  # (K, T, 2)
     reach = radius_m + moving.radius_m[None, :] + 0.5 * step_s * (
         v[:, None] + np.hypot(*moving.velocity_xy.T)[None, :])                 # (P, T)
-    return _contact_kernel(robot, disc, reach, t)
+    from slitcli._prediction_kernel import contact_kernel  # compiled: loaded on first use
 
-
-@njit(cache=True, nogil=True)
-def _contact_kernel(robot: np.ndarray, disc: np.ndarray, reach: np.ndarray, t: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    # pairs x instants x discs with an early exit at the first contact: the (P, K, T)
-    # arrays of the numpy form (about 1e6 elements for a person) are never built
-    n_p, n_k = robot.shape[0], robot.shape[1]
-    n_t = disc.shape[1]
-    t_c = np.full(n_p, np.inf)
-    free = np.full(n_p, np.inf)
-    prev = np.empty(n_t)
-    for i in range(n_p):
-        for j in range(n_t):
-            dx = robot[i, 0, 0] - disc[0, j, 0]
-            dy = robot[i, 0, 1] - disc[0, j, 1]
-            prev[j] = math.sqrt(dx * dx + dy * dy)
-        for k in range(1, n_k):
-            for j in range(n_t):
-                dx = robot[i, k, 0] - disc[k, j, 0]
-                dy = robot[i, k, 1] - disc[k, j, 1]
-                gap = math.sqrt(dx * dx + dy * dy)
-                f = gap - reach[i, j]
-                if f < free[i]:
-                    free[i] = f
-                if f < 0.0 and gap < prev[j] and t_c[i] == np.inf:
-                    t_c[i] = t[k]
-                prev[j] = gap
-    return t_c, free
+    return contact_kernel(robot, disc, reach, t)

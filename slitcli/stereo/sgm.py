@@ -113,7 +113,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
     """
     from slitcli.stereo import _sgm
-    from slitcli.stereo.matcher import _QUANT, DisparityResult, prefilter_image
+    from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
 
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
