@@ -12,7 +12,10 @@ from slitcli.cli.main import cli
 @cli.command("render")
 @click.argument("scene_file", metavar="SCENE.yaml",
                 type=click.Path(dir_okay=False, path_type=Path))
-@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("out_arg", metavar="[OUT]", required=False,
+                type=click.Path(file_okay=False, path_type=Path))
+@click.option("-o", "--out", "out_opt", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="Output folder (or give it as the second argument).")
 @click.option("--frames", type=click.IntRange(min=1), default=None,
               help="Frames to render [default: the scene's robot.frames].")
 @click.option("--seed", type=int, default=None,
@@ -20,7 +23,8 @@ from slitcli.cli.main import cli
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file [default: the paper rig].")
 @click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
-def render_cmd(scene_file: Path, out: Path, frames: int | None, seed: int | None,
+def render_cmd(scene_file: Path, out_arg: Path | None, out_opt: Path | None,
+               frames: int | None, seed: int | None,
                rig_path: Path | None, overwrite: bool) -> None:
     """Render a generated scene into a stereo sequence with ground truth.
 
@@ -29,8 +33,11 @@ def render_cmd(scene_file: Path, out: Path, frames: int | None, seed: int | None
     ranges per 1-degree bearing bin in metres, poses, lossless .npz). See docs/sequence.md
     and docs/ground-truth.md.
 
-    Example: slitcli render sample_data/corridor.yaml out/corridor --frames 10
+    Example: slitcli render sample_data/corridor.yaml -o out/corridor --frames 10
     """
+    from slitcli.cli.config import pick_out
+
+    out = pick_out(out_arg, out_opt, "OUT")
     from slitcli.io.progress import progress_bar
     from slitcli.rig import load_rig, paper_rig
     from slitcli.sim.scene import load_scene
