@@ -182,21 +182,30 @@ def rig_show(file: Path | None) -> None:
               help="Rig whose mount, laser plane and range limits are kept "
                    "[default: the paper rig's].")
 @click.option("--name", default=None, help="Rig name [default: the base rig's, or 'imported'].")
+@click.option("--image-size", default=None, metavar="W,H",
+              help="Raw image size in pixels, for files that do not give it (OpenCV files "
+              "without image_width/image_height, camchains without resolution).")
 def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
-               name: str | None) -> None:
+               name: str | None, image_size: str | None) -> None:
     """Build a rig from ROS, OpenCV or Kalibr stereo calibration files.
 
     \b
-    ros:    left.yaml right.yaml   camera_info (plumb_bob / rational_polynomial)
-    opencv: intrinsics.yml extrinsics.yml   cv2.FileStorage, M1 D1 M2 D2 R T [R1 R2 P1 P2]
-    kalibr: camchain.yaml   cam0/cam1 pinhole-radtan, cam1.T_cn_cnm1
-    Other camera models (fisheye, omni, ...) are refused.
+    ros:    left.yaml right.yaml   camera_info (plumb_bob / rational_polynomial /
+            equidistant)
+    opencv: intrinsics.yml extrinsics.yml   cv2.FileStorage (%YAML:1.0 or YAML 1.2),
+            M1 D1 M2 D2 R T [R1 R2 P1 P2]
+    kalibr: camchain.yaml   cam0/cam1 pinhole-radtan or pinhole-equidistant; cam1 pose
+            from T_cn_cnm1, else T_cam_imu or T_imu_cam of both cameras
+    Other camera models (omni, eucm, ds, fov) are refused.
 
     Example: slitcli rig import camchain.yaml -o rig.yaml
     """
     from slitcli.calibrate.formats import run_rig_import
 
-    rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name)
+    rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name,
+                         image_size_px=_size_wh(image_size))
+    click.echo("slitcli: note: mount and laser plane are placeholders (the base rig's); set "
+               "them with `slitcli rig set` or `slitcli calibrate mount/laser`", err=True)
     click.echo(f"rectified: fx {rig.left.fx_px:.3f} px, baseline_m {rig.baseline_m:.5f}, "
                f"{rig.image_size_px[0]}x{rig.image_size_px[1]} px")
     click.echo(f"wrote {out}")

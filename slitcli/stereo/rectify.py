@@ -36,11 +36,12 @@ def rectification_maps(raw: RawCalibration, size_px: tuple[int, int]
     left_map1, left_map2, right_map1, right_map2 : ndarray
         :func:`cv2.initUndistortRectifyMap` tables (CV_16SC2 + CV_16UC1), read-only.
     """
+    from slitcli.calibrate.rectify import undistort_rectify_map
+
     out = []
-    for k, d, r, p in (("K1", "D1", "R1", "P1"), ("K2", "D2", "R2", "P2")):
-        m1, m2 = cv2.initUndistortRectifyMap(raw.array(k), raw.array(d), raw.array(r),
-                                             raw.array(p), tuple(int(s) for s in size_px),
-                                             cv2.CV_16SC2)
+    for camera in ("left", "right"):
+        # either lens model (pinhole or equidistant: cv2.fisheye)
+        m1, m2 = undistort_rectify_map(raw, camera, size_px, cv2.CV_16SC2)
         m1.setflags(write=False)
         m2.setflags(write=False)
         out += [m1, m2]
