@@ -76,17 +76,18 @@ def rig_with_mount(rig: Rig, *, height_m: float | None = None, tilt_deg: float |
                   forward_m=old.forward_m if forward_m is None else float(forward_m))
     if not 0 < mount.height_m <= 20:
         raise SlitcliError(f"`height_m` = {mount.height_m:g} is out of range; give the camera "
-                           "height above the floor in metres (0-20)")
+                           "height above the floor in metres (0-20)", param="height_m")
     for name, v in (("tilt_deg", mount.tilt_deg), ("roll_deg", mount.roll_deg)):
         if not -90 < v < 90:
-            raise SlitcliError(f"`{name}` = {v:g} is out of range; give degrees in (-90, 90)")
+            raise SlitcliError(f"`{name}` = {v:g} is out of range; give degrees in (-90, 90)",
+                               param=name)
     n_s, d_s = rig.laser_plane_sensor()
     moved = replace(rig, mount=mount)
     if laser_height_m is not None:
         if not 0 <= laser_height_m < mount.height_m:
             raise SlitcliError(f"`laser_height_m` = {laser_height_m:g} must be at least 0 and "
                                f"below the camera ({mount.height_m:g} m); the sheet is "
-                               "seen from above")
+                               "seen from above", param="laser_height_m")
         normal, offset = laser_plane_for_mount(mount, laser_height_m)
         return replace(moved, laser=replace(rig.laser, normal=normal, offset_m=offset))
     return replace(moved, laser=laser_in_camera(moved, n_s, d_s))
@@ -113,11 +114,14 @@ def factory_rig(image_size_px: tuple[int, int], fx_px: float, baseline_m: float,
     """
     w, h = (int(v) for v in image_size_px)
     if w < 8 or h < 8:
-        raise SlitcliError(f"`image_size_px` = {w}x{h} is too small; give W,H in pixels")
+        raise SlitcliError(f"`image_size_px` = {w}x{h} is too small; give W,H in pixels",
+                           param="image_size_px")
     if not (fx_px > 0 and math.isfinite(fx_px)):
-        raise SlitcliError(f"`fx_px` = {fx_px:g} must be a positive focal length in pixels")
+        raise SlitcliError(f"`fx_px` = {fx_px:g} must be a positive focal length in pixels",
+                           param="fx_px")
     if not (0 < baseline_m <= 10):
-        raise SlitcliError(f"`baseline_m` = {baseline_m:g} must be in (0, 10] metres")
+        raise SlitcliError(f"`baseline_m` = {baseline_m:g} must be in (0, 10] metres",
+                           param="baseline_m")
     left = Intrinsics(fx_px=float(fx_px), fy_px=float(fx_px if fy_px is None else fy_px),
                       cx_px=(w - 1) / 2.0 if cx_px is None else float(cx_px),
                       cy_px=(h - 1) / 2.0 if cy_px is None else float(cy_px))

@@ -68,6 +68,8 @@ def test_cli_rig_set(tmp_path):
                                        "-o", str(tmp_path / "bad.yaml")])
         assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
         assert not (tmp_path / "bad.yaml").exists() and rig_path.read_text() == before
+        if args:
+            assert args[0] in res.output and "`" not in res.output  # the option, by name
 
 
 def test_factory_rig_and_rig_init(tmp_path):

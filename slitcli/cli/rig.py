@@ -28,6 +28,21 @@ def _size_wh(text: str | None) -> tuple[int, int] | None:
     return w, h
 
 
+# library parameters of slitcli.rig_tools -> this group's options
+_RIG_FLAGS = {"height_m": "--mount-height-m", "tilt_deg": "--tilt-deg",
+              "roll_deg": "--roll-deg", "forward_m": "--forward-m",
+              "laser_height_m": "--laser-height-m", "image_size_px": "--image-size",
+              "fx_px": "--fx-px", "baseline_m": "--baseline-m"}
+
+
+def _flagged(e: SlitcliError) -> SlitcliError:
+    """The error with its quoted library parameters named as this group's options."""
+    text = str(e)
+    for name in e.params:
+        text = text.replace(f"`{name}`", _RIG_FLAGS.get(name, name))
+    return SlitcliError(text)
+
+
 @rig_group.command("init")
 @click.argument("file", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--out", "out_opt", type=click.Path(dir_okay=False, path_type=Path),
@@ -77,8 +92,11 @@ def rig_init(file: Path | None, out_opt: Path | None, force: bool, image_size: s
             raise click.UsageError("a factory rig needs --image-size, --fx-px and --baseline-m")
         size = _size_wh(image_size)
         assert size is not None and fx_px is not None and baseline_m is not None
-        rig = factory_rig(size, fx_px, baseline_m, fy_px=fy_px, cx_px=cx_px, cy_px=cy_px,
-                          name=file.stem)
+        try:
+            rig = factory_rig(size, fx_px, baseline_m, fy_px=fy_px, cx_px=cx_px, cy_px=cy_px,
+                              name=file.stem)
+        except SlitcliError as e:
+            raise _flagged(e) from None
         write_text_atomic(file, PLACEHOLDER_COMMENT + rig.to_yaml())
         click.echo("slitcli: note: mount and laser plane are the paper rig's placeholders; "
                    "set them with `slitcli rig set` or `slitcli calibrate mount/laser`",
@@ -129,8 +147,12 @@ def rig_set(rig_file: Path, out: Path | None, mount_height_m: float | None,
     from slitcli.rig_tools import run_rig_set
 
     before = load_rig(rig_file)
-    rig = run_rig_set(rig_file, out, height_m=mount_height_m, tilt_deg=tilt_deg,
-                      roll_deg=roll_deg, forward_m=forward_m, laser_height_m=laser_height_m)
+    try:
+        rig = run_rig_set(rig_file, out, height_m=mount_height_m, tilt_deg=tilt_deg,
+                          roll_deg=roll_deg, forward_m=forward_m,
+                          laser_height_m=laser_height_m)
+    except SlitcliError as e:
+        raise _flagged(e) from None
     for tag, r in (("before", before), ("after", rig)):
         m = r.mount
         click.echo(f"{tag}: height_m {m.height_m:.4f}, tilt_deg {m.tilt_deg:.3f}, roll_deg "
