@@ -150,6 +150,31 @@ class StereoCalibration:
         return lines
 
 
+def _board_views(names: list[str], left_bgr: list[np.ndarray], right_bgr: list[np.ndarray],
+                 board: BoardSpec) -> tuple[list[ViewReport], list[int], list[np.ndarray],
+                                            list[np.ndarray]]:
+    """Corners of the board in both images of each view; views missing it are reported."""
+    reports: list[ViewReport] = []
+    used_idx: list[int] = []
+    pts_l: list[np.ndarray] = []
+    pts_r: list[np.ndarray] = []
+    for i, (name, li, ri) in enumerate(zip(names, left_bgr, right_bgr, strict=True)):
+        cl, cr = find_corners(li, board), find_corners(ri, board)
+        if cl is None or cr is None:
+            side = "left and right" if cl is None and cr is None else \
+                ("left" if cl is None else "right")
+            reports.append(ViewReport(name, False, f"no {board.cols}x{board.rows} board found "
+                                      f"in the {side} image"))
+            continue
+        if np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
+            cr = cr[::-1].copy()
+        reports.append(ViewReport(name, True))
+        used_idx.append(i)
+        pts_l.append(cl.astype(np.float32).reshape(-1, 1, 2))
+        pts_r.append(cr.astype(np.float32).reshape(-1, 1, 2))
+    return reports, used_idx, pts_l, pts_r
+
+
 def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
                             right_bgr: list[np.ndarray], params: StereoCalibrationParams, *,
                             base: Rig | None = None, source: str = "views") -> StereoCalibration:
@@ -176,24 +201,7 @@ def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
                            f"{right_bgr[0].shape[0]}, left images {w}x{h}; both cameras must "
                            "have one image size")
     board = params.board
-    reports: list[ViewReport] = []
-    used_idx: list[int] = []
-    pts_l: list[np.ndarray] = []
-    pts_r: list[np.ndarray] = []
-    for i, (name, li, ri) in enumerate(zip(names, left_bgr, right_bgr, strict=True)):
-        cl, cr = find_corners(li, board), find_corners(ri, board)
-        if cl is None or cr is None:
-            side = "left and right" if cl is None and cr is None else \
-                ("left" if cl is None else "right")
-            reports.append(ViewReport(name, False, f"no {board.cols}x{board.rows} board found "
-                                      f"in the {side} image"))
-            continue
-        if np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
-            cr = cr[::-1].copy()
-        reports.append(ViewReport(name, True))
-        used_idx.append(i)
-        pts_l.append(cl.astype(np.float32).reshape(-1, 1, 2))
-        pts_r.append(cr.astype(np.float32).reshape(-1, 1, 2))
+    reports, used_idx, pts_l, pts_r = _board_views(names, left_bgr, right_bgr, board)
     if not used_idx:
         raise SlitcliError(f"{source}: no {board.cols}x{board.rows} chessboard found in any of "
                            f"the {len(names)} views; check --board (inner corners, COLSxROWS) "

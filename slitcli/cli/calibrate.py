@@ -120,7 +120,10 @@ def calibrate_mount_cmd(seq: Path, rig_path: Path, out: Path | None, frames: int
 
     SEQ is a stereo sequence folder (left/, right/) looking at a flat floor. The floor
     plane is found by RANSAC on StereoSGBM points and polished by aligning the two
-    images through the plane; `mount.forward_m` is kept.
+    images through the plane; `mount.forward_m` is kept. Views that show no floor are
+    refused (exit 2, nothing written): fewer than 50 % of the stereo points on the
+    plane, a residual RMS above 1.36 x the stereo depth noise, a plane tilted over
+    75 deg or above the camera; the message names the numbers (docs/calibration.md).
 
     Example: slitcli calibrate mount --rig rig.yaml floor_seq/
     """
