@@ -24,6 +24,7 @@ import numpy as np
 if TYPE_CHECKING:
     import pandas as pd
 
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.fusion import FusedRanges, FusionParams, fuse
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
@@ -51,13 +52,13 @@ from slitcli.laser.frame import (
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import LASER, RANGES, BearingBins, RangeTable, csv_rows
 from slitcli.rig import Rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
     check_stereo_params,
     process_stereo_pair,
 )
-from slitcli.stereo.rectify import rectify_pair
 
 COLOUR_ORDERS = ("bgr", "rgb")
 SKIPPED_FILE = "skipped_frames.csv"
@@ -73,7 +74,7 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
     columns, the stripe is searched again with the first and last channels swapped;
     finding at least ``min_cols`` columns there (two of the extractor's shortest
-    segments, 8 columns each), four times as many as as given, means the channels are
+    segments, 8 columns each), four times as many as given, means the channels are
     swapped. A scene without any lit obstacle or floor in view costs one more
     extraction and passes; a real blue light would have to form a thin line on the
     laser plane's rows to be taken for the stripe.
@@ -95,6 +96,10 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
             f"({m} stripe columns with red and blue swapped, {n} as given); set "
             "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
             param="colour_order")
+
+
+# --save-images: 16-bit data images, the obstacle mask, and colour previews with a bar
+IMAGE_FOLDERS = ("disparity", "distance", "mask", "disparity_preview", "distance_preview")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -197,6 +202,8 @@ class Detector:
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
+        self._rectification = RectificationMaps.for_rig(rig) if rig.raw is not None else None
+        self._stereo_geometry = StereoGeometry.for_rig(self.rectified_rig, p.bin_deg)
         self.fusion = FusionParams(
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
@@ -220,7 +227,8 @@ class Detector:
                                    param=(name, "rig"))
         if self.colour_order == "rgb":
             left, right = left[..., ::-1], right[..., ::-1]
-        return rectify_pair(np.ascontiguousarray(left), np.ascontiguousarray(right), self.rig)
+        return rectify_pair(self.rig, np.ascontiguousarray(left), np.ascontiguousarray(right),
+                            maps=self._rectification)
 
     def laser(self, left_rect_bgr: np.ndarray) -> LaserFrame:
         """The laser stripe of a rectified left image (Eqs. 1-7), checked for colour order."""
@@ -239,7 +247,8 @@ class Detector:
         """
         left, right = self.prepare(left_bgr, right_bgr)
         las = self.laser(left)
-        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
+        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
+                                 geometry=self._stereo_geometry)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)
@@ -265,9 +274,18 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
     i = task.info.index
     if save_images:
         name = f"{task.info.name}.png"
+        from slitcli.report.preview import disparity_preview, distance_preview
+
+        m = detector.params.stereo.matcher
+        previews = (
+            ("disparity_preview", disparity_preview(
+                res.stereo.disparity_px,
+                max_disparity_px=m.min_disparity_px + m.num_disparities)),
+            ("distance_preview", distance_preview(
+                res.stereo.depth_m, max_range_m=detector.rig.stereo.max_range_m)))
         for sub, img in (("disparity", encode_disparity_png(res.stereo.disparity_px)),
                          ("distance", encode_depth_png(res.stereo.depth_m)),
-                         ("mask", encode_mask_png(res.stereo.obstacle_mask))):
+                         ("mask", encode_mask_png(res.stereo.obstacle_mask)), *previews):
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
@@ -318,7 +336,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                       json.dumps({"path": str(Path(source).resolve())}))
     kinds = ("rows", "laser") if save_images else ("rows",)
     if save_images:
-        for sub in ("disparity", "distance", "mask"):
+        for sub in IMAGE_FOLDERS:
             (batch.out / sub).mkdir(exist_ok=True)
     digests = [src.frame_digest(i) for i in range(n)]
     finished = frozenset(i for i in range(n) if batch.is_done(i, (*kinds, "input"))

@@ -231,6 +231,82 @@ def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> dict[str, list
     return same
 
 
+def draw_dynamic_case(axes: Sequence[Axes], traj: pd.DataFrame, world, *, title: str = "",
+                      mark_every_s: float = 5.0) -> None:
+    """Figs. 8/9 for a world with moving objects: the x-y paths with each moving object's
+    track (markers at the same instants on both), and the clearance against time.
+
+    ``world`` is the :class:`slitcli.sim.scene.Scene` run (static outlines at t = 0 are
+    drawn grey; moving objects as their centre tracks and their outline at each marker).
+    """
+    from slitcli.sim.scene import Cylinder, Wall, centre_at
+    from slitcli.sim.truth import footprints
+
+    xy, dist = axes[0], axes[1]
+    still = [o for o in world.objects if isinstance(o, Wall) or not o.motion]
+    moving = [o for o in world.objects if not isinstance(o, Wall) and o.motion]
+    fp = footprints(type(world)(name=world.name, objects=tuple(still)), z_low_m=0.0,
+                    z_high_m=np.inf)
+    _draw_obstacles(xy, fp.segments_xy, fp.circles_xyr)
+    t = traj["t_s"].to_numpy()
+    xy.plot(traj["x_m"], traj["y_m"], color="tab:blue", lw=1.8, label="robot")
+    marks = np.arange(0.0, t[-1] + 1e-9, mark_every_s)
+    idx = np.searchsorted(t, marks).clip(0, len(t) - 1)
+    xy.plot(traj["x_m"].to_numpy()[idx], traj["y_m"].to_numpy()[idx], "o", color="tab:blue",
+            ms=4)
+    for i, ob in enumerate(moving):
+        track = np.array([centre_at(ob.motion, float(x)) for x in t])
+        xy.plot(track[:, 0], track[:, 1], "--", color="tab:red", lw=1.2,
+                label="person" if i == 0 else None)
+        for m in marks:
+            c = centre_at(ob.motion, float(m))
+            r = ob.radius_m if isinstance(ob, Cylinder) else 0.5 * math.hypot(*ob.size_m[:2])
+            xy.add_patch(Circle(c, r, fill=False, ec="tab:red", lw=0.6, alpha=0.6))
+            xy.annotate(f"{m:g}", c, fontsize=6, color="tab:red", ha="center", va="center")
+    for m, j in zip(marks, idx, strict=True):
+        xy.annotate(f"{m:g}", (traj["x_m"].iloc[j], traj["y_m"].iloc[j]), fontsize=6,
+                    xytext=(2, 2), textcoords="offset points")
+    if world.goal_xy_m is not None:
+        xy.plot(*world.goal_xy_m, "k*", ms=10)
+    xy.set_aspect("equal", adjustable="datalim")
+    xy.set_xlabel("x (m)")
+    xy.set_ylabel("y (m)")
+    xy.set_title(title or world.name)
+    xy.grid(alpha=0.3)
+    xy.legend(fontsize=7)
+    dist.plot(t, traj["nearest_obstacle_m"], color="tab:blue")
+    dist.set_xlabel("time (s)")
+    dist.set_ylabel("robot-obstacle distance (m)")
+    dist.set_title("Distance to the nearest obstacle (moving ones where they are)")
+    dist.grid(alpha=0.3)
+
+
+def dwa_run_figures(run_dir: str | Path, *, fmt: str = "png", dpi: int = 120) -> list[Path]:
+    """One Figs. 8/9-style figure per case of a ``simulate-dwa`` output folder.
+
+    Writes ``RUN/plots/<case>.<fmt>`` (x-y paths with the moving objects' tracks, and
+    the clearance over time) and returns the paths.
+    """
+    import yaml
+
+    from slitcli.sim.scene import load_scene
+
+    check_format(fmt, dpi)
+    run = Path(run_dir)
+    params = yaml.safe_load(_need(run / "params.yaml", "slitcli simulate-dwa").read_text())
+    cases = params["cases"]
+    single = len({c["world"] for c in cases}) == 1
+    written = []
+    for c in cases:
+        world = load_scene(run / ("world.yaml" if single else f"world_{c['world']}.yaml"))
+        traj = pd.read_csv(_need(run / f"trajectory_{c['case']}.csv", "slitcli simulate-dwa"))
+        fig = Figure(figsize=(11, 4.5), layout="constrained")
+        draw_dynamic_case(fig.subplots(1, 2, width_ratios=[1.6, 1]), traj, world,
+                          title=f"{c['case']} (sensing {c['sensing_range_m']:g} m)")
+        written.append(save(fig, run / "plots" / f"{c['case']}.{fmt}", dpi=dpi))
+    return written
+
+
 # ----------------------------------------------------------------------------- accuracy
 def draw_accuracy(ax: Axes, errors: pd.DataFrame, *, bin_m: float = 0.25) -> dict[str, int]:
     """Median absolute range error against the true distance, per sensor.

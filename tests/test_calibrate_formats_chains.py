@@ -143,7 +143,8 @@ def test_equidistant_rectification_makes_rows_agree(tmp_path, seed):
     # the remap tables agree with the point mapping (sampled at rectified pixels)
     from slitcli.calibrate.rectify import rectification_maps
 
-    mx, my, _, _ = rectification_maps(rig)
+    maps = rectification_maps(rig)
+    mx, my = cv2.convertMaps(maps.left_map1, maps.left_map2, cv2.CV_32FC1)
     ui, vi = np.round(left).astype(int).T
     back = np.column_stack([mx[vi, ui], my[vi, ui]])
     # the table at the nearest rectified pixel points within a raw pixel of the source

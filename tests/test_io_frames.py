@@ -137,7 +137,7 @@ def _raw_rig():
 
 def test_raw_pairs_are_rectified_once_with_the_rig(tmp_path):
     """rectify=True gives what the rectification module gives for the raw pair."""
-    from slitcli.stereo.rectify import rectify_pair
+    from slitcli.calibrate.rectify import rectify_pair
 
     raw_rig = _raw_rig()
     shutil.copytree(BUNDLED / "left", tmp_path / "left")
@@ -148,7 +148,7 @@ def test_raw_pairs_are_rectified_once_with_the_rig(tmp_path):
     rect = list(src.frames(raw_rig, rectify=True, skip=skip))
     assert len(rect) == 2
     for a, b in zip(raw_frames, rect, strict=True):
-        want = rectify_pair(a.left_bgr, a.right_bgr, raw_rig)
+        want = rectify_pair(raw_rig, a.left_bgr, a.right_bgr)
         np.testing.assert_array_equal(b.left_bgr, want[0])
         np.testing.assert_array_equal(b.right_bgr, want[1])
         assert not np.array_equal(b.left_bgr, a.left_bgr)

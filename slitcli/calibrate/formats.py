@@ -45,9 +45,12 @@ import yaml
 from slitcli.calibrate.rectify import ideal_raw, rectify_raw, rig_with_raw
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import write_text_atomic
+from slitcli.io.yamlfile import MAX_DEPTH, load_yaml_text, read_text_bounded
 from slitcli.rig import RawCalibration, Rig, load_rig
 
 FORMATS = ("ros", "opencv", "kalibr")
+MAX_CALIBRATION_BYTES = 1024 * 1024
+"""Largest calibration file read (a stereo calibration is a few kB)."""
 _ROS_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,), "equidistant": (4,)}
 # OpenCV's FileStorage writes "%YAML:1.0", which is not a YAML directive (PyYAML refuses it)
 _OPENCV_DIRECTIVE = re.compile(r"\A\s*%YAML:\s*1\.\d+[^\n]*")
@@ -55,22 +58,51 @@ _OPENCV_DIRECTIVE = re.compile(r"\A\s*%YAML:\s*1\.\d+[^\n]*")
 
 # ---------------------------------------------------------------------- helpers
 def _read_text(path: Path) -> str:
-    try:
-        return path.read_text()
-    except FileNotFoundError:
-        raise SlitcliError(f"{path}: file not found; check the path") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SlitcliError(f"{path}: cannot read it ({e.__class__.__name__}); give a YAML "
-                           "calibration file") from None
+    return read_text_bounded(path, kind="file", missing_hint="check the path",
+                             max_bytes=MAX_CALIBRATION_BYTES)
 
 
 def _yaml(path: Path, text: str) -> Any:
-    text = _OPENCV_DIRECTIVE.sub("", text, count=1)
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
-        raise SlitcliError(f"{path}: not valid YAML; give a ROS camera_info, OpenCV or Kalibr "
-                           "calibration file") from None
+    return load_yaml_text(_OPENCV_DIRECTIVE.sub("", text, count=1), str(path))
+
+
+def _nesting_depth(text: str) -> int:
+    """An upper bound of how deeply a YAML or XML text nests, from its characters alone.
+
+    OpenCV's FileStorage parsers recurse once per level and overflow the C stack (a
+    segmentation fault, no message) near 100,000 levels, so a file is measured before
+    it is handed over: flow brackets ``[ {``, XML elements, and block indentation
+    (leading spaces and ``- `` markers) each bound the depth. Characters inside quoted
+    strings are counted too, which can only overestimate.
+    """
+    b = np.frombuffer(text.encode("utf-8", "replace"), dtype=np.uint8)
+    step = np.zeros(b.shape, dtype=np.int64)
+    step[(b == ord("[")) | (b == ord("{"))] = 1
+    step[(b == ord("]")) | (b == ord("}"))] = -1
+    flow = int(np.cumsum(step).max(initial=0))
+    block = 0
+    for line in text.splitlines():
+        stripped = line.lstrip(" -\t")
+        block = max(block, (len(line) - len(stripped)) // 2)
+    return max(flow, _xml_depth(text), block)
+
+
+def _xml_depth(text: str) -> int:
+    """Deepest element nesting of an XML text (tags counted, not parsed)."""
+    depth = deepest = 0
+    pos = text.find("<")
+    while pos != -1:
+        end = text.find(">", pos)
+        if end == -1:
+            break
+        tag = text[pos + 1:end]
+        if tag.startswith("/"):
+            depth -= 1
+        elif not tag.startswith(("?", "!")) and not tag.endswith("/"):
+            depth += 1
+            deepest = max(deepest, depth)
+        pos = text.find("<", end)
+    return deepest
 
 
 def _matrix(path: Path, value: Any, key: str, shape: tuple[int, int]) -> np.ndarray:
@@ -217,20 +249,26 @@ def _fs_array(node: Any) -> np.ndarray | None:
     return None
 
 
-def import_opencv(paths: list[Path],
-                  image_size_px: tuple[int, int] | None = None) -> RawCalibration:
-    """OpenCV FileStorage stereo files (keys M1 D1 M2 D2 R T [R1 R2 P1 P2], image size)."""
-    values: dict[str, np.ndarray] = {}
-    size: dict[str, int] = {}
-    for p in paths:
-        try:
-            fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-            opened = fs.isOpened()
-        except cv2.error:
-            opened = False
-        if not opened:
-            raise SlitcliError(f"{p}: OpenCV FileStorage cannot parse it; give the .yml/.xml "
-                               "files written by cv2.FileStorage")
+def _read_filestorage(p: Path, values: dict[str, np.ndarray], size: dict[str, int]) -> None:
+    """Matrices and image size of one FileStorage file, into ``values`` and ``size``.
+
+    The file is bounded in size and nesting before OpenCV parses it, and every OpenCV
+    failure (cv2.error, SystemError from its bindings) becomes one line naming the file.
+    """
+    text = _read_text(p)
+    depth = _nesting_depth(text)
+    if depth > MAX_DEPTH:
+        raise SlitcliError(f"{p}: nests {depth} levels deep; an OpenCV calibration file nests "
+                           "at most 3, give the .yml/.xml files written by cv2.FileStorage")
+    fix = "give the .yml/.xml files written by cv2.FileStorage"
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+        opened = fs.isOpened()
+    except (cv2.error, SystemError):
+        opened = False
+    if not opened:
+        raise SlitcliError(f"{p}: OpenCV FileStorage cannot parse it; {fix}")
+    try:
         for key in ("M1", "D1", "M2", "D2", "R", "T", "R1", "R2", "P1", "P2"):
             node = fs.getNode(key)
             if not node.empty():
@@ -241,8 +279,26 @@ def import_opencv(paths: list[Path],
         for key in ("image_width", "image_height"):
             node = fs.getNode(key)
             if not node.empty():
-                size[key] = int(node.real())
+                v = float(node.real()) if node.isReal() or node.isInt() else float("nan")
+                if not (np.isfinite(v) and v == int(v) and 0 < v <= 1e6):
+                    raise SlitcliError(f"{p}: '{key}' is not a whole number of pixels; fix "
+                                       "the file")
+                size[key] = int(v)
+    except (cv2.error, SystemError, TypeError, ValueError, OverflowError) as e:
+        what = "OpenCV error" if isinstance(e, cv2.error) else e.__class__.__name__
+        raise SlitcliError(f"{p}: OpenCV FileStorage cannot read it ({what}: a key holds "
+                           f"malformed data); {fix}") from None
+    finally:
         fs.release()
+
+
+def import_opencv(paths: list[Path],
+                  image_size_px: tuple[int, int] | None = None) -> RawCalibration:
+    """OpenCV FileStorage stereo files (keys M1 D1 M2 D2 R T [R1 R2 P1 P2], image size)."""
+    values: dict[str, np.ndarray] = {}
+    size: dict[str, int] = {}
+    for p in paths:
+        _read_filestorage(p, values, size)
     missing = [k for k in ("M1", "D1", "M2", "D2", "R", "T") if k not in values]
     if missing:
         raise SlitcliError(f"{paths[0]}: missing {', '.join(missing)}; OpenCV stereo files need "
@@ -404,10 +460,16 @@ def import_raw(paths: list[str | Path], fmt: str = "auto", *,
 
 def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "auto",
                    base_rig: str | Path | None = None, name: str | None = None,
-                   image_size_px: tuple[int, int] | None = None) -> Rig:
-    """``slitcli rig import``: calibration files to a rig file (written atomically)."""
+                   image_size_px: tuple[int, int] | None = None,
+                   overwrite: bool = False) -> Rig:
+    """``slitcli rig import``: calibration files to a rig file (written atomically).
+
+    ``out_rig`` must be none of the inputs and must not exist unless ``overwrite``.
+    """
+    from slitcli.io.atomic import check_output_file
     from slitcli.rig import save_rig
 
+    check_output_file(out_rig, inputs=[*paths, base_rig], overwrite=overwrite)
     raw = import_raw(paths, fmt, image_size_px=image_size_px)
     base = load_rig(base_rig) if base_rig is not None else None
     rig = rig_with_raw(raw, base, name=name or (base.name if base else "imported"),
@@ -474,6 +536,10 @@ def run_rig_export(rig_path: str | Path, fmt: str, out_dir: str | Path) -> list[
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SlitcliError(f"{out}: exists and is not a folder; give an output folder")
+    from slitcli.io.atomic import check_output_file
+
+    for name in texts:  # existing exports are replaced, the rig file itself never
+        check_output_file(out / name, inputs=[rig_path], overwrite=True)
     written = []
     for name, text in texts.items():
         write_text_atomic(out / name, text)

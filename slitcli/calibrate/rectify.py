@@ -13,7 +13,7 @@ valid pixels, so no black borders reach stereo matching or the laser extraction.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -142,27 +142,96 @@ def ideal_raw(rig: Rig) -> RawCalibration:
                           R1=_freeze(eye), R2=_freeze(eye), P1=_freeze(P1), P2=_freeze(P2))
 
 
-def rectification_maps(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Remap tables (left x, left y, right x, right y), each float32 (H, W), raw -> rectified."""
-    if rig.raw is None:
-        raise SlitcliError("rig has no 'raw' calibration; its images are already rectified")
-    size = (int(rig.image_size_px[0]), int(rig.image_size_px[1]))
-    m1x, m1y = undistort_rectify_map(rig.raw, "left", size)
-    m2x, m2y = undistort_rectify_map(rig.raw, "right", size)
-    return m1x, m1y, m2x, m2y
+@dataclass(frozen=True, eq=False)
+class RectificationMaps:
+    """Remap tables raw -> rectified of one rig's two cameras (read-only).
+
+    ``left_map1, left_map2`` (and the right ones) are :func:`cv2.initUndistortRectifyMap`
+    (:func:`cv2.fisheye.initUndistortRectifyMap` for equidistant lenses) fixed-point
+    tables (CV_16SC2 + CV_16UC1: positions to 1/32 px, what :func:`cv2.remap`
+    interpolates with anyway), shape (H, W) of the rectified image
+    ``rect_size_px``; ``raw_size_px`` is the size of the raw images they read.
+    Built once per rig (:meth:`for_rig`) and passed along with it.
+    """
+
+    raw_size_px: tuple[int, int]
+    rect_size_px: tuple[int, int]
+    left_map1: np.ndarray
+    left_map2: np.ndarray
+    right_map1: np.ndarray
+    right_map2: np.ndarray
+
+    @classmethod
+    def for_rig(cls, rig: Rig) -> RectificationMaps:
+        """The tables of ``rig.raw``.
+
+        Raises
+        ------
+        SlitcliError
+            If the rig has no ``raw`` calibration (its images are already rectified).
+        """
+        if rig.raw is None:
+            raise SlitcliError("rig has no 'raw' calibration; its images are already "
+                               "rectified")
+        raw = rig.raw
+        size = (int(rig.image_size_px[0]), int(rig.image_size_px[1]))
+        maps = []
+        for camera in ("left", "right"):
+            # either lens model (pinhole, or equidistant through cv2.fisheye)
+            m1, m2 = undistort_rectify_map(raw, camera, size, cv2.CV_16SC2)
+            m1.setflags(write=False)
+            m2.setflags(write=False)
+            maps += [m1, m2]
+        raw_size = (int(raw.image_size_px[0]), int(raw.image_size_px[1]))
+        return cls(raw_size, size, *maps)
 
 
-def rectify_pair(rig: Rig, left_bgr: np.ndarray,
-                 right_bgr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+def rectification_maps(rig: Rig) -> RectificationMaps:
+    """The remap tables of ``rig.raw`` (:meth:`RectificationMaps.for_rig`)."""
+    return RectificationMaps.for_rig(rig)
+
+
+def rectify_pair(rig: Rig, left_bgr: np.ndarray, right_bgr: np.ndarray | None = None, *,
+                 maps: RectificationMaps | None = None
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Rectify raw images with ``rig.raw`` (bilinear); returned unchanged without ``raw``.
 
-    Images are (H, W[, 3]) arrays of the raw size; the results have ``rig.image_size_px``.
+    Parameters
+    ----------
+    rig : Rig
+    left_bgr, right_bgr : ndarray, uint8, (H, W, 3) or (H, W)
+        Raw images of size ``rig.raw.image_size_px`` (without ``raw``: already rectified
+        images of size ``rig.image_size_px``). ``right_bgr`` may be None (one camera).
+    maps : RectificationMaps, optional
+        The rig's tables, built once per rig by the caller; built here when None.
+
+    Returns
+    -------
+    left_rect, right_rect : ndarray
+        Rectified images of size ``rig.image_size_px`` (``right_rect`` None when
+        ``right_bgr`` is).
+
+    Raises
+    ------
+    SlitcliError
+        If an image does not have the size the rig expects.
     """
+    want = tuple(rig.raw.image_size_px if rig.raw is not None else rig.image_size_px)
+    key = "raw.image_size_px" if rig.raw is not None else "image_size_px"
+    for name, img in (("left", left_bgr), ("right", right_bgr)):
+        if img is None:
+            continue
+        got = (int(img.shape[1]), int(img.shape[0]))
+        if got != want:
+            raise SlitcliError(f"{name} image is {got[0]}x{got[1]} but the rig's {key} is "
+                               f"{want[0]}x{want[1]}; use the rig these images were taken "
+                               "with")
     if rig.raw is None:
         return left_bgr, right_bgr
-    m1x, m1y, m2x, m2y = rectification_maps(rig)
-    left = cv2.remap(left_bgr, m1x, m1y, cv2.INTER_LINEAR)
-    right = None if right_bgr is None else cv2.remap(right_bgr, m2x, m2y, cv2.INTER_LINEAR)
+    m = RectificationMaps.for_rig(rig) if maps is None else maps
+    left = cv2.remap(left_bgr, m.left_map1, m.left_map2, cv2.INTER_LINEAR)
+    right = (None if right_bgr is None
+             else cv2.remap(right_bgr, m.right_map1, m.right_map2, cv2.INTER_LINEAR))
     return left, right
 
 

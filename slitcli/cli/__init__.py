@@ -21,10 +21,7 @@ from slitcli.cli import (
     sim,
     stereo,
 )
-from slitcli.cli.config import install_config_option
 from slitcli.cli.main import PARAM_FLAGS, bag_options, cli, main, user_message
-
-install_config_option(cli)
 
 __all__ = [
     "PARAM_FLAGS",

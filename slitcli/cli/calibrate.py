@@ -6,7 +6,6 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli.config import out_option
 from slitcli.cli.main import cli
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (points where four squares meet), e.g. 9x6."
@@ -30,7 +29,8 @@ def calibrate_group() -> None:
 @click.argument("right_dir", type=click.Path(path_type=Path))
 @click.option("--board", required=True, help=_BOARD_HELP)
 @click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
-@out_option("Rig file to write (YAML).", file=True, old=("--output",))
+@click.option("-o", "--out", "--output", "out", required=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
 @click.option("--base", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig whose name, mount, laser plane and range limits are kept "
                    "[default: the paper rig's].")
@@ -79,8 +79,8 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
               help="Stereo-calibrated rig; its laser plane is replaced.")
 @click.option("--board", required=True, help=_BOARD_HELP)
 @click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
-@out_option("Rig file to write [default: update --rig in place].", required=False,
-            file=True, old=("--output",), default=None)
+@click.option("-o", "--out", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Rig file to write [default: update --rig in place].")
 @click.option("--min-views", type=click.IntRange(min=2), default=2, show_default=True,
               help="Board poses with the stripe on the board required.")
 def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: float,
@@ -108,8 +108,8 @@ def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: 
 @click.argument("seq", type=click.Path(path_type=Path))
 @click.option("--rig", "rig_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Stereo-calibrated rig; its mount height, tilt and roll are replaced.")
-@out_option("Rig file to write [default: update --rig in place].", required=False,
-            file=True, old=("--output",), default=None)
+@click.option("-o", "--out", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Rig file to write [default: update --rig in place].")
 @click.option("--frames", type=click.IntRange(min=1), default=5, show_default=True,
               help="Frames used, spread over the sequence.")
 @click.option("--max-depth-m", type=click.FloatRange(min=0.5), default=3.0, show_default=True,

@@ -1,4 +1,4 @@
-"""Options every command shares: ``--config FILE`` and the ``-o/--out`` spelling.
+"""``--config FILE`` (the option itself: :mod:`slitcli.cli.main`) and output arguments.
 
 ``--config FILE`` reads a YAML mapping of option values (keys: the option's long name
 without the leading dashes, ``max-dt`` or ``max_dt``) and hands it to click as the
@@ -15,37 +15,6 @@ from typing import Any
 import click
 
 from slitcli.errors import SlitcliError
-
-CONFIG_HELP = ("YAML file of option values (keys: option names without dashes, e.g. "
-               "'max-dt: 0.05'); options given on the command line override it. "
-               "See docs/config.md.")
-
-
-class AliasOption(click.Option):
-    """An option whose old spellings (``hidden_aliases``) work but are not shown in --help."""
-
-    def __init__(self, *args: Any, hidden_aliases: tuple[str, ...] = (), **kw: Any) -> None:
-        super().__init__(*args, **kw)
-        self.hidden_aliases = tuple(hidden_aliases)
-
-    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
-        shown = [o for o in self.opts if o not in self.hidden_aliases]
-        saved = self.opts
-        self.opts = shown
-        try:
-            return super().get_help_record(ctx)
-        finally:
-            self.opts = saved
-
-
-def out_option(help_text: str, *, required: bool = True, file: bool = False,
-               old: tuple[str, ...] = (), **kw: Any) -> Any:
-    """``-o/--out`` with one spelling everywhere; ``old`` spellings (``--output``) still work."""
-    path_type = click.Path(dir_okay=False, path_type=Path) if file else \
-        click.Path(path_type=Path)
-    return click.option("-o", "--out", *old, "out", cls=AliasOption, hidden_aliases=old,
-                        required=required, type=kw.pop("type", path_type), help=help_text,
-                        **kw)
 
 
 def _option_keys(command: click.Command) -> dict[str, str]:
@@ -87,7 +56,7 @@ def load_config(path: Path, ctx: click.Context) -> dict[str, Any]:
             close = difflib.get_close_matches(str(k), sorted(keys), n=1)
             hint = f"did you mean '{close[0]}'?" if close else \
                 f"see '{command_path} --help' for its options"
-            raise SlitcliError(f"{path}: unknown key '{k}' for '{command_path}'; {hint}")
+            raise SlitcliError(f"{path}: '{k}' is not an option of '{command_path}'; {hint}")
         if name in out:
             raise SlitcliError(f"{path}: key '{k}' sets the same option as another key; "
                                "keep one")
@@ -100,29 +69,6 @@ def load_config(path: Path, ctx: click.Context) -> dict[str, Any]:
             raise SlitcliError(f"{path}: key '{k}' = {v!r}: {e.format_message()}") from None
         out[name] = value
     return out
-
-
-def _config_callback(ctx: click.Context, _param: click.Parameter, value: Path | None) -> None:
-    if value is None:
-        return
-    defaults = load_config(value, ctx)
-    ctx.default_map = {**(ctx.default_map or {}), **defaults}
-
-
-def config_option() -> click.Option:
-    """The ``--config FILE`` option (eager: read before the other options take defaults)."""
-    return click.Option(["--config"], type=click.Path(dir_okay=False, path_type=Path),
-                        default=None, is_eager=True, expose_value=False,
-                        callback=_config_callback, help=CONFIG_HELP)
-
-
-def install_config_option(group: click.Group) -> None:
-    """Give every command under ``group`` the ``--config`` option (once)."""
-    for command in group.commands.values():
-        if isinstance(command, click.Group):
-            install_config_option(command)
-        elif not any(p.name == "config" for p in command.params):
-            command.params.append(config_option())
 
 
 def pick_out(argument: Path | None, option: Path | None, metavar: str) -> Path:

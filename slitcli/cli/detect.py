@@ -23,10 +23,11 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               show_default=True, help="paper = Eq. 11 (trusts a laser 'no return' up to the "
               "laser's max range; keeps the laser's range where stereo sees the same "
               "surface, within 2 px); conservative = the nearer of laser and stereo.")
-@click.option("--bin-deg", type=float, default=1.0, show_default=True,
-              help="Bearing bin width, degrees.")
-@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Worker processes (the table is byte-identical for any number).")
+@click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,
+              help="Bearing bin width, degrees (0.05-10).")
+@click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="Worker processes, 1-64, about 250 MB each (the table is byte-identical "
+                   "for any number).")
 @click.option("--save-images", is_flag=True, help="Also write disparity/, distance/, mask/ "
               "PNGs and laser.csv.")
 @bag_options

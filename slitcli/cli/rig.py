@@ -6,7 +6,6 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli.config import out_option
 from slitcli.cli.main import cli
 from slitcli.errors import SlitcliError
 
@@ -197,7 +196,8 @@ def rig_show(file: Path | None) -> None:
 # ---------------------------------------------------------------------------- rig import/export
 @rig_group.command("import")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
-@out_option("Rig file to write (YAML).", file=True, old=("--output",))
+@click.option("-o", "--out", "--output", "out", required=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
 @click.option("--format", "fmt", type=click.Choice(["auto", "ros", "opencv", "kalibr"]),
               default="auto", show_default=True, help="Format of FILES (auto: from content).")
 @click.option("--base", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -207,8 +207,9 @@ def rig_show(file: Path | None) -> None:
 @click.option("--image-size", default=None, metavar="W,H",
               help="Raw image size in pixels, for files that do not give it (OpenCV files "
               "without image_width/image_height, camchains without resolution).")
+@click.option("--overwrite", is_flag=True, help="Replace the output rig file if it exists.")
 def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
-               name: str | None, image_size: str | None) -> None:
+               name: str | None, image_size: str | None, overwrite: bool) -> None:
     """Build a rig from ROS, OpenCV or Kalibr stereo calibration files.
 
     \b
@@ -225,7 +226,7 @@ def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
     from slitcli.calibrate.formats import run_rig_import
 
     rig = run_rig_import(list(files), out, fmt=fmt, base_rig=base, name=name,
-                         image_size_px=_size_wh(image_size))
+                         image_size_px=_size_wh(image_size), overwrite=overwrite)
     click.echo("slitcli: note: mount and laser plane are placeholders (the base rig's); set "
                "them with `slitcli rig set` or `slitcli calibrate mount/laser`", err=True)
     click.echo(f"rectified: fx {rig.left.fx_px:.3f} px, baseline_m {rig.baseline_m:.5f}, "
@@ -238,8 +239,8 @@ def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
 @click.option("--format", "fmt", required=True, type=click.Choice(["ros", "opencv", "kalibr"]),
               help="ros: left.yaml + right.yaml; opencv: intrinsics.yml + extrinsics.yml; "
                    "kalibr: camchain.yaml.")
-@out_option("Folder to write into.", old=("--output",),
-            type=click.Path(file_okay=False, path_type=Path))
+@click.option("-o", "--out", "--output", "out", required=True,
+              type=click.Path(file_okay=False, path_type=Path), help="Folder to write into.")
 def rig_export(rig_file: Path, fmt: str, out: Path) -> None:
     """Write a rig's stereo calibration as ROS, OpenCV or Kalibr files.
 

@@ -12,19 +12,16 @@ from slitcli.cli.main import cli
 @cli.command("render")
 @click.argument("scene_file", metavar="SCENE.yaml",
                 type=click.Path(dir_okay=False, path_type=Path))
-@click.argument("out_arg", metavar="[OUT]", required=False,
-                type=click.Path(file_okay=False, path_type=Path))
-@click.option("-o", "--out", "out_opt", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="Output folder (or give it as the second argument).")
-@click.option("--frames", type=click.IntRange(min=1), default=None,
-              help="Frames to render [default: the scene's robot.frames].")
-@click.option("--seed", type=int, default=None,
-              help="Replace the scene's seed (textures and sensor noise).")
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--frames", type=click.IntRange(1, 100_000), default=None,
+              help="Frames to render, 1-100000 [default: the scene's robot.frames].")
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=None,
+              help="Replace the scene's seed (textures and sensor noise), a whole number >= 0.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file [default: the paper rig].")
-@click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
-def render_cmd(scene_file: Path, out_arg: Path | None, out_opt: Path | None,
-               frames: int | None, seed: int | None,
+@click.option("--overwrite", is_flag=True,
+              help="Replace what an earlier render wrote in OUT (other files are kept).")
+def render_cmd(scene_file: Path, out: Path, frames: int | None, seed: int | None,
                rig_path: Path | None, overwrite: bool) -> None:
     """Render a generated scene into a stereo sequence with ground truth.
 
@@ -33,11 +30,8 @@ def render_cmd(scene_file: Path, out_arg: Path | None, out_opt: Path | None,
     ranges per 1-degree bearing bin in metres, poses, lossless .npz). See docs/sequence.md
     and docs/ground-truth.md.
 
-    Example: slitcli render sample_data/corridor.yaml -o out/corridor --frames 10
+    Example: slitcli render sample_data/corridor.yaml out/corridor --frames 10
     """
-    from slitcli.cli.config import pick_out
-
-    out = pick_out(out_arg, out_opt, "OUT")
     from slitcli.io.progress import progress_bar
     from slitcli.rig import load_rig, paper_rig
     from slitcli.sim.scene import load_scene
@@ -47,7 +41,8 @@ def render_cmd(scene_file: Path, out_arg: Path | None, out_opt: Path | None,
     rig = load_rig(rig_path) if rig_path is not None else paper_rig()
     with progress_bar(scene.robot.frames if frames is None else frames, "render") as bar:
         summary = render_sequence(scene, rig, out, frames=frames, seed=seed,
-                                  overwrite=overwrite, on_frame=lambda i, n: bar.update(1))
+                                  overwrite=overwrite, on_frame=lambda i, n: bar.update(1),
+                                  inputs=(scene_file, rig_path))
     click.echo(f"rendered {summary['frames']} frames of '{scene.name}' to {out}: "
                f"{summary['stripe_columns']} stripe columns, "
                f"{summary['obstacle_bins']} obstacle bearing bins in the truth")

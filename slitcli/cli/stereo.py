@@ -27,12 +27,28 @@ def _parse_window(text: str) -> tuple[int, int]:
     return w, h
 
 
+_AGGREGATION_KEY = "slitcli.stereo.aggregation"
+
+
+def _keep_aggregation(ctx: click.Context, _param: click.Parameter, value: str) -> str:
+    # not passed to the command functions (their signatures stay as they are):
+    # stereo_params reads it from the context
+    ctx.meta[_AGGREGATION_KEY] = value
+    return value
+
+
 def matcher_options(f: Any) -> Any:
     """The Eq. 10 matcher and obstacle options, shared by ``stereo`` and ``detect``."""
     options = [
         click.option("--matcher", type=click.Choice(["nssd", "bm", "sgbm"]), default="nssd",
               show_default=True, help="nssd = the paper's normalised SSD (Eq. 10); bm, sgbm "
               "= OpenCV's StereoBM / StereoSGBM."),
+        click.option("--aggregation", type=click.Choice(["none", "sgm"]), default="none",
+              show_default=True, expose_value=False, callback=_keep_aggregation,
+              help="nssd only: none = the paper's local Eq. 10 window; sgm = semi-global "
+              "aggregation of the Eq. 10 cost along 4 paths (denser on weak texture, "
+              "follows slanted floors; 4-6x slower), then the same checks. Example: "
+              "--aggregation sgm"),
         click.option("--num-disparities", type=int, default=48, show_default=True,
               help="Disparities searched, px (48 px: 0.46 m and beyond for the paper rig)."),
         click.option("--min-disparity", type=int, default=0, show_default=True,
@@ -85,8 +101,11 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
     from slitcli.stereo.pipeline import StereoParams
 
     w, h = _parse_window(window)
+    ctx = click.get_current_context(silent=True)
+    aggregation = ctx.meta.get(_AGGREGATION_KEY, "none") if ctx is not None else "none"
     return StereoParams(
         matcher=MatcherParams(matcher, num_disparities, min_disparity, w, h,
+                              aggregation=aggregation,
                               prefilter=prefilter, texture_min_dn=texture_min,
                               uniqueness_ratio=uniqueness, lr_max_diff_px=lr_max_diff,
                               support_min_zncc=support_min,

@@ -133,13 +133,14 @@ def _rectified(frames: Iterator[StereoFrame | BadFrame], rig: Rig | None, rectif
     if not rectify or rig is None or rig.raw is None:
         yield from frames
         return
-    from slitcli.stereo.rectify import rectify_pair
+    from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 
+    maps = RectificationMaps.for_rig(rig)  # once per run, not per frame
     for fr in frames:
         if isinstance(fr, BadFrame):
             yield fr
             continue
-        left, right = rectify_pair(fr.left_bgr, fr.right_bgr, rig)
+        left, right = rectify_pair(rig, fr.left_bgr, fr.right_bgr, maps=maps)
         yield replace(fr, left_bgr=left, right_bgr=right)
 
 
@@ -170,7 +171,7 @@ class FolderFrames(FrameSource):
         if rig_path is not None:
             return load_rig(rig_path)
         own = self.path / "rig.yaml"
-        if own.exists():
+        if own.exists() or own.is_symlink():  # a dangling link is an error, not "no rig"
             return load_rig(own)
         if self.layout != "slitcli":
             raise SlitcliError(f"{self.path}: a {self.layout} folder carries no slitcli rig; "

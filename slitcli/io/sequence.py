@@ -13,7 +13,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pandas as pd
 
@@ -125,15 +124,11 @@ def read_frame(ref: FrameRef, rig: Rig | None = None) -> StereoFrame:
 
 
 def read_image(path: Path) -> np.ndarray:
-    """Read a colour image as BGR uint8 (grey images are replicated to 3 channels)."""
-    if not path.exists():
-        raise SlitcliError(f"{path}: image not found; check the sequence folder")
-    data = np.fromfile(path, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
-        raise SlitcliError(f"{path}: unreadable image (not a valid PNG or JPEG); re-export or "
-                           "remove it")
-    return img
+    """Read a colour image as BGR uint8 (grey images are replicated to 3 channels); the
+    header is checked before decoding (:func:`slitcli.io.images.read_image_bgr`)."""
+    from slitcli.io.images import read_image_bgr
+
+    return read_image_bgr(path)
 
 
 def natural_key(name: str) -> tuple:

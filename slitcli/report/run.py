@@ -240,11 +240,15 @@ def left_images(run: DetectRun, source: str | Path | None = None
     left_bgr : ndarray (H, W, 3) uint8
         Rectified with the rig when it carries a raw calibration.
     """
-    from slitcli.stereo.rectify import rectify_pair
+    from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 
     src = resolve_source(run, source)
+    maps = RectificationMaps.for_rig(run.rig) if run.rig.raw is not None else None
     for index, left in _raw_left_images(run, src):
-        yield index, rectify_pair(left, left, run.rig)[0] if run.rig.raw is not None else left
+        if maps is None:
+            yield index, left
+        else:
+            yield index, rectify_pair(run.rig, left, maps=maps)[0]
 
 
 def resolve_source(run: DetectRun, source: str | Path | None) -> Path:

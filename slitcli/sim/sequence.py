@@ -21,7 +21,7 @@ The folder is rendered into a temporary sibling and renamed into place at the en
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -29,13 +29,14 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_png_atomic
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png
 from slitcli.rig import Rig
 from slitcli.sim.camera import camera_to_scene
 from slitcli.sim.laser_truth import lit_wedge_ranges
 from slitcli.sim.render import FrameTruth, render_frame
-from slitcli.sim.scene import Box, Cylinder, Scene, Wall
+from slitcli.sim.scene import MAX_SEED, Box, Cylinder, Scene, Wall
 
 FRAME_NAME = "{:06d}"
 
@@ -62,6 +63,8 @@ def scene_to_dict(scene: Scene) -> dict:
             o = {"type": "wall", "from_xy_m": list(ob.from_xy_m), "to_xy_m": list(ob.to_xy_m),
                  "height_m": ob.height_m}
         o["z_min_m"] = ob.z_min_m
+        if not isinstance(ob, Wall) and ob.motion:
+            o["motion"] = {"waypoints": [{"t_s": t, "xy_m": [x, y]} for t, x, y in ob.motion]}
         o["surface"] = surf(ob.surface)
         objects.append(o)
     r = scene.robot
@@ -124,7 +127,8 @@ def write_truth_npz(path: Path, truth: FrameTruth) -> None:
 
 def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | None = None,
                     seed: int | None = None, overwrite: bool = False,
-                    on_frame: Callable[[int, int], None] | None = None) -> dict:
+                    on_frame: Callable[[int, int], None] | None = None,
+                    inputs: Sequence[str | Path] = ()) -> dict:
     """Render every frame of a scene into a sequence folder with ground truth.
 
     Parameters
@@ -138,23 +142,29 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         Replaces the scene's seed (textures and noise).
     on_frame : callable(done, total), optional
         Progress callback.
+    inputs : paths
+        The files the scene and rig were read from: ``overwrite`` never replaces them.
 
     Returns
     -------
     dict with ``frames``, ``obstacle_bins`` and ``stripe_columns`` summaries.
     """
     if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise SlitcliError(f"seed = {seed!r} is out of range; give a whole number from 0 "
+                               f"to {MAX_SEED}")
         scene = replace(scene, seed=seed)
     poses = scene.poses(frames)
     times = scene.times_s(frames)
     laser_tables, range_tables, lit_tables, pose_rows = [], [], [], []
     _, bin_lo, bin_hi = rig.bearing_bins(1.0)
     stripe_cols = 0
-    with atomic_directory(out, overwrite=overwrite) as tmp:
+    with atomic_directory(out, overwrite=overwrite, inputs=inputs) as tmp:
         for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
             (tmp / sub).mkdir(parents=True)
         for i, pose in enumerate(poses):
-            fr = render_frame(scene, rig, pose, frame_index=i)
+            # moving objects are where they are at the frame's time (truth follows)
+            fr = render_frame(scene.at_time(float(times[i])), rig, pose, frame_index=i)
             name = FRAME_NAME.format(i) + ".png"
             write_png_atomic(tmp / "left" / name, fr.left_bgr)
             write_png_atomic(tmp / "right" / name, fr.right_bgr)

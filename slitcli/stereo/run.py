@@ -44,6 +44,7 @@ from slitcli.io.progress import Progress, RunSummary
 from slitcli.io.sequence import StereoFrame
 from slitcli.ranges import STEREO_RANGES, csv_rows, format_time_s
 from slitcli.rig import Rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
@@ -87,6 +88,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
     """Match every frame not in ``done`` and write its files; the valid-pixel fractions."""
     n, skipped = len(src), len(done)
     valid: list[float] = []
+    geometry = StereoGeometry.for_rig(rig, p.obstacles.bin_width_deg)
 
     def readable() -> Iterator[StereoFrame]:
         for f in src.frames(rig, skip=done, on_bad=on_bad_frame):
@@ -105,7 +107,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
         while (frame := reads.popleft().result()) is not None:
             reads.append(io_pool.submit(next, frames, None))
             batch.clear_skipped(frame.index)
-            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p)
+            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p, geometry=geometry)
             writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
             while len(writes) > 1:
                 writes.popleft().result()
