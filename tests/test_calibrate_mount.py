@@ -165,8 +165,9 @@ def test_cli_refuses_views_without_a_floor(tmp_path, seed):
     rooms = [floor_for_mount(float(h), float(t), seed=seed + i) for i, (h, t) in enumerate(
         zip(rng.uniform(0.3, 1.2, 5), [5.0, 40.0, 60.0, 12.0, 28.0], strict=True))]
     wall = [Floor(up_left=(0.0, 0.0, -1.0), height_m=float(rng.uniform(0.8, 1.6)), seed=seed)]
-    for name, floors, why in (("rooms", rooms, "lie on the best floor plane"),
-                              ("wall", wall, "not the floor")):
+    # a wall: no floor-like RANSAC candidate at all, or a candidate that refines to the wall
+    for name, floors, why in (("rooms", rooms, ("lie on the best floor plane",)),
+                              ("wall", wall, ("not the floor", "no floor-like plane"))):
         pairs, rig = _render_pairs(floors, seed)
         _write_seq(tmp_path / name, pairs)
         rig_path, out = tmp_path / f"{name}_rig.yaml", tmp_path / f"{name}_out.yaml"
@@ -175,7 +176,8 @@ def test_cli_refuses_views_without_a_floor(tmp_path, seed):
         res = CliRunner().invoke(cli, ["calibrate", "mount", "--rig", str(rig_path),
                                        str(tmp_path / name), "-o", str(out)])
         assert res.exit_code == 2, res.output
-        assert len(res.output.strip().splitlines()) == 1 and why in res.output
+        assert len(res.output.strip().splitlines()) == 1
+        assert any(w in res.output for w in why), res.output
         assert not out.exists() and rig_path.read_text() == before
         # in place: the rig is left as it was
         res = CliRunner().invoke(cli, ["calibrate", "mount", "--rig", str(rig_path),
