@@ -115,6 +115,9 @@ class RawCalibration:
     the left (``X_right = R X_left + T``, metres), ``R1``, ``R2``, ``P1``, ``P2`` the
     rectification from :func:`cv2.stereoRectify`. ``image_size_px`` is the raw
     (width, height). Matrices are stored as nested tuples so the rig stays immutable.
+    ``model`` is the lens model of both cameras: ``pinhole`` (OpenCV's k1 k2 p1 p2
+    [k3 ...]) or ``equidistant`` (``cv2.fisheye``, Kalibr's pinhole-equidistant: D is
+    k1 k2 k3 k4).
     """
 
     image_size_px: tuple[int, int]
@@ -128,6 +131,7 @@ class RawCalibration:
     R2: tuple
     P1: tuple
     P2: tuple
+    model: str = "pinhole"
 
     def array(self, name: str) -> np.ndarray:
         """One of the matrices as a float array."""
@@ -350,6 +354,8 @@ class Rig:
             raw: dict[str, Any] = {"image_size_px": [int(v) for v in self.raw.image_size_px]}
             for key in _RAW_SHAPES:
                 raw[key] = np.asarray(getattr(self.raw, key), dtype=float).tolist()
+            if self.raw.model != "pinhole":
+                raw["model"] = self.raw.model
             d["raw"] = raw
         return d
 
@@ -394,6 +400,7 @@ _RAW_SHAPES: dict[str, tuple[int, ...]] = {
     "K1": (3, 3), "D1": (-1,), "K2": (3, 3), "D2": (-1,), "R": (3, 3), "T": (3,),
     "R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4),
 }
+RAW_MODELS = ("pinhole", "equidistant")
 _TOP_KEYS = ("slitcli_rig", "name", "image_size_px", "left", "baseline_m", "mount",
              "laser", "stereo", "raw")
 _LEFT_KEYS = ("fx_px", "fy_px", "cx_px", "cy_px")
@@ -468,11 +475,18 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
                                                low=0.0, low_open=True, high=1000.0))
     raw = None
     if top.get("raw") is not None:
-        rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES),
+        rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES, "model"),
                        ("image_size_px", *_RAW_SHAPES))
         rw, rh = image_size(r, rm["image_size_px"], "raw.image_size_px")
         arrays = {k: _freeze(r.vector(rm[k], f"raw.{k}", s)) for k, s in _RAW_SHAPES.items()}
-        raw = RawCalibration(image_size_px=(rw, rh), **arrays)
+        model = rm.get("model", "pinhole")
+        if model not in RAW_MODELS:
+            raise r.fail("raw.model", f"= {model!r} is not a lens model slitcli reads",
+                         f"use one of {', '.join(RAW_MODELS)}")
+        if model == "equidistant" and not len(arrays["D1"]) == len(arrays["D2"]) == 4:
+            raise r.fail("raw.D1", "must hold 4 coefficients (k1 k2 k3 k4) for the "
+                         "equidistant model", "fix D1 and D2")
+        raw = RawCalibration(image_size_px=(rw, rh), **arrays, model=model)
     return Rig(name=name, image_size_px=(w, h), left=left, baseline_m=baseline, mount=mount,
                laser=laser, stereo=stereo, raw=raw)
 

@@ -19,15 +19,22 @@ a base rig (default: the paper rig). Formats, as written and read (docs/calibrat
     ``!!opencv-matrix``). One file holding all keys is read too.
 ``kalibr``
     ``camchain.yaml``: ``cam0``/``cam1`` with ``camera_model: pinhole``,
-    ``intrinsics [fu, fv, pu, pv]``, ``distortion_model: radtan``,
-    ``distortion_coeffs [k1, k2, r1, r2]``, ``resolution [w, h]``, and ``cam1.T_cn_cnm1``
-    (4x4, cam0 to cam1: exactly ``[R T; 0 1]``). Rectification is recomputed on import.
+    ``intrinsics [fu, fv, pu, pv]``, ``distortion_model: radtan`` (``distortion_coeffs
+    [k1, k2, r1, r2]``) or ``equidistant`` (``[k1, k2, k3, k4]``, :mod:`cv2.fisheye`),
+    ``resolution [w, h]``, and the pose of cam1: ``cam1.T_cn_cnm1`` (4x4, cam0 to cam1:
+    exactly ``[R T; 0 1]``), else from both cameras' IMU poses, ``T_cam_imu`` (Kalibr's
+    camchain-imucam: ``R T = T_c1_imu T_c0_imu^-1``) or ``T_imu_cam`` (OpenVINS-style
+    chains: ``T_imu_c1^-1 T_imu_c0``). Files may start with OpenCV's ``%YAML:1.0``
+    line. Rectification is recomputed on import.
 
-Other camera or distortion models (fisheye/equidistant, omni, fov, ...) are refused.
+Other camera or distortion models (omni, eucm, ds, fov, ...) are refused. A file without
+an image size (OpenCV files without ``image_width``/``image_height``, camchains without
+``resolution``) takes ``image_size_px`` (``--image-size``).
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +51,9 @@ from slitcli.rig import RawCalibration, Rig, load_rig
 FORMATS = ("ros", "opencv", "kalibr")
 MAX_CALIBRATION_BYTES = 1024 * 1024
 """Largest calibration file read (a stereo calibration is a few kB)."""
-_ROS_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,)}
+_ROS_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,), "equidistant": (4,)}
+# OpenCV's FileStorage writes "%YAML:1.0", which is not a YAML directive (PyYAML refuses it)
+_OPENCV_DIRECTIVE = re.compile(r"\A\s*%YAML:\s*1\.\d+[^\n]*")
 
 
 # ---------------------------------------------------------------------- helpers
@@ -54,7 +63,7 @@ def _read_text(path: Path) -> str:
 
 
 def _yaml(path: Path, text: str) -> Any:
-    return load_yaml_text(text, str(path))
+    return load_yaml_text(_OPENCV_DIRECTIVE.sub("", text, count=1), str(path))
 
 
 def _nesting_depth(text: str) -> int:
@@ -120,11 +129,13 @@ def _size(path: Path, w: Any, h: Any) -> tuple[int, int]:
 
 # ---------------------------------------------------------------------- ROS
 def _ros_camera(name: str, size: tuple[int, int], K: np.ndarray, D: np.ndarray,
-                Rr: np.ndarray, P: np.ndarray) -> str:
+                Rr: np.ndarray, P: np.ndarray, lens: str = "pinhole") -> str:
     d = np.asarray(D, dtype=float).ravel()
-    if d.size == 4:
+    if lens == "pinhole" and d.size == 4:
         d = np.append(d, 0.0)
-    if d.size == 5:
+    if lens == "equidistant":
+        model = "equidistant"
+    elif d.size == 5:
         model = "plumb_bob"
     elif d.size == 8:
         model = "rational_polynomial"
@@ -155,12 +166,13 @@ def _read_ros(path: Path, data: Any) -> dict[str, Any]:
     coeffs = np.asarray(dist.get("data", []) if isinstance(dist, dict) else [], dtype=float)
     if model not in _ROS_MODELS:
         raise SlitcliError(f"{path}: distortion_model '{model}' is not supported; slitcli reads "
-                           "plumb_bob and rational_polynomial (pinhole) only, recalibrate with "
+                           "plumb_bob, rational_polynomial and equidistant only, recalibrate with "
                            "one of those")
     if coeffs.size not in _ROS_MODELS[model] or not np.all(np.isfinite(coeffs)):
         raise SlitcliError(f"{path}: {model} needs {' or '.join(map(str, _ROS_MODELS[model]))} "
                            f"distortion coefficients, found {coeffs.size}; fix the file")
     return {"size": _size(path, data.get("image_width"), data.get("image_height")),
+            "model": "equidistant" if model == "equidistant" else "pinhole",
             "K": block("camera_matrix", (3, 3)), "D": coeffs,
             "R": block("rectification_matrix", (3, 3)), "P": block("projection_matrix", (3, 4))}
 
@@ -182,13 +194,17 @@ def import_ros(paths: list[Path], docs: list[Any]) -> RawCalibration:
     if left["size"] != right["size"]:
         raise SlitcliError(f"{paths[1]}: image size {right['size']} differs from the left "
                            f"camera's {left['size']}")
+    if left["model"] != right["model"]:
+        raise SlitcliError(f"{paths[1]}: its distortion_model differs from {paths[0]}'s; "
+                           "slitcli needs one lens model for both cameras")
     R1, R2, P1, P2 = left["R"], right["R"], left["P"], right["P"]
     R = R2.T @ R1
     T = R2.T @ np.array([P2[0, 3] / P2[0, 0], 0.0, 0.0])
     f = rectify_raw(left["K"], left["D"], right["K"], right["D"], left["size"], R, T,
-                    source=str(paths[0]))
+                    source=str(paths[0]), model=left["model"])
     return RawCalibration(image_size_px=f.image_size_px, K1=f.K1, D1=f.D1, K2=f.K2, D2=f.D2,
-                          R=f.R, T=f.T, R1=_tup(R1), R2=_tup(R2), P1=_tup(P1), P2=_tup(P2))
+                          R=f.R, T=f.T, R1=_tup(R1), R2=_tup(R2), P1=_tup(P1), P2=_tup(P2),
+                          model=f.model)
 
 
 def _tup(a: np.ndarray) -> tuple:
@@ -207,6 +223,30 @@ def _q_matrix(P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
     tx = P2[0, 3] / P2[0, 0]
     return np.array([[1.0, 0.0, 0.0, -P1[0, 2]], [0.0, 1.0, 0.0, -P1[1, 2]],
                      [0.0, 0.0, 0.0, P1[0, 0]], [0.0, 0.0, -1.0 / tx, (P1[0, 2] - P2[0, 2]) / tx]])
+
+
+def _fs_array(node: Any) -> np.ndarray | None:
+    """A FileStorage node as an array: ``!!opencv-matrix``, a plain list (YAML 1.2 files
+    written by other tools) or a plain ``{rows, cols, data}`` mapping; None otherwise."""
+    if node.isMap() and not node.getNode("dt").empty():
+        try:
+            m = node.mat()
+        except cv2.error:
+            m = None
+        return None if m is None else np.asarray(m, dtype=float)
+    if node.isSeq():
+        vals = [node.at(i) for i in range(node.size())]
+        if all(v.isReal() or v.isInt() for v in vals):
+            return np.array([v.real() for v in vals], dtype=float)
+        if all(v.isSeq() for v in vals):
+            return np.array([[v.at(j).real() for j in range(v.size())] for v in vals])
+    if node.isMap() and not node.getNode("data").empty():
+        data = _fs_array(node.getNode("data"))
+        rows, cols = node.getNode("rows"), node.getNode("cols")
+        if data is not None and not rows.empty() and not cols.empty() and \
+                data.size == int(rows.real()) * int(cols.real()):
+            return data.reshape(int(rows.real()), int(cols.real()))
+    return None
 
 
 def _read_filestorage(p: Path, values: dict[str, np.ndarray], size: dict[str, int]) -> None:
@@ -232,10 +272,10 @@ def _read_filestorage(p: Path, values: dict[str, np.ndarray], size: dict[str, in
         for key in ("M1", "D1", "M2", "D2", "R", "T", "R1", "R2", "P1", "P2"):
             node = fs.getNode(key)
             if not node.empty():
-                m = node.mat()
+                m = _fs_array(node)
                 if m is None:
                     raise SlitcliError(f"{p}: '{key}' is not a matrix; fix the file")
-                values[key] = np.asarray(m, dtype=float)
+                values[key] = m
         for key in ("image_width", "image_height"):
             node = fs.getNode(key)
             if not node.empty():
@@ -252,7 +292,8 @@ def _read_filestorage(p: Path, values: dict[str, np.ndarray], size: dict[str, in
         fs.release()
 
 
-def import_opencv(paths: list[Path]) -> RawCalibration:
+def import_opencv(paths: list[Path],
+                  image_size_px: tuple[int, int] | None = None) -> RawCalibration:
     """OpenCV FileStorage stereo files (keys M1 D1 M2 D2 R T [R1 R2 P1 P2], image size)."""
     values: dict[str, np.ndarray] = {}
     size: dict[str, int] = {}
@@ -262,11 +303,17 @@ def import_opencv(paths: list[Path]) -> RawCalibration:
     if missing:
         raise SlitcliError(f"{paths[0]}: missing {', '.join(missing)}; OpenCV stereo files need "
                            "M1 D1 M2 D2 (intrinsics) and R T (extrinsics)")
-    if len(size) != 2:
-        raise SlitcliError(f"{paths[0]}: no image_width / image_height; add them to the "
-                           "intrinsics file (the raw image size in pixels)")
     src = Path(paths[0])
-    wh = _size(src, size["image_width"], size["image_height"])
+    if len(size) == 2:
+        wh = _size(src, size["image_width"], size["image_height"])
+        if image_size_px is not None and tuple(image_size_px) != wh:
+            raise SlitcliError(f"{src}: the file says {wh[0]}x{wh[1]} px but --image-size is "
+                               f"{image_size_px[0]}x{image_size_px[1]}; drop --image-size")
+    elif image_size_px is not None:
+        wh = _size(src, *image_size_px)
+    else:
+        raise SlitcliError(f"{paths[0]}: no image_width / image_height; give --image-size W,H "
+                           "(the raw image size in pixels)")
     for k in ("D1", "D2"):
         n = values[k].size
         if n not in (4, 5, 8):
@@ -287,60 +334,105 @@ def import_opencv(paths: list[Path]) -> RawCalibration:
 
 
 # ---------------------------------------------------------------------- Kalibr
-def _kalibr_camera(path: Path, cam: Any, name: str) -> dict[str, Any]:
+_KALIBR_MODELS = {"radtan": "pinhole", "none": "pinhole", "equidistant": "equidistant"}
+
+
+def _kalibr_camera(path: Path, cam: Any, name: str,
+                   image_size_px: tuple[int, int] | None) -> dict[str, Any]:
     if not isinstance(cam, dict):
         raise SlitcliError(f"{path}: '{name}' is missing or not a mapping; a Kalibr camchain "
                            "needs cam0 and cam1")
     model = cam.get("camera_model")
     if model != "pinhole":
         raise SlitcliError(f"{path}: {name}.camera_model '{model}' is not supported; slitcli "
-                           "reads pinhole cameras only (recalibrate with pinhole-radtan)")
+                           "reads pinhole cameras only (recalibrate with pinhole-radtan or "
+                           "pinhole-equidistant)")
     dmodel = cam.get("distortion_model")
-    if dmodel not in ("radtan", "none"):
+    if dmodel not in _KALIBR_MODELS:
         raise SlitcliError(f"{path}: {name}.distortion_model '{dmodel}' is not supported; "
-                           "slitcli reads radtan (or none) only")
+                           "slitcli reads radtan, equidistant (or none)")
     intr = _matrix(path, cam.get("intrinsics"), f"{name}.intrinsics", (1, 4)).ravel()
     coeffs = np.asarray(cam.get("distortion_coeffs") or [0.0, 0.0, 0.0, 0.0], dtype=float)
     if coeffs.size != 4 or not np.all(np.isfinite(coeffs)):
-        raise SlitcliError(f"{path}: {name}.distortion_coeffs must be 4 numbers [k1, k2, r1, r2]")
+        names = "k1, k2, k3, k4" if dmodel == "equidistant" else "k1, k2, r1, r2"
+        raise SlitcliError(f"{path}: {name}.distortion_coeffs must be 4 numbers [{names}]")
     res = cam.get("resolution")
-    if not isinstance(res, list) or len(res) != 2:
-        raise SlitcliError(f"{path}: {name}.resolution must be [width, height]")
+    if res is None and image_size_px is not None:
+        size = _size(path, *image_size_px)
+    elif not isinstance(res, list) or len(res) != 2:
+        raise SlitcliError(f"{path}: {name}.resolution must be [width, height] (or give "
+                           "--image-size W,H)")
+    else:
+        size = _size(path, res[0], res[1])
     K = np.array([[intr[0], 0.0, intr[2]], [0.0, intr[1], intr[3]], [0.0, 0.0, 1.0]])
-    return {"K": K, "D": coeffs, "size": _size(path, res[0], res[1])}
+    return {"K": K, "D": coeffs, "size": size, "model": _KALIBR_MODELS[dmodel]}
 
 
-def import_kalibr(path: Path, data: Any) -> RawCalibration:
-    """A Kalibr camchain (cam0 = left, cam1 = right, ``cam1.T_cn_cnm1``)."""
-    c0 = _kalibr_camera(path, data.get("cam0"), "cam0")
-    c1 = _kalibr_camera(path, data.get("cam1"), "cam1")
-    if not isinstance(data.get("cam1"), dict) or "T_cn_cnm1" not in data["cam1"]:
-        raise SlitcliError(f"{path}: cam1.T_cn_cnm1 (4x4, cam0 to cam1) is missing")
-    Tm = _matrix(path, data["cam1"]["T_cn_cnm1"], "cam1.T_cn_cnm1", (4, 4))
+def _kalibr_pose(path: Path, c0: Any, c1: dict[str, Any]) -> np.ndarray:
+    """4x4 ``[R T; 0 1]`` taking cam0 points to cam1 (module docstring)."""
+    if "T_cn_cnm1" in c1:
+        return _matrix(path, c1["T_cn_cnm1"], "cam1.T_cn_cnm1", (4, 4))
+    for key, to_cam in (("T_cam_imu", True), ("T_imu_cam", False)):
+        if key in c0 and key in c1:
+            a = _matrix(path, c0[key], f"cam0.{key}", (4, 4))
+            b = _matrix(path, c1[key], f"cam1.{key}", (4, 4))
+            for nm, m in (("cam0", a), ("cam1", b)):
+                if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0]) or \
+                        not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-6):
+                    raise SlitcliError(f"{path}: {nm}.{key} is not a rigid transform "
+                                       "(rotation + translation, last row 0 0 0 1)")
+            return b @ _rigid_inverse(a) if to_cam else _rigid_inverse(b) @ a
+    raise SlitcliError(f"{path}: no pose of cam1: give cam1.T_cn_cnm1 (cam0 to cam1), or "
+                       "T_cam_imu / T_imu_cam in both cameras")
+
+
+def _rigid_inverse(m: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
+
+
+def import_kalibr(path: Path, data: Any,
+                  image_size_px: tuple[int, int] | None = None) -> RawCalibration:
+    """A Kalibr camchain (cam0 = left, cam1 = right; pose: module docstring)."""
+    c0 = _kalibr_camera(path, data.get("cam0"), "cam0", image_size_px)
+    c1 = _kalibr_camera(path, data.get("cam1"), "cam1", image_size_px)
+    Tm = _kalibr_pose(path, data["cam0"], data["cam1"])
     if c0["size"] != c1["size"]:
         raise SlitcliError(f"{path}: cam1.resolution {c1['size']} differs from cam0's "
                            f"{c0['size']}; slitcli needs one image size")
+    if c0["model"] != c1["model"]:
+        raise SlitcliError(f"{path}: cam0 and cam1 have different distortion models; "
+                           "slitcli needs one lens model for both cameras")
     return rectify_raw(c0["K"], c0["D"], c1["K"], c1["D"], c0["size"], Tm[:3, :3], Tm[:3, 3],
-                       source=str(path))
+                       source=str(path), model=c0["model"])
 
 
 # ---------------------------------------------------------------------- entry points
 def detect_format(path: Path, text: str) -> str:
     """``opencv``, ``kalibr`` or ``ros`` from a file's content."""
     head = text.lstrip()[:40]
-    if head.startswith("%YAML") or "!!opencv-" in text or head.startswith("<?xml"):
+    if "!!opencv-" in text or head.startswith("<?xml"):
         return "opencv"
+    # a "%YAML:1.0" header alone says nothing: Kalibr-style chains carry it too
     data = _yaml(path, text)
     if isinstance(data, dict) and "cam0" in data:
         return "kalibr"
     if isinstance(data, dict) and "camera_matrix" in data:
         return "ros"
+    if isinstance(data, dict) and ({"M1", "D1"} <= set(data) or {"R", "T"} <= set(data)):
+        return "opencv"
     raise SlitcliError(f"{path}: not a ROS camera_info, OpenCV FileStorage or Kalibr camchain "
                        "file; give one of those (or --format)")
 
 
-def import_raw(paths: list[str | Path], fmt: str = "auto") -> RawCalibration:
-    """Read calibration files (format ``auto`` detects it from the content)."""
+def import_raw(paths: list[str | Path], fmt: str = "auto", *,
+               image_size_px: tuple[int, int] | None = None) -> RawCalibration:
+    """Read calibration files (format ``auto`` detects it from the content).
+
+    ``image_size_px`` (width, height) is used where the files give no image size.
+    """
     ps = [Path(p) for p in paths]
     if not ps:
         raise SlitcliError("rig import: give at least one calibration file")
@@ -352,7 +444,7 @@ def import_raw(paths: list[str | Path], fmt: str = "auto") -> RawCalibration:
                            "format")
     kind = kinds[0]
     if kind == "opencv":
-        return import_opencv(ps)
+        return import_opencv(ps, image_size_px)
     docs = [_yaml(p, t) for p, t in zip(ps, texts, strict=True)]
     for p, d in zip(ps, docs, strict=True):
         if not isinstance(d, dict):
@@ -362,12 +454,13 @@ def import_raw(paths: list[str | Path], fmt: str = "auto") -> RawCalibration:
     if kind == "kalibr":
         if len(ps) != 1:
             raise SlitcliError(f"{ps[1]}: a Kalibr camchain is one file; give only it")
-        return import_kalibr(ps[0], docs[0])
+        return import_kalibr(ps[0], docs[0], image_size_px)
     raise SlitcliError(f"--format {kind}: unknown; use one of {', '.join(FORMATS)}")
 
 
 def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "auto",
                    base_rig: str | Path | None = None, name: str | None = None,
+                   image_size_px: tuple[int, int] | None = None,
                    overwrite: bool = False) -> Rig:
     """``slitcli rig import``: calibration files to a rig file (written atomically).
 
@@ -377,7 +470,7 @@ def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "
     from slitcli.rig import save_rig
 
     check_output_file(out_rig, inputs=[*paths, base_rig], overwrite=overwrite)
-    raw = import_raw(paths, fmt)
+    raw = import_raw(paths, fmt, image_size_px=image_size_px)
     base = load_rig(base_rig) if base_rig is not None else None
     rig = rig_with_raw(raw, base, name=name or (base.name if base else "imported"),
                        source=str(paths[0]))
@@ -393,9 +486,12 @@ def export_texts(rig: Rig, fmt: str) -> dict[str, str]:
     R1, R2, P1, P2 = raw.array("R1"), raw.array("R2"), raw.array("P1"), raw.array("P2")
     size = raw.image_size_px
     if fmt == "ros":
-        return {"left.yaml": _ros_camera("left", size, K1, D1, R1, P1),
-                "right.yaml": _ros_camera("right", size, K2, D2, R2, P2)}
+        return {"left.yaml": _ros_camera("left", size, K1, D1, R1, P1, raw.model),
+                "right.yaml": _ros_camera("right", size, K2, D2, R2, P2, raw.model)}
     if fmt == "opencv":
+        if raw.model != "pinhole":
+            raise SlitcliError(f"rig: OpenCV stereo files have no key for the {raw.model} "
+                               "lens model; export to kalibr or ros instead")
         intr = _fs_text({"image_width": int(size[0]), "image_height": int(size[1]),
                          "M1": K1, "D1": D1.reshape(1, -1), "M2": K2, "D2": D2.reshape(1, -1)})
         extr = _fs_text({"R": R, "T": T.reshape(3, 1), "R1": R1, "R2": R2, "P1": P1, "P2": P2,
@@ -404,7 +500,7 @@ def export_texts(rig: Rig, fmt: str) -> dict[str, str]:
     if fmt == "kalibr":
         cams = {}
         for i, (K, D) in enumerate(((K1, D1), (K2, D2))):
-            if D.size > 4 and np.any(D[4:] != 0):
+            if raw.model == "pinhole" and D.size > 4 and np.any(D[4:] != 0):
                 raise SlitcliError(f"rig: camera {i} has distortion beyond k1 k2 p1 p2 "
                                    f"({np.round(D[4:], 6).tolist()}); Kalibr's radtan cannot "
                                    "hold it, export to ros or opencv instead")
@@ -419,7 +515,8 @@ def export_texts(rig: Rig, fmt: str) -> dict[str, str]:
             cam.update({"camera_model": "pinhole",
                         "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]),
                                        float(K[1, 2])],
-                        "distortion_model": "radtan",
+                        "distortion_model": "radtan" if raw.model == "pinhole"
+                        else raw.model,
                         "distortion_coeffs": [float(x) for x in np.append(D, [0.0] * 4)[:4]],
                         "resolution": [int(size[0]), int(size[1])],
                         "rostopic": f"/cam{i}/image_raw", "cam_overlaps": [1 - i]})

@@ -29,7 +29,8 @@ def _freeze(a: np.ndarray) -> tuple:
 
 def rectify_raw(K1: np.ndarray, D1: np.ndarray, K2: np.ndarray, D2: np.ndarray,
                 image_size_px: tuple[int, int], R: np.ndarray, T: np.ndarray, *,
-                alpha: float = 0.0, source: str = "calibration") -> RawCalibration:
+                alpha: float = 0.0, source: str = "calibration",
+                model: str = "pinhole") -> RawCalibration:
     """Run :func:`cv2.stereoRectify` and bundle everything as a :class:`RawCalibration`.
 
     Parameters
@@ -38,8 +39,10 @@ def rectify_raw(K1: np.ndarray, D1: np.ndarray, K2: np.ndarray, D2: np.ndarray,
     D1, D2 : (N,) OpenCV distortion (k1, k2, p1, p2[, k3[, k4, k5, k6]]).
     image_size_px : (width, height) of the raw images.
     R, T : (3, 3), (3,) pose of the right camera, ``X_right = R X_left + T`` (metres).
-    alpha : free scaling of :func:`cv2.stereoRectify` (0: only valid pixels).
+    alpha : free scaling of :func:`cv2.stereoRectify` (0: only valid pixels); for the
+        equidistant model the ``balance`` of :func:`cv2.fisheye.stereoRectify`.
     source : what to name in error messages.
+    model : ``pinhole`` or ``equidistant`` (D1, D2 are then k1 k2 k3 k4).
 
     Raises
     ------
@@ -60,12 +63,39 @@ def rectify_raw(K1: np.ndarray, D1: np.ndarray, K2: np.ndarray, D2: np.ndarray,
         raise SlitcliError(f"{source}: the right camera is to the left of the left camera "
                            f"(T[0] = {T[0]:+.4f} m); swap the left and right inputs")
     size = (int(image_size_px[0]), int(image_size_px[1]))
-    R1, R2, P1, P2, _q, _r1, _r2 = cv2.stereoRectify(
-        K1, D1, K2, D2, size, R, T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha,
-        newImageSize=size)
+    if model == "equidistant":
+        if D1.size != 4 or D2.size != 4:
+            raise SlitcliError(f"{source}: the equidistant model has 4 coefficients (k1 k2 k3 "
+                               f"k4), found {D1.size} and {D2.size}; fix the file")
+        R1, R2, P1, P2, _q = cv2.fisheye.stereoRectify(
+            K1, D1.reshape(4, 1), K2, D2.reshape(4, 1), size, R, T.reshape(3, 1),
+            cv2.CALIB_ZERO_DISPARITY, newImageSize=size, balance=alpha, fov_scale=1.0)
+    elif model == "pinhole":
+        R1, R2, P1, P2, _q, _r1, _r2 = cv2.stereoRectify(
+            K1, D1, K2, D2, size, R, T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY,
+            alpha=alpha, newImageSize=size)
+    else:
+        raise SlitcliError(f"{source}: lens model '{model}' is not supported; slitcli reads "
+                           "pinhole and equidistant")
     return RawCalibration(image_size_px=size, K1=_freeze(K1), D1=_freeze(D1), K2=_freeze(K2),
                           D2=_freeze(D2), R=_freeze(R), T=_freeze(T), R1=_freeze(R1),
-                          R2=_freeze(R2), P1=_freeze(P1), P2=_freeze(P2))
+                          R2=_freeze(R2), P1=_freeze(P1), P2=_freeze(P2), model=model)
+
+
+def undistort_rectify_map(raw: RawCalibration, camera: str, size_px: tuple[int, int],
+                          m1type: int = cv2.CV_32FC1) -> tuple[np.ndarray, np.ndarray]:
+    """Raw -> rectified remap tables of one camera (``left`` or ``right``), either model.
+
+    :func:`cv2.initUndistortRectifyMap` for ``pinhole``,
+    :func:`cv2.fisheye.initUndistortRectifyMap` for ``equidistant``.
+    """
+    k, d, r, p = ("K1", "D1", "R1", "P1") if camera == "left" else ("K2", "D2", "R2", "P2")
+    size = (int(size_px[0]), int(size_px[1]))
+    if raw.model == "equidistant":
+        return cv2.fisheye.initUndistortRectifyMap(raw.array(k), raw.array(d).reshape(4, 1),
+                                                   raw.array(r), raw.array(p), size, m1type)
+    return cv2.initUndistortRectifyMap(raw.array(k), raw.array(d), raw.array(r), raw.array(p),
+                                       size, m1type)
 
 
 def rig_with_raw(raw: RawCalibration, base: Rig | None = None, *, name: str | None = None,
@@ -117,8 +147,9 @@ class RectificationMaps:
     """Remap tables raw -> rectified of one rig's two cameras (read-only).
 
     ``left_map1, left_map2`` (and the right ones) are :func:`cv2.initUndistortRectifyMap`
-    fixed-point tables (CV_16SC2 + CV_16UC1: positions to 1/32 px, what
-    :func:`cv2.remap` interpolates with anyway), shape (H, W) of the rectified image
+    (:func:`cv2.fisheye.initUndistortRectifyMap` for equidistant lenses) fixed-point
+    tables (CV_16SC2 + CV_16UC1: positions to 1/32 px, what :func:`cv2.remap`
+    interpolates with anyway), shape (H, W) of the rectified image
     ``rect_size_px``; ``raw_size_px`` is the size of the raw images they read.
     Built once per rig (:meth:`for_rig`) and passed along with it.
     """
@@ -145,9 +176,9 @@ class RectificationMaps:
         raw = rig.raw
         size = (int(rig.image_size_px[0]), int(rig.image_size_px[1]))
         maps = []
-        for k, d, r, p in (("K1", "D1", "R1", "P1"), ("K2", "D2", "R2", "P2")):
-            m1, m2 = cv2.initUndistortRectifyMap(raw.array(k), raw.array(d), raw.array(r),
-                                                 raw.array(p), size, cv2.CV_16SC2)
+        for camera in ("left", "right"):
+            # either lens model (pinhole, or equidistant through cv2.fisheye)
+            m1, m2 = undistort_rectify_map(raw, camera, size, cv2.CV_16SC2)
             m1.setflags(write=False)
             m2.setflags(write=False)
             maps += [m1, m2]
@@ -211,9 +242,13 @@ def rectify_points(rig: Rig, uv_raw_px: np.ndarray, *, camera: str = "left") -> 
         return uv.reshape(-1, 2).copy()
     raw = rig.raw
     k, d, r, p = (("K1", "D1", "R1", "P1") if camera == "left" else ("K2", "D2", "R2", "P2"))
-    out = cv2.undistortPoints(uv, raw.array(k), raw.array(d), R=raw.array(r), P=raw.array(p),
-                              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30,
-                                        1e-9))
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30, 1e-9)
+    if raw.model == "equidistant":
+        out = cv2.fisheye.undistortPoints(uv, raw.array(k), raw.array(d).reshape(4, 1),
+                                          R=raw.array(r), P=raw.array(p), criteria=crit)
+    else:
+        out = cv2.undistortPoints(uv, raw.array(k), raw.array(d), R=raw.array(r),
+                                  P=raw.array(p), criteria=crit)
     return out.reshape(-1, 2)
 
 

@@ -47,9 +47,12 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
 
     LEFT_DIR and RIGHT_DIR hold the raw images of the two cameras (PNG/JPEG), paired in
     name order. Views where either camera misses the board are named and skipped.
-    Prints the RMS reprojection error (px) overall and per view, and writes a rig whose
-    `raw` holds K1 D1 K2 D2 R T R1 R2 P1 P2 and whose `left` / `baseline_m` are the
-    rectified camera.
+    Prints the RMS reprojection error (px) overall and per view and the rectified
+    epipolar error (|dy| of the board corners, median / p95 / max, px), and writes a rig
+    whose `raw` holds K1 D1 K2 D2 R T R1 R2 P1 P2 and whose `left` / `baseline_m` are the
+    rectified camera, plus OUT_rectified.png (the first view rectified, side by side,
+    with horizontal lines). Mount and laser plane are placeholders (a note says so):
+    calibrate them next, or set them with `slitcli rig set`.
 
     Example: slitcli calibrate stereo calib/left calib/right --board 9x6 --square-m 0.025
     -o rig.yaml
@@ -59,10 +62,15 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
 
     params = StereoCalibrationParams(board=BoardSpec.parse(board, square_m),
                                      min_views=min_views, k3=k3, alpha=alpha)
+    from slitcli.calibrate.stereo import preview_path
+    from slitcli.cli.main import echo_notes
+
     result = run_calibrate_stereo(left_dir, right_dir, out, params, base_rig=base)
     for line in result.report_lines():
         click.echo(line)
+    echo_notes(result.notes)
     click.echo(f"wrote {out}")
+    click.echo(f"wrote {preview_path(out)} (rectified first view, lines every 24 rows)")
 
 
 @calibrate_group.command("laser")
@@ -112,7 +120,10 @@ def calibrate_mount_cmd(seq: Path, rig_path: Path, out: Path | None, frames: int
 
     SEQ is a stereo sequence folder (left/, right/) looking at a flat floor. The floor
     plane is found by RANSAC on StereoSGBM points and polished by aligning the two
-    images through the plane; `mount.forward_m` is kept.
+    images through the plane; `mount.forward_m` is kept. Views that show no floor are
+    refused (exit 2, nothing written): fewer than 50 % of the stereo points on the
+    plane, a residual RMS above 1.36 x the stereo depth noise, a plane tilted over
+    75 deg or above the camera; the message names the numbers (docs/calibration.md).
 
     Example: slitcli calibrate mount --rig rig.yaml floor_seq/
     """

@@ -6,13 +6,15 @@ from pathlib import Path
 
 import click
 
+from slitcli.cli.laser import LASER_OPTION_NAMES, laser_options
 from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 from slitcli.cli.stereo import matcher_options, stereo_params
 
 
 @cli.command("detect", short_help="Per-bearing obstacle ranges of a sequence or bag.")
 @click.argument("source", metavar="SEQ|BAG", type=click.Path(path_type=Path))
-@click.option("-o", "--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+@click.option("-o", "--out", "out", required=True,
+              type=click.Path(file_okay=False, path_type=Path),
               help="Output folder for ranges.csv (and the images with --save-images).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file [default: SEQ/rig.yaml, else the paper rig; "
@@ -31,10 +33,11 @@ from slitcli.cli.stereo import matcher_options, stereo_params
 @bag_options
 @bad_frame_option
 @matcher_options
+@laser_options
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
 def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_deg: float,
                jobs: int, save_images: bool, left_topic: str, right_topic: str, max_dt: float,
-               on_bad_frame: str, overwrite: bool, **matcher: object) -> None:
+               on_bad_frame: str, overwrite: bool, **tuning: object) -> None:
     """Range obstacles per bearing bin: laser stripe (Eqs. 1-7), Eq. 10 stereo (Eqs. 8-10)
     and their fusion (Eq. 11), for a sequence folder or a ROS 1/2 bag.
 
@@ -51,8 +54,11 @@ def detect_cmd(source: Path, out: Path, rig_path: Path | None, fusion: str, bin_
     """
     from slitcli.detect import DetectParams, run_detect, summary_line
     from slitcli.io.progress import progress
+    from slitcli.laser.params import LaserParams
 
-    params = DetectParams(stereo=stereo_params(**matcher), fusion_mode=fusion, bin_deg=bin_deg)
+    laser = {k: tuning.pop(k) for k in LASER_OPTION_NAMES}
+    params = DetectParams(stereo=stereo_params(**tuning), laser=LaserParams(**laser),
+                          fusion_mode=fusion, bin_deg=bin_deg)
     with progress("detect") as on_progress:
         summary = run_detect(source, out, rig_path=rig_path, params=params, jobs=jobs,
                              save_images=save_images, overwrite=overwrite,

@@ -95,31 +95,14 @@ def _process_settings() -> Iterator[None]:
 
 def _load_config(ctx: click.Context, param: click.Parameter, value: Path | None) -> None:
     """``--config FILE``: option values from a YAML mapping become the command's defaults
-    (click's ``default_map``), so options on the command line still win."""
+    (click's ``default_map``), so options on the command line still win
+    (:func:`slitcli.cli.config.load_config`: keys by flag or parameter name, values
+    checked by the option's type, unknown keys refused naming the key)."""
     if value is None:
         return
-    from slitcli.io.yamlfile import read_yaml
+    from slitcli.cli.config import load_config
 
-    try:
-        data = read_yaml(value, kind="config file",
-                         missing_hint="give a YAML file of option values")
-    except SlitcliError as e:
-        raise click.BadParameter(str(e)) from None
-    if data is None:
-        return
-    if not isinstance(data, dict):
-        raise click.BadParameter(f"{value}: give a mapping of option names to values, e.g. "
-                                 "'bin-deg: 2'")
-    names = {p.name for p in ctx.command.params if p.name and p.name != "config"}
-    values = {}
-    for key, v in data.items():
-        name = str(key).lstrip("-").replace("-", "_")
-        if name not in names:
-            raise click.BadParameter(f"{value}: {key!r} is not an option of "
-                                     f"'{ctx.command_path}'; use one of "
-                                     f"{', '.join(sorted(n.replace('_', '-') for n in names))}")
-        values[name] = v
-    ctx.default_map = {**(ctx.default_map or {}), **values}
+    ctx.default_map = {**(ctx.default_map or {}), **load_config(value, ctx)}
 
 
 class _Command(click.Command):
