@@ -142,6 +142,8 @@ class FrameBatch:
         manifest = {**manifest, "slitcli_version": __version__}
         self.manifest = manifest
         path = self.dir / "manifest.json"
+        self.fresh = True
+        # fresh: no results of an earlier run are kept (none, or discarded)
         if path.exists():
             try:
                 old = json.loads(path.read_text())
@@ -156,6 +158,8 @@ class FrameBatch:
                         f"(changed: {changed}); pass `overwrite` to replace them or choose "
                         "another output folder", param="overwrite")
                 shutil.rmtree(self.dir)
+            else:
+                self.fresh = False
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
         except OSError as e:

@@ -55,8 +55,11 @@ class OutputLock:
         self.release()
 
 
-def lock_output(out: str | Path) -> OutputLock:
+def lock_output(out: str | Path, *, shown: str | Path | None = None) -> OutputLock:
     """Take the exclusive run lock of output folder ``out`` (created if missing).
+
+    ``shown`` is the folder named in the message when it is not ``out`` (a command that
+    works in a staging folder for ``shown``).
 
     Raises
     ------
@@ -82,7 +85,8 @@ def lock_output(out: str | Path) -> OutputLock:
             # this process holds it already (the kernel refuses a second descriptor)
             return OutputLock(path, None, time.time())
         pid = holder if holder.isdigit() else "(unknown)"
-        raise SlitcliError(f"{out}: is in use by slitcli pid {pid}; wait for it or choose "
+        raise SlitcliError(f"{out if shown is None else shown}: is in use by slitcli pid {pid}; "
+                           "wait for it or choose "
                            "another folder") from None
     handle.seek(0)
     handle.truncate()
