@@ -273,9 +273,8 @@ def _worker_start(run_pid: int, initializer: Callable[[], None] | None) -> None:
 
     A worker blocked on its task queue would outlive a run killed with SIGKILL, holding
     the caller's stdout and stderr (``slitcli detect | tee log`` would never end). On
-    Linux the kernel kills it when its parent (the pool's fork server) exits
-    (``PR_SET_PDEATHSIG``); everywhere a watchdog thread ends it within
-    ``WORKER_WATCH_S`` of the run's end.
+    Linux the kernel kills it when its parent, the run, exits (``PR_SET_PDEATHSIG``);
+    everywhere a watchdog thread ends it within ``WORKER_WATCH_S`` of the run's end.
     """
     if sys.platform.startswith("linux"):
         try:
@@ -284,7 +283,7 @@ def _worker_start(run_pid: int, initializer: Callable[[], None] | None) -> None:
         except (OSError, AttributeError):
             pass  # the watchdog still covers it
     parent = os.getppid()
-    if not _alive(run_pid) or parent == 1:
+    if parent != run_pid or not _alive(run_pid):  # the run ended before the line above
         os._exit(1)
     threading.Thread(target=_die_with, args=(run_pid, parent), daemon=True,
                      name="slitcli-watchdog").start()
@@ -310,9 +309,12 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
         for t in tasks:
             yield work(t)
         return
-    # forkserver, not fork: this process may already run threads (OpenCV, the stereo
-    # kernels' pool, numba), and a child forked while one holds a lock waits forever
-    ctx = multiprocessing.get_context("forkserver")
+    # spawn, not fork: this process may already run threads (OpenCV, the stereo kernels'
+    # pool, numba), and a child forked while one holds a lock waits forever. Not
+    # forkserver either: its server and a worker it forked while this process was killed
+    # keep each other alive (each holds the other's pipe), holding stdout and stderr;
+    # spawned workers are this process's children, which PR_SET_PDEATHSIG can tie to it
+    ctx = multiprocessing.get_context("spawn")
     start = partial(_worker_start, os.getpid(), initializer)
     with ProcessPoolExecutor(max_workers=jobs, initializer=start, mp_context=ctx) as pool:
         inflight: deque[Future] = deque()
