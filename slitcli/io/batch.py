@@ -38,7 +38,7 @@ from typing import Any
 from slitcli import __version__
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import sweep_temp, write_text_atomic
-from slitcli.io.lock import is_lock_entry, lock_output
+from slitcli.io.lock import OutputLock, is_lock_entry, lock_output
 
 WORKER_WATCH_S = 0.5
 """How often a worker process checks that the run that started it is still alive, s."""
@@ -166,6 +166,14 @@ class FrameBatch:
             raise SlitcliError(f"{self.out}: cannot create the output folder ({e.strerror}); "
                                "check the path and permissions") from None
         write_text_atomic(path, json.dumps(manifest, indent=1, sort_keys=True))
+
+    def __getstate__(self) -> dict[str, Any]:
+        # a worker process writes parts but does not hold the run's lock
+        return {k: v for k, v in self.__dict__.items() if k != "lock"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self.lock = OutputLock(self.out / ".slitcli" / "lock", None, time.time())
 
     def close(self) -> None:
         """Release the folder's run lock (also released when the process ends)."""
