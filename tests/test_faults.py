@@ -94,26 +94,26 @@ def test_two_concurrent_runs_on_one_out(tmp_path):
     """A second detect on a busy OUT (with --overwrite and other settings) exits 2 naming
     the first run's pid; the first run's table equals a run alone."""
     root = workspace(tmp_path, frames=8)
-    want = reference(root, ["detect", "seq", "-o", "OUT"])
+    want = reference(root, ["detect", "seq", "-o", "OUT", "--save-images"])
     # the second process imports slitcli first and starts its run on a line on stdin
     second = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from slitcli.cli import main; "
+        [sys.executable, "-c", "import sys; import slitcli.detect; from slitcli.cli import main; "
          "assert sys.stdin.readline() == 'go\\n'; sys.argv = ['slitcli', 'detect', 'seq', "
          "'-o', 'OUT', '--overwrite', '--fusion', 'conservative']; main()"],
         cwd=root, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
-    first = start(["detect", "seq", "-o", "OUT"], root, new_tag())
+    first = start(["detect", "seq", "-o", "OUT", "--save-images"], root, new_tag())
     lock = root / "OUT" / ".slitcli" / "lock"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and first.poll() is None:
         if lock.exists() and lock.read_text().strip() == str(first.pid):
             break
         time.sleep(0.05)
+    assert first.poll() is None, "the first run ended before the second one started"
+    # refused naming the first run's pid proves the runs overlapped
     _, second_err = second.communicate("go\n", timeout=300)
-    still_running = first.poll() is None
     _, err = first.communicate(timeout=600)
     assert first.returncode == 0, err
-    assert still_running, "the first run ended before the second one started: no overlap"
     assert second.returncode == 2, second_err
     lines = [x for x in second_err.splitlines() if x.strip()]
     assert len(lines) == 1 and f"in use by slitcli pid {first.pid}" in lines[0], lines
