@@ -36,6 +36,8 @@ def soak(command: str, kills: int, frames: int, seed: int) -> dict:
         rng = random.Random(f"{seed} {command}")
         landed, survivors = 0, 0
         for _ in range(kills):
+            if command == "render" and (root / "OUT").exists():
+                break  # finished before its kill: OUT is final
             tag = new_tag()
             proc = start(args, root, tag)
             try:
@@ -46,6 +48,9 @@ def soak(command: str, kills: int, frames: int, seed: int) -> dict:
             proc.communicate(timeout=600)
             survivors += len(wait_gone(tag, 5.0))
         tag = new_tag()
+        if command == "render" and (root / "OUT").exists():
+            # a render that finished before its kill is final (a re-run refuses an existing OUT)
+            args = [*args, "--overwrite"]
         proc = start(args, root, tag)
         _, err = proc.communicate(timeout=1200)
         survivors += len(wait_gone(tag, 5.0))

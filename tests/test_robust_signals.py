@@ -34,6 +34,12 @@ def test_signal_mid_render_cleans_up(tmp_path, sig, code, word):
                             text=True)
     try:
         _wait_for_temp_folder(proc, tmp_path)
+        # a signal during numba's first compilation is lost in llvmlite's ctypes callback
+        # (cli/main.py raises from the handler): wait until a first frame is staged
+        deadline = time.monotonic() + 120
+        while not list(tmp_path.glob(".slitcli-render-*/left/*.png")) \
+                and time.monotonic() < deadline:
+            time.sleep(0.05)
         time.sleep(0.5)
         os.kill(proc.pid, sig)
         _, err = proc.communicate(timeout=60)

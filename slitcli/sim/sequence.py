@@ -24,13 +24,14 @@ the same OUT meanwhile is refused.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import math
 import os
 import shutil
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -153,6 +154,18 @@ def write_truth_npz(path: Path, truth: FrameTruth) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
+@contextlib.contextmanager
+def _named_at(stage: Path, out: Path) -> Iterator[None]:
+    """Report an OSError on a staged path (disk full...) at the output path the user gave."""
+    try:
+        yield
+    except OSError as e:
+        name = e.filename
+        if isinstance(name, str) and name.startswith(str(stage)):
+            raise OSError(e.errno, e.strerror, str(out) + name[len(str(stage)):]) from None
+        raise
+
+
 def staging_folder(out: str | Path) -> Path:
     """Where :func:`render_sequence` builds ``out``: a hidden sibling named by a digest
     of ``out``'s absolute path (short whatever the name). It survives an interruption,
@@ -260,7 +273,7 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
     lock = lock_output(stage, shown=out)  # one render into OUT at a time
     batch = FrameBatch(stage, "render", manifest, overwrite=True, shared=True,
                        subfolders=(*_IMAGE_DIRS, "gt"))
-    with lock, batch:
+    with lock, batch, _named_at(stage, Path(out)):
         if batch.fresh:  # another scene, rig or frame count: none of the staged frames
             for entry in stage.iterdir():
                 if entry.name != ".slitcli":
