@@ -40,10 +40,10 @@ import pandas as pd
 import yaml
 
 from slitcli.errors import SlitcliError
+from slitcli.io import atomic
 from slitcli.io.atomic import (
     atomic_directory,
     check_output_folder,
-    write_bytes_atomic,
     write_png_atomic,
     write_text_atomic,
 )
@@ -151,7 +151,7 @@ def write_truth_npz(path: Path, truth: FrameTruth) -> None:
             member = io.BytesIO()
             np.lib.format.write_array(member, np.asanyarray(arr), allow_pickle=False)
             zf.writestr(info, member.getvalue())
-    write_bytes_atomic(path, buf.getvalue())
+    atomic.write_bytes_atomic(path, buf.getvalue())
 
 
 @contextlib.contextmanager
