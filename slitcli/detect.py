@@ -28,7 +28,13 @@ from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.fusion import FusedRanges, FusionParams, fuse
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
-from slitcli.io.batch import FrameBatch, run_pool, single_thread_worker
+from slitcli.io.batch import (
+    FrameBatch,
+    check_jobs,
+    frame_identity,
+    run_pool,
+    single_thread_worker,
+)
 from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
@@ -263,7 +269,6 @@ class Detector:
 @dataclass(frozen=True)
 class _Task:
     info: FrameInfo
-    digest: str
     left_bgr: np.ndarray
     right_bgr: np.ndarray
 
@@ -289,7 +294,6 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
-    write_text_atomic(batch.part_path(i, "input"), task.digest)
     # the rows part goes last: its presence marks the frame as finished
     write_text_atomic(batch.part_path(i), csv_rows(res.table(i, task.info.time_s)))
     return i
@@ -320,8 +324,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     """
     t0 = time.perf_counter()
     params = DetectParams() if params is None else params
-    if jobs < 1:
-        raise SlitcliError(f"`jobs` {jobs} must be at least 1", param="jobs")
+    check_jobs(jobs)
     src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
                       max_dt_s=max_dt_s)
     rig = src.rig(rig_path)
@@ -329,7 +332,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     n = len(src)
     manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": _jsonable(asdict(params)), "save_images": save_images}
-    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite)
+    subs = ("disparity", "distance", "mask") if save_images else ()
+    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs)
     # where the input lies, for `slitcli report`; not part of the identity, so a moved
     # input still resumes
     write_text_atomic(batch.dir / "source.json",
@@ -338,10 +342,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if save_images:
         for sub in IMAGE_FOLDERS:
             (batch.out / sub).mkdir(exist_ok=True)
-    digests = [src.frame_digest(i) for i in range(n)]
-    finished = frozenset(i for i in range(n) if batch.is_done(i, (*kinds, "input"))
-                         and not batch.is_skipped(i)
-                         and batch.part_path(i, "input").read_text() == digests[i])
+    # a finished frame is kept while its input (bytes, name, time) is unchanged
+    finished = batch.resume([frame_identity(src, i) for i in range(n)], kinds)
     done = len(finished)
     if on_progress is not None:
         on_progress(done, n)
@@ -351,7 +353,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                 batch.mark_skipped(f.index, f.name, f.reason, kinds)
                 continue
             batch.clear_skipped(f.index)
-            yield _Task(src.info[f.index], digests[f.index], f.left_bgr, f.right_bgr)
+            yield _Task(src.info[f.index], f.left_bgr, f.right_bgr)
 
     for _ in run_pool(tasks(), partial(_work, detector, batch, save_images), jobs=jobs,
                       initializer=single_thread_worker if jobs > 1 else None):

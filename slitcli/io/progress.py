@@ -64,8 +64,10 @@ class RunSummary:
     def line(self, details: str = "") -> str:
         """One line for the terminal: frames, what was found, speed, where it went."""
         extra = f", {details}" if details else ""
+        # nothing computed (every frame already done): there is no speed to report
+        speed = f"{self.frames_per_s:.1f} frames/s" if self.computed else "nothing to compute"
         return (f"{self.command}: {self.frames} frames ({self.resumed} already done){extra}, "
-                f"{self.frames_per_s:.1f} frames/s -> "
+                f"{speed} -> "
                 f"{', '.join(str(p) for p in self.outputs)}")
 
 

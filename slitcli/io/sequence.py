@@ -65,6 +65,8 @@ class StereoSequence:
                                    "holding images with the same file names")
         lefts = _images(left_dir)
         rights = _images(right_dir)
+        for found in (lefts, rights):
+            _refuse_same_stem(found)
         if not lefts:
             raise SlitcliError(f"{left_dir}: no images (.png, .jpg) found; the sequence is empty")
         right_by_stem = {p.stem: p for p in rights}
@@ -142,6 +144,19 @@ def _images(folder: Path) -> list[Path]:
     return sorted((p for p in folder.iterdir()
                    if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
                    p.name.startswith(".")), key=lambda p: natural_key(p.name))
+
+
+def _refuse_same_stem(images: list[Path]) -> None:
+    """Two images of one name (``000001.jpg`` beside ``000001.png``) would be two frames
+    paired with one image of the other side, and their outputs (named by the stem) would
+    overwrite each other: refuse, naming both."""
+    seen: dict[str, Path] = {}
+    for p in images:
+        if p.stem in seen:
+            raise SlitcliError(f"{seen[p.stem]} and {p.name}: two images of frame "
+                               f"'{p.stem}'; keep one of them (move the other out of "
+                               f"{p.parent.name}/)")
+        seen[p.stem] = p
 
 
 def _read_times(path: Path, n: int) -> np.ndarray:

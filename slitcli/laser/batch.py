@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
+import os
 import shutil
 import time
-from contextlib import nullcontext
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from types import MappingProxyType
 
@@ -13,20 +14,20 @@ import numpy as np
 import pandas as pd
 
 from slitcli.errors import SlitcliError
-from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_png_atomic
+from slitcli.io.atomic import atomic_directory, write_png_atomic, write_text_atomic
+from slitcli.io.batch import FrameBatch, frame_identity
 from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
     DEFAULT_RIGHT_TOPIC,
     BadFrame,
-    FrameSource,
+    FolderFrames,
     open_frames,
 )
 from slitcli.io.progress import Progress, RunSummary, no_laser_note
 from slitcli.laser.frame import LaserFrame, LaserGeometry, detect_laser
 from slitcli.laser.params import LaserParams
-from slitcli.ranges import FLOAT_FORMAT, LASER
-from slitcli.rig import Rig
+from slitcli.ranges import LASER, csv_rows
 
 TABLE_COLUMNS = LASER.columns
 OVERLAY_DIR = "laser_overlay"
@@ -59,76 +60,106 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     Writes ``OUT/laser.csv`` (docs/laser.md) and, with ``overlay``, one Fig. 4-style
     PNG per frame in ``OUT/laser_overlay/``. Raw pairs (a rig with a ``raw`` block) are
     rectified first. Each frame's stripe depends on its own image only
-    (:mod:`slitcli.io.frames`: the previous-frame rule). Outputs appear only once every
-    frame is done (temporary files renamed into place); on bad input nothing is left
-    behind. Progress: ``on_progress(done, total)``. A frame that cannot be read stops
-    the run (``on_bad_frame="stop"``, the error names the file) or is skipped
-    (``"skip"``: no rows; listed in ``OUT/skipped_frames.csv`` and the summary).
+    (:mod:`slitcli.io.frames`: the previous-frame rule). The run is resumable like
+    ``detect`` (:class:`slitcli.io.batch.FrameBatch` in ``OUT/.slitcli/laser/``): a re-run
+    after an interruption computes only the frames not finished, and gives the same
+    bytes; a re-run with other settings replaces the results. ``laser.csv`` and
+    ``laser_overlay/`` appear only once every frame is done. Progress:
+    ``on_progress(done, total)``. A frame that cannot be read stops the run
+    (``on_bad_frame="stop"``, the error names the file; finished frames are kept for the
+    resume) or is skipped (``"skip"``: no rows; listed in ``OUT/skipped_frames.csv`` and
+    the summary).
 
     Raises
     ------
     SlitcliError
-        Missing or unreadable sequence, images or rig; images that do not match the rig.
+        Missing or unreadable sequence, images or rig; images that do not match the rig;
+        another run in ``OUT``.
     """
     t0 = time.perf_counter()
     params = LaserParams() if params is None else params
     src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
                       max_dt_s=max_dt_s)
     rig = src.rig(rig_path)
+    if isinstance(src, FolderFrames) and on_bad_frame == "stop":
+        src.check_sizes(rig)  # before anything is written
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SlitcliError(f"{out}: exists and is not a folder; choose another output path")
-    created = not out.exists()
-    try:
-        path, bad = _run(src, rig, out, params, overlay, on_bad_frame, on_progress)
-    except BaseException:
-        if created and out.is_dir() and not any(out.iterdir()):
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    rect = replace(rig, raw=None)
+    geometry = LaserGeometry.from_rig(rect, params)  # checks the parameters
+    manifest = {"command": "laser", "format": 1, "input": src.manifest(), "rig": rig.to_dict(),
+                "params": _jsonable(asdict(params)), "overlay": overlay}
+    # laser writes only its own named outputs, so OUT may hold others; a re-run with
+    # other settings replaces its results (as it always did)
+    batch = FrameBatch(out, "laser", manifest, overwrite=True, shared=True)
+    n = len(src)
+    staged = batch.dir / OVERLAY_DIR
+    if overlay:
+        staged.mkdir(exist_ok=True)
+    done = batch.resume([frame_identity(src, i) for i in range(n)], ("laser",))
+    if overlay:
+        done = frozenset(i for i in done if (staged / f"{src.info[i].name}.png").exists())
+    if on_progress is not None:
+        on_progress(len(done), n)
+    k = len(done)
+    for frame in src.frames(rig, rectify=True, skip=done, on_bad=on_bad_frame):
+        if isinstance(frame, BadFrame):
+            batch.mark_skipped(frame.index, frame.name, frame.reason, ("laser",))
+            continue
+        batch.clear_skipped(frame.index)
+        stripe = detect_laser(frame.left_bgr, rect, params, geometry=geometry)
+        if overlay:
+            from slitcli.laser.overlay import draw_overlay
+
+            img = draw_overlay(frame.left_bgr, stripe, max_jump_px=params.max_jump_px,
+                               title=f"frame {frame.index} ({frame.name})")
+            write_png_atomic(staged / f"{frame.name}.png", img)
+        # the rows part goes last: its presence marks the frame as finished
+        write_text_atomic(batch.part_path(frame.index, "laser"),
+                          csv_rows(laser_table(frame.index, stripe)))
+        k += 1
+        if on_progress is not None:
+            on_progress(k, n)
+    if overlay:
+        _publish_overlays(out / OVERLAY_DIR, staged,
+                          [src.info[i].name for i in range(n) if not batch.is_skipped(i)])
+    path = out / LASER.file
+    batch.assemble(n, "laser", path, LASER.header)
+    bad = batch.write_skipped(n, out / SKIPPED_FILE)
     table = pd.read_csv(path, usecols=["frame"])
     outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
-    read = len(src) - len(bad)
+    read = n - bad
     notes = src.notes() + no_laser_note(read - table["frame"].nunique(), read)
-    skipped_csv = out / SKIPPED_FILE
     if bad:
-        write_csv_atomic(skipped_csv, pd.DataFrame(
-            [(b.index, b.name, b.reason) for b in bad], columns=["frame", "name", "reason"]))
-        outputs += (skipped_csv,)
-        notes += (f"{len(bad)} frame(s) could not be read and were skipped (no rows): "
-                  f"{skipped_csv}",)
-    else:
-        skipped_csv.unlink(missing_ok=True)
-    return RunSummary("laser", len(src), 0, time.perf_counter() - t0, outputs,
+        outputs += (out / SKIPPED_FILE,)
+        notes += (f"{bad} frame(s) could not be read and were skipped (no rows): "
+                  f"{out / SKIPPED_FILE}",)
+    return RunSummary("laser", n, len(done), time.perf_counter() - t0, outputs,
                       MappingProxyType({"stripe_columns": len(table),
-                                        "skipped_frames": len(bad)}), notes)
+                                        "skipped_frames": bad}), notes)
 
 
-def _run(src: FrameSource, rig: Rig, out: Path, params: LaserParams, overlay: bool,
-         on_bad_frame: str, on_progress: Progress | None) -> tuple[Path, list[BadFrame]]:
-    rect = replace(rig, raw=None)
-    geometry = LaserGeometry.from_rig(rect, params)
-    tables: list[pd.DataFrame] = []
-    bad: list[BadFrame] = []
-    n = len(src)
-    if on_progress is not None:
-        on_progress(0, n)
-    with atomic_directory(out / OVERLAY_DIR, overwrite=True) if overlay else \
-            nullcontext() as tmp_overlay:
-        for k, frame in enumerate(src.frames(rig, rectify=True, on_bad=on_bad_frame)):
-            if isinstance(frame, BadFrame):
-                bad.append(frame)
-                continue
-            stripe = detect_laser(frame.left_bgr, rect, params, geometry=geometry)
-            tables.append(laser_table(frame.index, stripe))
-            if tmp_overlay is not None:
-                from slitcli.laser.overlay import draw_overlay
+def _publish_overlays(target: Path, staged: Path, names: list[str]) -> None:
+    """Make ``target`` hold exactly the staged overlays of ``names``, in one rename.
 
-                img = draw_overlay(frame.left_bgr, stripe, max_jump_px=params.max_jump_px,
-                                   title=f"frame {frame.index} ({frame.name})")
-                write_png_atomic(tmp_overlay / f"{frame.name}.png", img)
-            if on_progress is not None:
-                on_progress(k + 1, n)
-        table = pd.concat(tables, ignore_index=True) if tables else \
-            pd.DataFrame(columns=list(LASER.columns))
-        write_csv_atomic(out / LASER.file, table, float_format=FLOAT_FORMAT)
-    return out / LASER.file, bad
+    The staged files stay (hard links share their bytes, so this costs no space), so a
+    finished run re-run with the same settings computes nothing.
+    """
+    with atomic_directory(target, overwrite=True) as tmp:
+        for name in names:
+            src, dst = staged / f"{name}.png", tmp / f"{name}.png"
+            try:
+                os.link(src, dst)
+            except OSError:  # a file system without hard links
+                shutil.copyfile(src, dst)
+
+
+def _jsonable(d: object) -> object:
+    if isinstance(d, dict):
+        return {k: _jsonable(v) for k, v in d.items()}
+    if isinstance(d, list | tuple):
+        return [_jsonable(v) for v in d]
+    if isinstance(d, float) and not math.isfinite(d):
+        return str(d)
+    return d

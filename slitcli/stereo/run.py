@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from slitcli.io.atomic import write_bytes_atomic
-from slitcli.io.batch import FrameBatch
+from slitcli.io.batch import FrameBatch, frame_identity
 from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
@@ -175,20 +175,14 @@ def run_stereo(seq_dir: str | Path, out: str | Path, *, rig_path: str | Path | N
         "rig": rig.to_dict(),
         "input": src.manifest(),
     }
-    batch = FrameBatch(out, "stereo", manifest, overwrite=overwrite)
+    batch = FrameBatch(out, "stereo", manifest, overwrite=overwrite, subfolders=OUTPUT_FOLDERS)
     for sub in OUTPUT_FOLDERS:
         (out / sub).mkdir(parents=True, exist_ok=True)
     n = len(src)
-    # a finished frame is kept while its input bytes are unchanged
-    digests = [src.frame_digest(i) for i in range(len(src))]
-    for i, d in enumerate(digests):
-        part = batch.part_path(i, "input")
-        if not part.exists() or part.read_text() != d:
-            batch.part_path(i, "stereo").unlink(missing_ok=True)
-            write_bytes_atomic(part, d.encode())
-    done = frozenset(i.index for i in src.info if
-                     batch.is_done(i.index, ("stereo",)) and not batch.is_skipped(i.index)
-                     and all((out / sub / f"{i.name}.png").exists() for sub in OUTPUT_FOLDERS))
+    # a finished frame is kept while its input (bytes, name, time) is unchanged
+    kept = batch.resume([frame_identity(src, i) for i in range(n)], ("stereo",))
+    done = frozenset(i for i in kept if all((out / sub / f"{src.info[i].name}.png").exists()
+                                            for sub in OUTPUT_FOLDERS))
     skipped = len(done)
     if on_progress is not None:
         on_progress(skipped, n)
