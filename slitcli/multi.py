@@ -91,8 +91,9 @@ def read_inputs_file(path: str | Path) -> list[Path]:
     try:
         lines = p.read_text().splitlines()
     except (OSError, UnicodeDecodeError) as e:
-        raise SlitcliError(f"{p}: cannot read the list of inputs ({e}); give a text file "
-                           "with one sequence folder or bag per line", param="inputs") from None
+        raise SlitcliError(f"{p}: cannot read this list of inputs (`inputs`: {e}); give a "
+                           "text file with one sequence folder or bag per line",
+                           param="inputs") from None
     out = []
     for line in lines:
         s = line.split("#", 1)[0].strip()
@@ -100,7 +101,8 @@ def read_inputs_file(path: str | Path) -> list[Path]:
             q = Path(s).expanduser()
             out.append(q if q.is_absolute() else p.parent / q)
     if not out:
-        raise SlitcliError(f"{p}: lists no inputs; give one sequence folder or bag per line",
+        raise SlitcliError(f"{p}: lists no inputs (`inputs`); give one sequence folder or bag "
+                           "per line",
                            param="inputs")
     return out
 
