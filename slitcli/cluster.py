@@ -71,7 +71,7 @@ def _distributed() -> Any:
 
 
 @contextmanager
-def dask_client(spec: ClusterSpec, *, timeout_s: float = 30.0) -> Iterator[Any]:
+def dask_client(spec: ClusterSpec, *, timeout_s: float = 10.0) -> Iterator[Any]:
     """A Dask client for ``spec``, closed on leaving (a LocalCluster's workers with it,
     also on errors and Ctrl-C).
 
