@@ -77,14 +77,19 @@ def dask_client(spec: ClusterSpec, *, timeout_s: float = 10.0) -> Iterator[Any]:
 
     A LocalCluster runs one worker process per core asked for, one thread each
     (``processes=True, threads_per_worker=1``): detection holds the GIL in parts, and
-    the processes are the parallelism. Its workers exit with this process, even when it
-    is killed (each watches its parent).
+    the processes are the parallelism; Dask's profiler is off in them. Its workers exit
+    with this process, even when it is killed (each watches its parent).
     """
     distributed = _distributed()
     if spec.local_workers is not None:
-        cluster = distributed.LocalCluster(
-            n_workers=spec.local_workers, threads_per_worker=1, processes=True,
-            dashboard_address=None, silence_logs=logging.ERROR)
+        import dask
+
+        # Dask's statistical profiler samples the worker thread's stack every 10 ms
+        # while holding the GIL: it made a worker 2.6x slower per frame (docs/cluster.md)
+        with dask.config.set({"distributed.worker.profile.enabled": False}):
+            cluster = distributed.LocalCluster(
+                n_workers=spec.local_workers, threads_per_worker=1, processes=True,
+                dashboard_address=None, silence_logs=logging.ERROR)
         try:
             client = distributed.Client(cluster, timeout=f"{timeout_s}s")
             try:
