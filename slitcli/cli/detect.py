@@ -67,7 +67,7 @@ def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
       slitcli detect run.bag --rig rig.yaml -o out/bag --left-topic /cam/left/image_raw \\
           --right-topic /cam/right/image_raw
       slitcli detect runs/a runs/b day1.bag -o out/all --cluster local:2
-      slitcli detect --inputs runs.txt -o /shared/out --cluster tcp://head:8786 \
+      slitcli detect --inputs runs.txt -o /shared/out --cluster tcp://head:8786 \\
           --chunk-frames 200
     """
     from slitcli.detect import DetectParams, run_detect, summary_line
