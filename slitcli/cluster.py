@@ -112,12 +112,18 @@ def dask_client(spec: ClusterSpec, *, timeout_s: float = 10.0) -> Iterator[Any]:
 
 
 def _chunk_task(source: Path, target: Path, kwargs: dict[str, Any], chunk: Chunk
-                ) -> ChunkResult:
-    """One chunk on a worker: one OpenCV/numba thread (the workers are the parallelism)."""
+                ) -> ChunkResult | tuple[str, str | tuple[str, ...] | None]:
+    """One chunk on a worker: one OpenCV/numba thread (the workers are the parallelism).
+
+    A :class:`SlitcliError` comes back as its message and parameter names (pickling an
+    exception keeps only its message)."""
     from slitcli.io.batch import single_thread_worker
 
     single_thread_worker()
-    return detect_chunk(source, target, {**kwargs, "jobs": 1}, chunk)
+    try:
+        return detect_chunk(source, target, {**kwargs, "jobs": 1}, chunk)
+    except SlitcliError as e:
+        return str(e), e.param
 
 
 def dask_runner(client: Any) -> Any:
@@ -141,8 +147,10 @@ def dask_runner(client: Any) -> Any:
                 for f in distributed.as_completed(list(futures)):
                     if f.status == "error":
                         yield futures[f], f.exception()
+                    elif isinstance(r := f.result(), ChunkResult):
+                        yield r
                     else:
-                        yield f.result()
+                        yield futures[f], SlitcliError(r[0], param=r[1])
             finally:
                 # a client that stops early (error, Ctrl-C) takes its chunks back
                 client.cancel(list(futures))

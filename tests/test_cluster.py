@@ -138,3 +138,26 @@ def test_cluster_options_are_checked(tmp_path, monkeypatch):
                                    "--cluster", "local:2"])
     assert res.exit_code == 2 and "pip install 'slitcli[cluster]'" in res.stderr
     assert not (tmp_path / "b").exists()
+
+
+def test_an_unreadable_input_fails_alone_on_the_cluster(four, tmp_path):
+    seqs, ref = four
+    bad = tmp_path / "bad"
+    shutil.copytree(seqs[1], bad)
+    # the frame is broken after the client opened the input: the worker finds it
+    def break_frame(p):
+        (bad / "left" / "0001.png").write_bytes(b"not a png")
+        return p
+
+    with dask_client(parse_cluster("local:2")) as client:
+        make = dask_runner(client)
+
+        def runner(srcs, targets, kwargs):
+            run = make(srcs, targets, kwargs)
+            return lambda chunks: run(break_frame(chunks))
+
+        s = run_detect_many([seqs[0], bad], tmp_path / "out", make_runner=runner)
+    assert [p.name for p, _ in s.failed] == ["bad"]
+    assert "0001.png" in s.failed[0][1]
+    assert (tmp_path / "out" / seqs[0].name / "ranges.csv").read_bytes() == \
+        (ref / seqs[0].name / "ranges.csv").read_bytes()
