@@ -190,6 +190,36 @@ def _write_index(path: Path, rows: list[tuple[object, ...]]) -> None:
                      float_format="%.3f")
 
 
+def _prepare(srcs: list[Path], targets: list[Path], overwrite: bool, kwargs: dict[str, Any]
+             ) -> tuple[list[int], dict[int, str]]:
+    """Open every input and set its batch up, before any chunk runs: bad inputs fail
+    fast, and the workers find the batches made (they never overwrite). Returns the
+    frame counts and the errors by input (one input: its error is raised)."""
+    from slitcli.detect import run_detect
+    from slitcli.io.frames import (
+        DEFAULT_LEFT_TOPIC,
+        DEFAULT_MAX_DT_S,
+        DEFAULT_RIGHT_TOPIC,
+        open_frames,
+    )
+
+    open_kw = {"left_topic": kwargs.get("left_topic", DEFAULT_LEFT_TOPIC),
+               "right_topic": kwargs.get("right_topic", DEFAULT_RIGHT_TOPIC),
+               "max_dt_s": kwargs.get("max_dt_s", DEFAULT_MAX_DT_S)}
+    n_frames: list[int] = []
+    errors: dict[int, str] = {}
+    for i, (s, t) in enumerate(zip(srcs, targets, strict=True)):
+        try:
+            n_frames.append(len(open_frames(s, **open_kw)))
+            run_detect(s, t, frames=range(0), overwrite=overwrite, **kwargs)
+        except SlitcliError as e:
+            if len(srcs) == 1:
+                raise
+            n_frames += [0] * (i + 1 - len(n_frames))
+            errors[i] = str(e)
+    return n_frames, errors
+
+
 def run_detect_many(sources: Sequence[str | Path], out: str | Path, *,
                     chunk_frames: int | None = None,
                     make_runner: Callable[[list[Path], list[Path], dict[str, Any]], Submit]
@@ -226,12 +256,6 @@ def run_detect_many(sources: Sequence[str | Path], out: str | Path, *,
         others finish.
     """
     from slitcli.detect import run_detect
-    from slitcli.io.frames import (
-        DEFAULT_LEFT_TOPIC,
-        DEFAULT_MAX_DT_S,
-        DEFAULT_RIGHT_TOPIC,
-        open_frames,
-    )
 
     t0 = time.perf_counter()
     srcs = [Path(s) for s in sources]
@@ -248,22 +272,7 @@ def run_detect_many(sources: Sequence[str | Path], out: str | Path, *,
     if not single:
         _check_out(out, srcs, names, overwrite)
     targets = [out] if single else [out / n for n in names]
-    open_kw = {"left_topic": kwargs.get("left_topic", DEFAULT_LEFT_TOPIC),
-               "right_topic": kwargs.get("right_topic", DEFAULT_RIGHT_TOPIC),
-               "max_dt_s": kwargs.get("max_dt_s", DEFAULT_MAX_DT_S)}
-    # every input is opened and its batch set up here, before any chunk runs: bad
-    # inputs fail fast, and the workers find the batches made (they never overwrite)
-    n_frames: list[int] = []
-    errors: dict[int, str] = {}
-    for i, (s, t) in enumerate(zip(srcs, targets, strict=True)):
-        try:
-            n_frames.append(len(open_frames(s, **open_kw)))
-            run_detect(s, t, frames=range(0), overwrite=overwrite, **kwargs)
-        except SlitcliError as e:
-            if single:
-                raise
-            n_frames += [0] * (i + 1 - len(n_frames))
-            errors[i] = str(e)
+    n_frames, errors = _prepare(srcs, targets, overwrite, kwargs)
     chunks = [c for c in plan_chunks(n_frames, chunk_frames) if c.input not in errors]
     total = sum(n for i, n in enumerate(n_frames) if i not in errors)
     left = {i: 0 for i in range(len(srcs)) if i not in errors}
