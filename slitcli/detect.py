@@ -303,7 +303,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                params: DetectParams | None = None, jobs: int = 1, save_images: bool = False,
                overwrite: bool = False, left_topic: str = DEFAULT_LEFT_TOPIC,
                right_topic: str = DEFAULT_RIGHT_TOPIC, max_dt_s: float = DEFAULT_MAX_DT_S,
-               on_bad_frame: str = "stop", on_progress: Progress | None = None) -> RunSummary:
+               on_bad_frame: str = "stop", on_progress: Progress | None = None,
+               frames: range | None = None, lock: bool = True) -> RunSummary:
     """Detect obstacles in every frame of a sequence folder or ROS bag.
 
     Writes ``OUT/ranges.csv`` (docs/detect.md) and with ``save_images`` also
@@ -316,11 +317,19 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     rows, listed in ``OUT/skipped_frames.csv`` and in the summary; a re-run tries it
     again).
 
+    ``lock=False`` leaves OUT's run lock and temporaries to a caller that holds the lock
+    (the client of a cluster run, :mod:`slitcli.multi`).
+
+    ``frames`` (a ``range`` of frame numbers, step 1) computes only those frames' parts
+    and writes no table: one chunk of a run split over many workers
+    (:mod:`slitcli.cluster`); a later call without ``frames`` finds them finished and
+    assembles the table, byte-identical to a run in one piece.
+
     Returns
     -------
     RunSummary
         ``counts``: ``laser_bins`` and ``stereo_bins`` (bins whose fused range came from
-        each sensor).
+        each sensor). For a chunk: ``frames`` and ``resumed`` of the chunk, no outputs.
     """
     t0 = time.perf_counter()
     params = DetectParams() if params is None else params
@@ -330,10 +339,15 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     rig = src.rig(rig_path)
     detector = Detector(rig, params)  # checks every parameter before anything is written
     n = len(src)
+    todo = range(n) if frames is None else frames
+    if todo.step != 1 or not 0 <= todo.start <= todo.stop <= n:
+        raise SlitcliError(f"`frames` {todo} is not a sub-range of the input's {n} frames",
+                           param="frames")
     manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": _jsonable(asdict(params)), "save_images": save_images}
     subs = ("disparity", "distance", "mask") if save_images else ()
-    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs)
+    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
+                       hold_lock=lock)
     # where the input lies, for `slitcli report`; not part of the identity, so a moved
     # input still resumes
     write_text_atomic(batch.dir / "source.json",
@@ -343,12 +357,15 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
         for sub in IMAGE_FOLDERS:
             (batch.out / sub).mkdir(exist_ok=True)
     # a finished frame is kept while its input (bytes, name, time) is unchanged
-    finished = batch.resume([frame_identity(src, i) for i in range(n)], kinds)
+    finished = batch.resume({i: frame_identity(src, i) for i in todo}, kinds)
     done = len(finished)
     if on_progress is not None:
-        on_progress(done, n)
+        on_progress(done, len(todo))
+    # frames outside the chunk are neither decoded nor computed
+    skip = finished if frames is None else finished | (frozenset(range(n)) - set(todo))
+
     def tasks() -> Iterator[_Task]:
-        for f in src.frames(rig, skip=finished, on_bad=on_bad_frame):
+        for f in src.frames(rig, skip=skip, on_bad=on_bad_frame):
             if isinstance(f, BadFrame):
                 batch.mark_skipped(f.index, f.name, f.reason, kinds)
                 continue
@@ -359,7 +376,9 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
                       initializer=single_thread_worker if jobs > 1 else None):
         done += 1
         if on_progress is not None:
-            on_progress(done, n)
+            on_progress(done, len(todo))
+    if frames is not None:
+        return RunSummary("detect", len(todo), len(finished), time.perf_counter() - t0, ())
     if on_progress is not None:
         on_progress(n, n)
     table = batch.out / RANGES.file

@@ -40,6 +40,8 @@ PARAM_FLAGS: dict[str, str] = {
     "floor_margin_m": "--floor-margin", "robot_height_m": "--robot-height",
     "max_range_m": "--max-range", "frames": "--frames", "seed": "--seed",
     "on_bad": "--on-bad-frame", "on_bad_frame": "--on-bad-frame",
+    "cluster": "--cluster", "chunk_frames": "--chunk-frames", "inputs": "--inputs",
+    "sources": "SEQ|BAG",
 }
 
 

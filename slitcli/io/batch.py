@@ -112,6 +112,9 @@ class FrameBatch:
     shared : bool
         ``out`` may hold other files (the command writes only its own named outputs):
         a folder not written by this command is not refused.
+    hold_lock : bool
+        Take the folder's run lock and sweep stale temporaries (default). False for a
+        chunk computed on a cluster worker, whose client holds the lock for the run.
 
     Raises
     ------
@@ -122,7 +125,7 @@ class FrameBatch:
 
     def __init__(self, out: Path, name: str, manifest: dict[str, Any], *,
                  overwrite: bool = False, subfolders: tuple[str, ...] = (),
-                 shared: bool = False) -> None:
+                 shared: bool = False, hold_lock: bool = True) -> None:
         self.out = Path(out)
         self.dir = self.out / ".slitcli" / name
         self.parts = self.dir / "parts"
@@ -136,8 +139,11 @@ class FrameBatch:
                                f"written by slitcli {name}; choose another output folder or "
                                "pass `overwrite`", param="overwrite")
         # held until the process ends or close(): one run per folder at a time
-        self.lock = lock_output(self.out)
-        sweep_output(self.out, *subfolders)
+        if hold_lock:
+            self.lock = lock_output(self.out)
+            sweep_output(self.out, *subfolders)
+        else:  # a chunk of a run whose client holds the lock (and swept the folder)
+            self.lock = OutputLock(self.out / ".slitcli" / "lock", None, time.time())
         # another slitcli version may compute other results from the same arguments
         manifest = {**manifest, "slitcli_version": __version__}
         self.manifest = manifest
@@ -185,7 +191,8 @@ class FrameBatch:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def resume(self, identities: list[str], kinds: Iterable[str]) -> frozenset[int]:
+    def resume(self, identities: list[str] | dict[int, str], kinds: Iterable[str]
+               ) -> frozenset[int]:
         """The frames finished by an earlier run whose input is unchanged.
 
         ``identities[i]`` is frame i's :func:`frame_identity`. A frame whose identity
@@ -195,7 +202,8 @@ class FrameBatch:
         """
         kinds = tuple(kinds)
         done = []
-        for i, ident in enumerate(identities):
+        pairs = identities.items() if isinstance(identities, dict) else enumerate(identities)
+        for i, ident in pairs:
             part = self.part_path(i, "input")
             try:
                 old = part.read_text()
