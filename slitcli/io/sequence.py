@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from slitcli.errors import SlitcliError
+from slitcli.io.yamlfile import brief
 from slitcli.rig import Rig, load_rig, paper_rig
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -161,21 +162,38 @@ def _refuse_same_stem(images: list[Path]) -> None:
 
 def _read_times(path: Path, n: int) -> np.ndarray:
     """Frame times from ``times.csv``; NaN for every frame when the file is absent."""
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return np.full(n, np.nan)
+    if not path.is_file():
+        raise SlitcliError(f"{path}: is not a file; times.csv must be a CSV file with columns "
+                           "frame,time_s (or absent)")
     try:
-        t = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
+        t = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, OSError):
         raise SlitcliError(f"{path}: not a CSV with columns frame,time_s; fix or delete it") \
             from None
     if list(t.columns) != ["frame", "time_s"]:
-        raise SlitcliError(f"{path}: columns are {list(t.columns)}, expected frame,time_s; "
-                           "fix the header or delete the file")
+        raise SlitcliError(f"{path}: columns are {brief(list(t.columns))}, expected "
+                           "frame,time_s; fix the header or delete the file")
+    frame_num = pd.to_numeric(t["frame"], errors="coerce").to_numpy(dtype=float)
+    time_num = pd.to_numeric(t["time_s"], errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(frame_num) | (frame_num != np.round(frame_num)) | (frame_num < 0) \
+        | (frame_num >= n)
+    if bad.any():
+        line = int(np.flatnonzero(bad)[0]) + 2
+        raise SlitcliError(f"{path}: line {line}: frame {brief(t['frame'].iloc[line - 2])} is "
+                           f"not a whole number 0..{n - 1} (one per image pair, in name "
+                           "order); fix the file")
+    bad = ~np.isfinite(time_num)
+    if bad.any():
+        line = int(np.flatnonzero(bad)[0]) + 2
+        raise SlitcliError(f"{path}: line {line}: time_s {brief(t['time_s'].iloc[line - 2])} "
+                           "is not a number of seconds; fix the file")
+    frames = frame_num.astype(np.int64)
+    dup = np.flatnonzero(np.bincount(frames, minlength=n) > 1)
+    if dup.size:
+        raise SlitcliError(f"{path}: frame {int(dup[0])} is listed more than once; give each "
+                           "frame one time")
     times = np.full(n, np.nan)
-    frames = t["frame"].to_numpy()
-    if not np.issubdtype(frames.dtype, np.integer) or frames.min(initial=0) < 0 \
-            or frames.max(initial=0) >= n:
-        raise SlitcliError(f"{path}: frame numbers must be whole numbers 0..{n - 1} (one per "
-                           "image pair, in name order); fix the file")
-    times[frames] = t["time_s"].to_numpy(dtype=float)
+    times[frames] = time_num
     return times
