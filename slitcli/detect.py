@@ -10,7 +10,6 @@ a sequence folder or a ROS bag), resumably and in parallel, and writes ``ranges.
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
@@ -32,6 +31,7 @@ from slitcli.io.batch import (
     FrameBatch,
     check_jobs,
     frame_identity,
+    manifest_value,
     run_pool,
     single_thread_worker,
 )
@@ -344,7 +344,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
         raise SlitcliError(f"`frames` {todo} is not a sub-range of the input's {n} frames",
                            param="frames")
     manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
-                "params": _jsonable(asdict(params)), "save_images": save_images}
+                "params": manifest_value(asdict(params)), "save_images": save_images}
     subs = ("disparity", "distance", "mask") if save_images else ()
     batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
                        hold_lock=lock)
@@ -411,15 +411,6 @@ def summary_line(summary: RunSummary) -> str:
     return summary.line(f"{c['laser_bins']} bins ranged by the laser, "
                         f"{c['stereo_bins']} by stereo")
 
-
-def _jsonable(d: object) -> object:
-    if isinstance(d, dict):
-        return {k: _jsonable(v) for k, v in d.items()}
-    if isinstance(d, list | tuple):
-        return [_jsonable(v) for v in d]
-    if isinstance(d, float) and not math.isfinite(d):
-        return str(d)
-    return d
 
 
 __all__ = ["COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection", "check_colour_order",

@@ -21,6 +21,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import json
+import math
 import multiprocessing
 import os
 import shutil
@@ -76,6 +77,18 @@ def check_jobs(jobs: int) -> None:
     if isinstance(jobs, bool) or not isinstance(jobs, int) or not 1 <= jobs <= max_jobs():
         raise SlitcliError(f"`jobs` {jobs!r} is out of range; give 1 to {max_jobs()} (two per "
                            "CPU of this machine)", param="jobs")
+
+
+def manifest_value(d: object) -> object:
+    """``d`` (dicts, lists, tuples, numbers, strings) as JSON-able values for a manifest:
+    tuples become lists and non-finite floats strings (JSON has no inf or NaN)."""
+    if isinstance(d, dict):
+        return {k: manifest_value(v) for k, v in d.items()}
+    if isinstance(d, list | tuple):
+        return [manifest_value(v) for v in d]
+    if isinstance(d, float) and not math.isfinite(d):
+        return str(d)
+    return d
 
 
 def sweep_output(out: Path, *subfolders: str | Path) -> list[Path]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import time
@@ -15,7 +14,7 @@ import pandas as pd
 
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import atomic_directory, write_png_atomic, write_text_atomic
-from slitcli.io.batch import FrameBatch, frame_identity
+from slitcli.io.batch import FrameBatch, frame_identity, manifest_value
 from slitcli.io.frames import (
     DEFAULT_LEFT_TOPIC,
     DEFAULT_MAX_DT_S,
@@ -89,7 +88,7 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     rect = replace(rig, raw=None)
     geometry = LaserGeometry.from_rig(rect, params)  # checks the parameters
     manifest = {"command": "laser", "format": 1, "input": src.manifest(), "rig": rig.to_dict(),
-                "params": _jsonable(asdict(params)), "overlay": overlay}
+                "params": manifest_value(asdict(params)), "overlay": overlay}
     # laser writes only its own named outputs, so OUT may hold others; a re-run with
     # other settings replaces its results (as it always did)
     batch = FrameBatch(out, "laser", manifest, overwrite=True, shared=True)
@@ -154,12 +153,3 @@ def _publish_overlays(target: Path, staged: Path, names: list[str]) -> None:
             except OSError:  # a file system without hard links
                 shutil.copyfile(src, dst)
 
-
-def _jsonable(d: object) -> object:
-    if isinstance(d, dict):
-        return {k: _jsonable(v) for k, v in d.items()}
-    if isinstance(d, list | tuple):
-        return [_jsonable(v) for v in d]
-    if isinstance(d, float) and not math.isfinite(d):
-        return str(d)
-    return d
