@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 from robust_helpers import invoke, one_error_line
 
-from slitcli.dwa import MAX_WINDOW_PAIRS, DwaParams, window_pairs, window_size_bound
+from slitcli.dwa import DwaParams, window_pairs
+from slitcli.dwa_params import MAX_WINDOW_PAIRS, window_size_bound
 from slitcli.errors import SlitcliError
 
 SIMULATE = ["simulate-dwa", "--scenario", "random"]
