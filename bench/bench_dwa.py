@@ -4,6 +4,9 @@ The window from v = 0.1 m/s has 9 speeds (0.01 m/s) x 151 turn rates (0.1 deg/s)
 1359 pairs; 240 obstacle points on three box outlines and a wall in front of the
 robot (a typical obstacle memory). Both versions must choose the identical pair; the
 ratio is the reference's median time over the array version's, measured in this run.
+The second pair of rows adds prediction: a walking person as 16 outline points
+(a 0.25 m half circle) moving at 0.8 m/s across the robot's path, compared with every
+arc at the 51 instants of the 5 s horizon.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from slitcli.dwa import DwaParams, plan_step, window_pairs
+from slitcli.prediction import MovingDiscs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import dwa_reference as ref  # the reference lives with the tests
@@ -35,6 +39,13 @@ def scene_points() -> np.ndarray:
     return pts + np.random.default_rng(0).normal(scale=0.005, size=pts.shape)
 
 
+def person() -> MovingDiscs:
+    """16 points on the near half of a 0.25 m circle at (2.2, -1.2), walking +y at 0.8 m/s."""
+    a = np.linspace(0.5 * np.pi, 1.5 * np.pi, 16)
+    pts = np.column_stack([2.2 + 0.25 * np.cos(a), -1.2 + 0.25 * np.sin(a)])
+    return MovingDiscs(pts, np.tile([0.0, 0.8], (16, 1)), np.zeros(16))
+
+
 def bench(timer) -> list[dict]:
     p = DwaParams()
     pts = scene_points()
@@ -48,9 +59,22 @@ def bench(timer) -> list[dict]:
     t_loop = timer(lambda: ref.choose(v0, w0, goal, pts_list, p), runs=21)
     ratio = t_loop["median_s"] / t_arr["median_s"]
     choice = f"v={arr.v_mps:.2f} m/s w={arr.w_dps:.1f} deg/s"
+    mv = person()
+    discs = [(*mv.centre_xy[i], *mv.velocity_xy[i], mv.radius_m[i]) for i in range(16)]
+    arr_p = plan_step(v0, w0, goal, pts, p, mv)
+    lv, lw, ls = ref.choose(v0, w0, goal, pts_list, p, discs)
+    same_p = (arr_p.v_mps, arr_p.w_rps) == (lv, lw) and abs(arr_p.score - ls) < 1e-9
+    t_arr_p = timer(lambda: plan_step(v0, w0, goal, pts, p, mv), runs=51)
+    t_loop_p = timer(lambda: ref.choose(v0, w0, goal, pts_list, p, discs), runs=5)
+    ratio_p = t_loop_p["median_s"] / t_arr_p["median_s"]
+    choice_p = f"v={arr_p.v_mps:.2f} m/s w={arr_p.w_dps:.1f} deg/s"
     return [
         {"name": "dwa step, array (numpy)", **t_arr,
          "note": f"{n_pairs} pairs x {len(pts)} points; {choice}"},
         {"name": "dwa step, python loop ref", **t_loop, "ratio": ratio,
          "note": f"array {ratio:.0f}x faster (goal >= 30x); identical choice: {same}"},
+        {"name": "dwa step + prediction, array", **t_arr_p,
+         "note": f"+ 16 moving points x 51 instants; {choice_p}"},
+        {"name": "dwa step + prediction, loop ref", **t_loop_p, "ratio": ratio_p,
+         "note": f"array {ratio_p:.0f}x faster (goal >= 30x); identical choice: {same_p}"},
     ]

@@ -81,7 +81,8 @@ def _load() -> str:
 
 
 def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
-    from slitcli.stereo.matcher import MatcherParams, _kernel_threads, compute_disparity
+    from slitcli.stereo.bands import kernel_threads
+    from slitcli.stereo.matcher import MatcherParams, compute_disparity
 
     lg, rg, _, _ = _motorcycle(size)
     tag = f"{size[0]}x{size[1]}/{num}d/9x9{label}"
@@ -89,13 +90,14 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
     sgbm = cv2.StereoSGBM_create(0, num, 9, P1=8 * 81, P2=32 * 81,
                                  mode=cv2.STEREO_SGBM_MODE_SGBM)
     nssd = MatcherParams(num_disparities=num)
+    sgm = MatcherParams(num_disparities=num, aggregation="sgm")
     plain = MatcherParams(num_disparities=num, prefilter="none", texture_min_dn=0.0,
                           uniqueness_ratio=0.0, lr_max_diff_px=-1, support_min_zncc=0.0,
                           boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
     threads = []
 
     def nssd_default() -> None:
-        threads.append(_kernel_threads())
+        threads.append(kernel_threads())
         compute_disparity(lg, rg, nssd)
 
     before = _load()
@@ -103,6 +105,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
         "bm": lambda: bm.compute(lg, rg),
         "nssd default filters": nssd_default,
         "nssd plain WTA": lambda: compute_disparity(lg, rg, plain),
+        "nssd sgm": lambda: compute_disparity(lg, rg, sgm),
         "sgbm": lambda: sgbm.compute(lg, rg),
     })
     load = f"{before} before, {_load()} after; matcher threads {min(threads)}-{max(threads)}"
@@ -111,6 +114,8 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
                                 "support (centred, one-sided, cross), depth edges, speckle; "
                                 "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
+        "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters; "
+                    "issue 23: <= sgbm at 320x240",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
     rows = [{"name": f"stereo bm defaults {tag}", **t["bm"], "ratio": 1.0, "note": load}]
@@ -226,6 +231,7 @@ def _accuracy_rows() -> list[dict]:
         "default, depth-edge test off": replace(base, boundary_ratio=0.0),
         "default, left-right off": replace(base, lr_max_diff_px=-1),
         "default, uniqueness off": replace(base, uniqueness_ratio=0.0),
+        "sgm (aggregation sgm)": replace(base, aggregation="sgm"),
     }
     rows = []
     for label, p in settings.items():
@@ -270,6 +276,168 @@ def _rendered_row() -> dict:
                     f" guessed (|err|>1 px) {(plain & valid & (err > 1)).sum() / plain.sum():.3f}"}
 
 
+# ------------------------------------------------------------------ folders of pairs
+#: Names tried, in order, for the left image, the right image and the ground truth.
+LEFT_NAMES = ("im0.png", "view1.png", "left.png")
+RIGHT_NAMES = ("im1.png", "view5.png", "right.png")
+GT_NAMES = ("disp0GT.pfm", "disp0.pfm", "disp1.png", "disp.pfm", "disp.png")
+
+
+def read_pfm(path: Path) -> np.ndarray:
+    """A PFM image (grey), rows top to bottom, float32; inf stays inf."""
+    with open(path, "rb") as fh:
+        kind = fh.readline().strip()
+        if kind != b"Pf":
+            raise ValueError(f"{path}: not a grey PFM")
+        w, h = (int(v) for v in fh.readline().split())
+        scale = float(fh.readline())
+        data = np.fromfile(fh, dtype="<f4" if scale < 0 else ">f4", count=w * h)
+    return np.flipud(data.reshape(h, w)).astype(np.float32)
+
+
+def read_gt(path: Path, png_scale: float) -> np.ndarray:
+    """Ground-truth disparity, px, NaN = unknown. 16-bit PNG: value / 256 (KITTI);
+    8-bit PNG: value / ``png_scale`` (Middlebury 2001-2006: 4 for quarter size, 3 for
+    third size); PFM: as stored (inf = unknown). 0 is unknown in PNGs."""
+    if path.suffix == ".pfm":
+        d = read_pfm(path)
+    else:
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        d = raw.astype(np.float32) / (256.0 if raw.dtype == np.uint16 else png_scale)
+        d[raw == 0] = np.nan
+    d[~np.isfinite(d)] = np.nan
+    return d
+
+
+def find_pairs(folder: Path) -> list[tuple[str, Path, Path, Path]]:
+    """(name, left, right, gt) of every pair below ``folder``: subfolders holding one
+    of LEFT_NAMES / RIGHT_NAMES / GT_NAMES each (Middlebury, or any pair saved so), and
+    KITTI folders (image_2/, image_3/, disp_occ_0/: NAME_10.png)."""
+    pairs = []
+    for d in sorted(p for p in [folder, *folder.rglob("*")] if p.is_dir()):
+        pick = [next((d / n for n in names if (d / n).exists()), None)
+                for names in (LEFT_NAMES, RIGHT_NAMES, GT_NAMES)]
+        if all(pick):
+            pairs.append((str(d.relative_to(folder)) or d.name, *pick))
+        if (d / "image_2").is_dir() and (d / "disp_occ_0").is_dir():
+            for gt in sorted((d / "disp_occ_0").glob("*_10.png")):
+                left, right = d / "image_2" / gt.name, d / "image_3" / gt.name
+                if left.exists() and right.exists():
+                    pairs.append((f"kitti/{gt.stem}", left, right, gt))
+    return pairs
+
+
+def score(disp: np.ndarray, gt: np.ndarray) -> dict:
+    """Counts for bad2: GT pixels, valid GT pixels, bad valid pixels (|err| > 2 px)."""
+    has = np.isfinite(gt)
+    valid = has & np.isfinite(disp)
+    bad = valid & (np.abs(disp - gt) > 2.0)
+    return {"gt": int(has.sum()), "valid": int(valid.sum()), "bad": int(bad.sum())}
+
+
+#: Matchers scored by :func:`score_folder`: MatcherParams keywords, or None for
+#: OpenCV's StereoSGBM (5 x 5, P1 = 8 w^2, P2 = 32 w^2, with its own uniqueness (15 %),
+#: left-right (1 px) and speckle checks, i.e. tightened as ours are).
+FOLDER_METHODS: dict[str, dict | None] = {
+    "none": {},
+    "sgm": {"aggregation": "sgm"},
+    "sgbm": None,
+}
+
+
+def run_method(kw: dict | None, left: np.ndarray, right: np.ndarray, num: int) -> np.ndarray:
+    """Disparity (px, NaN = invalid) of one method of :data:`FOLDER_METHODS`."""
+    from slitcli.stereo.matcher import MatcherParams, compute_disparity
+
+    if kw is None:
+        sgbm = cv2.StereoSGBM_create(0, num, 5, P1=8 * 25, P2=32 * 25, uniquenessRatio=15,
+                                     disp12MaxDiff=1, speckleWindowSize=100, speckleRange=2,
+                                     preFilterCap=15, mode=cv2.STEREO_SGBM_MODE_SGBM)
+        d = sgbm.compute(left, right)
+        return np.where(d >= 0, d / 16.0, np.nan).astype(np.float32)
+    return compute_disparity(left, right, MatcherParams(num_disparities=num,
+                                                        **kw)).disparity_px
+
+
+def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0) -> None:
+    """Score the local Eq. 10 matcher, SGM over Eq. 10 and StereoSGBM on every pair of
+    ``folder`` (:func:`find_pairs`) and print bad2 over all GT pixels, bad2 on valid
+    pixels, density and time per pair, then pooled over all pairs (KITTI apart)."""
+    pairs = find_pairs(folder)
+    if not pairs:
+        raise SystemExit(f"{folder}: no pairs found (see find_pairs)")
+    methods = FOLDER_METHODS
+    pooled: dict[tuple[str, str], dict] = {}
+    for name, lp, rp, gp in pairs:
+        left = cv2.imread(str(lp), cv2.IMREAD_GRAYSCALE)
+        right = cv2.imread(str(rp), cv2.IMREAD_GRAYSCALE)
+        gt = read_gt(gp, png_scale)
+        f = min(1.0, max_width / left.shape[1])
+        if f < 1.0:
+            size = (round(left.shape[1] * f), round(left.shape[0] * f))
+            left = cv2.resize(left, size, interpolation=cv2.INTER_AREA)
+            right = cv2.resize(right, size, interpolation=cv2.INTER_AREA)
+            gt = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST) * f
+        num = int(16 * np.ceil((np.nanmax(gt) + 2) / 16))
+        num = min(num, (left.shape[1] // 2) // 16 * 16)
+        group = "kitti" if name.startswith("kitti/") else "all"
+        line = [f"{name:28s} {left.shape[1]}x{left.shape[0]}/{num}d"]
+        for m in methods:
+            run_method(methods[m], left, right, num)   # warm-up: compile / load kernels
+            t0 = time.perf_counter()
+            disp = run_method(methods[m], left, right, num)
+            dt = time.perf_counter() - t0
+            sc = score(disp, gt)
+            acc = pooled.setdefault((group, m), {"gt": 0, "valid": 0, "bad": 0, "s": 0.0})
+            for k in ("gt", "valid", "bad"):
+                acc[k] += sc[k]
+            acc["s"] += dt
+            line.append(f"{m}: all {(sc['bad'] + sc['gt'] - sc['valid']) / sc['gt']:.3f} "
+                        f"valid {sc['bad'] / max(sc['valid'], 1):.3f} dens "
+                        f"{sc['valid'] / sc['gt']:.3f} {dt * 1000:.0f} ms")
+        print(" | ".join(line), flush=True)
+    for (group, m), acc in pooled.items():
+        print(f"pooled {group:5s} {m:5s}: bad2 all "
+              f"{(acc['bad'] + acc['gt'] - acc['valid']) / acc['gt']:.3f}, bad2 valid "
+              f"{acc['bad'] / max(acc['valid'], 1):.3f}, density {acc['valid'] / acc['gt']:.3f}"
+              f", time {acc['s']:.2f} s")
+
+
+def export_motorcycle(folder: Path) -> None:
+    """Write scikit-image's Middlebury motorcycle pair as folder/motorcycle/{im0,im1}.png
+    + disp0GT.pfm (for :func:`score_folder`; third-party data: keep it out of the repo)."""
+    from skimage import data
+
+    left, right, gt = data.stereo_motorcycle()
+    out = folder / "motorcycle"
+    out.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(out / "im0.png"), cv2.cvtColor(left, cv2.COLOR_RGB2BGR))
+    cv2.imwrite(str(out / "im1.png"), cv2.cvtColor(right, cv2.COLOR_RGB2BGR))
+    g = np.where(np.isfinite(gt) & (gt > 0), gt, np.inf).astype("<f4")
+    with open(out / "disp0GT.pfm", "wb") as fh:
+        fh.write(f"Pf\n{g.shape[1]} {g.shape[0]}\n-1.0\n".encode())
+        np.flipud(g).tofile(fh)
+
+
+def main() -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description="Score stereo matchers on a folder of pairs "
+                                 "with ground truth (not part of make bench).")
+    ap.add_argument("folder", type=Path, help="folder of pairs (see find_pairs)")
+    ap.add_argument("--max-width", type=int, default=800,
+                    help="pairs wider than this are scaled down (px; GT scaled too)")
+    ap.add_argument("--png-scale", type=float, default=4.0,
+                    help="8-bit PNG ground truth: disparity = value / this")
+    ap.add_argument("--export-motorcycle", action="store_true",
+                    help="first write scikit-image's motorcycle pair into FOLDER")
+    args = ap.parse_args()
+    if args.export_motorcycle:
+        export_motorcycle(args.folder)
+    score_folder(args.folder, max_width=args.max_width, png_scale=args.png_scale)
+    return 0
+
+
 def bench(timer) -> list[dict]:
     rows = _speed_rows(timer, (320, 240), 64)
     rows += _loaded_rows(timer)
@@ -278,3 +446,7 @@ def bench(timer) -> list[dict]:
     rows += _first_call_rows()
     rows += _accuracy_rows()
     return rows
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

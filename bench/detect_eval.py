@@ -212,10 +212,9 @@ def detect_table(seq_dir: Path, fusion: str) -> pd.DataFrame:
     seq = StereoSequence(seq_dir)
     rig = seq.rig()
     det = Detector(rig, DetectParams(fusion_mode=fusion))
-    rows, prev = [], None
+    rows = []
     for f in seq.frames(rig):
-        rows.append(det(f.left_bgr, f.right_bgr, previous_left_bgr=prev).table(f.index, f.time_s))
-        prev = f.left_bgr
+        rows.append(det(f.left_bgr, f.right_bgr).table(f.index, f.time_s))
     return pd.concat(rows, ignore_index=True)
 
 

@@ -1,54 +1,111 @@
 """Obstacle detection per frame and over whole sequences (paper §2, DESIGN §6-7).
 
-:class:`Detector` turns one rectified stereo pair into a per-bearing range table:
-the laser stripe (Eqs. 1-7) and the Eq. 10 stereo matcher are each reduced to the
-nearest range per bearing bin, then fused (Eq. 11). :func:`run_detect` runs it over a
-sequence folder or a ROS bag, resumably and in parallel, and writes ``ranges.csv``.
+:class:`Detector` turns one stereo pair into a per-bearing range table
+(:class:`slitcli.ranges.RangeTable`): the laser stripe (Eqs. 1-7) and the Eq. 10 stereo
+matcher are each reduced to the nearest range per bearing bin, then fused (Eq. 11).
+:func:`run_detect` runs it over any frame source (:func:`slitcli.io.frames.open_frames`:
+a sequence folder or a ROS bag), resumably and in parallel, and writes ``ranges.csv``.
 """
 
 from __future__ import annotations
 
-import math
+import json
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
+if TYPE_CHECKING:
+    import pandas as pd
+
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.fusion import FusedRanges, FusionParams, fuse
-from slitcli.io.atomic import write_png_atomic, write_text_atomic
-from slitcli.io.bags import BagPairs
-from slitcli.io.batch import FrameBatch, run_pool, single_thread_worker
-from slitcli.io.sequence import StereoSequence, read_image
-from slitcli.laser import (
+from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
+from slitcli.io.batch import (
+    FrameBatch,
+    check_jobs,
+    frame_identity,
+    manifest_value,
+    run_pool,
+    single_thread_worker,
+)
+from slitcli.io.frames import (
+    DEFAULT_LEFT_TOPIC,
+    DEFAULT_MAX_DT_S,
+    DEFAULT_RIGHT_TOPIC,
+    BadFrame,
+    FrameInfo,
+    open_frames,
+)
+from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
+from slitcli.io.progress import Progress, RunSummary, no_laser_note
+from slitcli.laser.batch import laser_table
+from slitcli.laser.frame import (
+    EdgeParams,
     LaserFrame,
     LaserGeometry,
-    LaserParams,
     detect_laser,
     laser_sight_range_m,
-    laser_table,
+    nearest_range_per_bin,
+    segment_edges,
 )
-from slitcli.laser import bearing_bin_centres_deg as laser_bins_centres
-from slitcli.laser import nearest_range_per_bin as laser_bins
-from slitcli.laser.frame import EdgeParams, segment_edges
+from slitcli.laser.params import LaserParams
+from slitcli.ranges import LASER, RANGES, BearingBins, RangeTable, csv_rows
 from slitcli.rig import Rig
-from slitcli.sim.sequence import encode_depth_png, encode_disparity_png
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
     StereoParams,
     check_stereo_params,
     process_stereo_pair,
 )
-from slitcli.stereo.rectify import rectify_pair
 
-RANGE_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
-                 "stereo_has_features", "fused_range_m", "fused_source")
-LASER_COLUMNS = ("frame", "u_px", "v_px", "strength", "x_m", "y_m", "range_m", "bearing_deg",
-                 "in_band")
-FLOAT_FORMAT = "%.6g"
+COLOUR_ORDERS = ("bgr", "rgb")
+SKIPPED_FILE = "skipped_frames.csv"
+
+
+def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
+                       params: LaserParams | None = None, *,
+                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> None:
+    """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
+
+    A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
+    chromaticity rejects every column of it: the frame silently has no laser. So when
+    the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
+    columns, the stripe is searched again with the first and last channels swapped;
+    finding at least ``min_cols`` columns there (two of the extractor's shortest
+    segments, 8 columns each), four times as many as given, means the channels are
+    swapped. A scene without any lit obstacle or floor in view costs one more
+    extraction and passes; a real blue light would have to form a thin line on the
+    laser plane's rows to be taken for the stripe.
+
+    Raises
+    ------
+    SlitcliError
+        ``param="colour_order"``, naming both counts.
+    """
+    n = int(found.found.sum())
+    if 2 * n >= min_cols:
+        return
+    swapped = detect_laser(np.ascontiguousarray(np.asarray(left_bgr)[..., ::-1]), rig, params,
+                           geometry=geometry)
+    m = int(swapped.found.sum())
+    if m >= min_cols and m >= 4 * max(n, 1):
+        raise SlitcliError(
+            f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
+            f"({m} stripe columns with red and blue swapped, {n} as given); set "
+            "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
+            param="colour_order")
+
+
+# --save-images: 16-bit data images, the obstacle mask, and colour previews with a bar
+IMAGE_FOLDERS = ("disparity", "distance", "mask", "disparity_preview", "distance_preview")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,7 +124,8 @@ class DetectParams:
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.bin_deg <= 10.0:
-            raise SlitcliError(f"--bin-deg {self.bin_deg} is out of range; give 0.05-10 degrees")
+            raise SlitcliError(f"`bin_deg` {self.bin_deg} is out of range; give 0.05-10 degrees",
+                               param="bin_deg")
         FusionParams(mode=self.fusion_mode)  # validates the mode
 
 
@@ -75,245 +133,285 @@ class DetectParams:
 class FrameDetection:
     """The result of one stereo pair.
 
-    ``bearing_deg`` (B,) are the bin centres (sensor frame, positive left); the range
-    arrays (B,) are metres with NaN for no return.
+    ``ranges`` is the frame's range table (:class:`slitcli.ranges.RangeTable`: per
+    bearing bin the laser, stereo and fused ranges, metres, NaN for no return);
+    ``laser`` and ``stereo`` hold everything each sensor found (stripe rows and
+    points; disparity, depth and obstacle images), ``fused`` the fusion's details.
     """
 
     laser: LaserFrame
     stereo: StereoFrameResult
-    bearing_deg: np.ndarray
-    laser_range_m: np.ndarray
-    stereo_range_m: np.ndarray
-    stereo_has_features: np.ndarray
     fused: FusedRanges
+    ranges: RangeTable
+
+    @property
+    def bearing_deg(self) -> np.ndarray:
+        """Bin centres (B,), degrees, positive left."""
+        return self.ranges.bearing_deg
+
+    @property
+    def laser_range_m(self) -> np.ndarray:
+        return self.ranges.laser_range_m
+
+    @property
+    def stereo_range_m(self) -> np.ndarray:
+        return self.ranges.stereo_range_m
+
+    @property
+    def stereo_has_features(self) -> np.ndarray:
+        return self.ranges.stereo_has_features
 
     def table(self, frame: int, time_s: float) -> pd.DataFrame:
-        """The range-table rows of this frame (DESIGN §12 columns)."""
-        return pd.DataFrame({
-            "frame": frame, "time_s": time_s, "bearing_deg": self.bearing_deg,
-            "laser_range_m": self.laser_range_m, "stereo_range_m": self.stereo_range_m,
-            "stereo_has_features": self.stereo_has_features.astype(np.int64),
-            "fused_range_m": self.fused.range_m, "fused_source": self.fused.source,
-        }, columns=list(RANGE_COLUMNS))
+        """The ``ranges.csv`` rows of this frame (:data:`slitcli.ranges.RANGES`)."""
+        return self.ranges.rows(frame, time_s)
 
 
 class Detector:
     """Detection for one rig and parameter set, reusable across frames (paper §2).
 
+    Parameters are checked once, here; the rig's geometry (laser search region, bins,
+    laser sight) is computed once, here.
+
+    Parameters
+    ----------
+    rig : Rig
+        The camera rig. With a ``raw`` calibration, pairs are rectified first.
+    params : DetectParams, optional
+        Default: the paper's settings.
+    colour_order : {"bgr", "rgb"}
+        Channel order of the images passed in (OpenCV reads BGR; most other readers
+        RGB).
+    check_colours : bool
+        When the laser finds almost nothing, look for the stripe with red and blue
+        swapped and raise :class:`SlitcliError` (``colour_order``) if it is there
+        (:func:`check_colour_order`).
+
     Examples
     --------
     >>> det = Detector(paper_rig())                         # doctest: +SKIP
     >>> result = det(left_bgr, right_bgr)                    # doctest: +SKIP
-    >>> result.fused.range_m                                 # nearest obstacle per bin
+    >>> result.ranges.fused_range_m                          # nearest obstacle per bin
     """
 
-    def __init__(self, rig: Rig, params: DetectParams | None = None) -> None:
+    def __init__(self, rig: Rig, params: DetectParams | None = None, *,
+                 colour_order: str = "bgr", check_colours: bool = True) -> None:
+        if colour_order not in COLOUR_ORDERS:
+            raise SlitcliError(f"`colour_order` {colour_order!r} is unknown; use 'bgr' or 'rgb'",
+                               param="colour_order")
         p = DetectParams() if params is None else params
         stereo = replace(p.stereo, obstacles=replace(p.stereo.obstacles,
                                                      bin_width_deg=p.bin_deg))
         self.params = replace(p, stereo=stereo)
         self.rig = rig
+        self.colour_order = colour_order
+        self.check_colours = check_colours
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
+        self._rectification = RectificationMaps.for_rig(rig) if rig.raw is not None else None
+        self._stereo_geometry = StereoGeometry.for_rig(self.rectified_rig, p.bin_deg)
         self.fusion = FusionParams(
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
             focal_baseline_px_m=self.rectified_rig.left.fx_px * rig.baseline_m)
+        self.bins = BearingBins.for_rig(self.rectified_rig, self.params.bin_deg)
         self._laser_geometry = LaserGeometry.from_rig(self.rectified_rig, self.params.laser)
-        self._laser_sight_m = laser_sight_range_m(
-            self.rectified_rig, laser_bins_centres(self.rectified_rig, self.params.bin_deg))
+        self._laser_sight_m = laser_sight_range_m(self.rectified_rig, self.bins.centres_deg)
 
-    def laser(self, left_rect_bgr: np.ndarray, previous: LaserFrame | None = None
-              ) -> LaserFrame:
-        """The laser stripe of a rectified left image (Eqs. 1-7)."""
-        return detect_laser(left_rect_bgr, self.rectified_rig, self.params.laser,
-                            previous=previous, geometry=self._laser_geometry)
+    def prepare(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Check a pair, put it in BGR order and rectify it (once per frame)."""
+        want = self.rig.raw.image_size_px if self.rig.raw is not None else \
+            self.rig.image_size_px
+        for name, img in (("left_bgr", left), ("right_bgr", right)):
+            a = np.asarray(img)
+            if a.ndim != 3 or a.shape[2] != 3 or a.dtype != np.uint8:
+                raise SlitcliError(f"`{name}` is {a.dtype} of shape {a.shape}; give a colour "
+                                   "image, uint8, shape (H, W, 3)", param=name)
+            if (a.shape[1], a.shape[0]) != tuple(want):
+                raise SlitcliError(f"`{name}` is {a.shape[1]}x{a.shape[0]}, the rig's images "
+                                   f"are {want[0]}x{want[1]}; give the rig of this camera (`rig`)",
+                                   param=(name, "rig"))
+        if self.colour_order == "rgb":
+            left, right = left[..., ::-1], right[..., ::-1]
+        return rectify_pair(self.rig, np.ascontiguousarray(left), np.ascontiguousarray(right),
+                            maps=self._rectification)
 
-    def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray, *,
-                 previous_left_bgr: np.ndarray | None = None) -> FrameDetection:
+    def laser(self, left_rect_bgr: np.ndarray) -> LaserFrame:
+        """The laser stripe of a rectified left image (Eqs. 1-7), checked for colour order."""
+        las = detect_laser(left_rect_bgr, self.rectified_rig, self.params.laser,
+                           geometry=self._laser_geometry)
+        if self.check_colours:
+            check_colour_order(left_rect_bgr, las, self.rectified_rig, self.params.laser,
+                               geometry=self._laser_geometry)
+        return las
+
+    def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> FrameDetection:
         """Detect obstacles in one stereo pair (raw pairs are rectified with ``rig.raw``).
 
-        ``previous_left_bgr`` feeds the laser's frame-to-frame continuity term (Eq. 4).
-        The previous stripe is re-extracted from it without a prior of its own, so a
-        frame's result depends on two images only: batches stay parallel and resumable.
+        A frame's result depends on this pair only (docs/api.md: the previous-frame
+        rule), so frames may be processed in any order, resumed or in parallel.
         """
-        left, right = rectify_pair(left_bgr, right_bgr, self.rig)
-        prev = None
-        if previous_left_bgr is not None:
-            prev_left, _ = rectify_pair(previous_left_bgr, previous_left_bgr, self.rig)
-            prev = self.laser(prev_left)
-        las = self.laser(left, prev)
-        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo)
+        left, right = self.prepare(left_bgr, right_bgr)
+        las = self.laser(left)
+        st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
+                                 geometry=self._stereo_geometry)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
-        lb = laser_bins(las, self.rectified_rig, bin_deg=self.params.bin_deg, edges=edges)
+        lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
+                                   edges=edges)
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
                      laser_sight_m=self._laser_sight_m)
-        return FrameDetection(las, st, lb.bearing_deg, lb.range_m, st.range_m,
-                              st.has_features, fused)
+        table = RangeTable(self.bins.centres_deg, lb.range_m, st.range_m, st.has_features,
+                           fused.range_m, fused.source)
+        return FrameDetection(las, st, fused, table)
 
 
 # ---------------------------------------------------------------------------- batch
 @dataclass(frozen=True)
 class _Task:
-    index: int
-    name: str
-    time_s: float
+    info: FrameInfo
     left_bgr: np.ndarray
     right_bgr: np.ndarray
-    previous_left_bgr: np.ndarray | None
-
-
-def _csv_rows(df: pd.DataFrame) -> str:
-    return df.to_csv(header=False, index=False, float_format=FLOAT_FORMAT, na_rep="",
-                     lineterminator="\n")
 
 
 def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task) -> int:
     """Detect one frame and write its parts (and images); returns the frame index."""
-    res = detector(task.left_bgr, task.right_bgr, previous_left_bgr=task.previous_left_bgr)
+    res = detector(task.left_bgr, task.right_bgr)
+    i = task.info.index
     if save_images:
-        name = f"{task.name}.png"
-        out = batch.out
-        write_png_atomic(out / "disparity" / name, encode_disparity_png(res.stereo.disparity_px))
-        write_png_atomic(out / "distance" / name, encode_depth_png(res.stereo.depth_m))
-        write_png_atomic(out / "mask" / name, (res.stereo.obstacle_mask * 255).astype(np.uint8))
-        table = laser_table(task.index, res.laser)
-        write_text_atomic(batch.part_path(task.index, "laser"), _csv_rows(table))
+        name = f"{task.info.name}.png"
+        from slitcli.report.preview import disparity_preview, distance_preview
+
+        m = detector.params.stereo.matcher
+        previews = (
+            ("disparity_preview", disparity_preview(
+                res.stereo.disparity_px,
+                max_disparity_px=m.min_disparity_px + m.num_disparities)),
+            ("distance_preview", distance_preview(
+                res.stereo.depth_m, max_range_m=detector.rig.stereo.max_range_m)))
+        for sub, img in (("disparity", encode_disparity_png(res.stereo.disparity_px)),
+                         ("distance", encode_depth_png(res.stereo.depth_m)),
+                         ("mask", encode_mask_png(res.stereo.obstacle_mask)), *previews):
+            target = batch.out / sub / name
+            write_bytes_atomic(target, png_bytes(target, img))
+        write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
     # the rows part goes last: its presence marks the frame as finished
-    write_text_atomic(batch.part_path(task.index), _csv_rows(res.table(task.index,
-                                                                        task.time_s)))
-    return task.index
-
-
-def _folder_tasks(seq: StereoSequence, rig: Rig, skip: Callable[[int], bool]
-                  ) -> Iterator[_Task]:
-    from slitcli.io.sequence import read_frame
-
-    for ref in seq.refs:
-        if skip(ref.index):
-            continue
-        fr = read_frame(ref, rig)
-        prev = None
-        if ref.index > 0:
-            prev = read_image(seq.refs[ref.index - 1].left_path)
-        yield _Task(ref.index, ref.name, ref.time_s, fr.left_bgr, fr.right_bgr, prev)
-
-
-def _bag_tasks(pairs: BagPairs, rig: Rig, skip: Callable[[int], bool]) -> Iterator[_Task]:
-    from slitcli.io.bags import bag_frames
-
-    n = len(pairs)
-    # a finished frame is still decoded when the next one needs it as the laser prior
-    undecoded = {i for i in range(n) if skip(i) and (i + 1 >= n or skip(i + 1))}
-    prev = None
-    for fr in bag_frames(pairs, skip=undecoded):
-        if isinstance(fr, int):
-            prev = None
-            continue
-        want = (rig.raw.image_size_px if rig.raw is not None else rig.image_size_px)
-        if (fr.left_bgr.shape[1], fr.left_bgr.shape[0]) != tuple(want):
-            raise SlitcliError(f"{pairs.path}: images are {fr.left_bgr.shape[1]}x"
-                               f"{fr.left_bgr.shape[0]}, the rig's are {want[0]}x{want[1]}; "
-                               "give the rig of this camera with --rig")
-        if not skip(fr.index):
-            yield _Task(fr.index, fr.name, fr.time_s, fr.left_bgr, fr.right_bgr,
-                        prev if fr.index > 0 else None)
-        prev = fr.left_bgr
-
-
-@dataclass(frozen=True)
-class DetectSummary:
-    frames: int
-    resumed: int
-    laser_bins: int
-    stereo_bins: int
-    seconds: float
-    table: Path
-
-    def line(self) -> str:
-        done = self.frames - self.resumed
-        rate = done / self.seconds if self.seconds > 0 and done else float("nan")
-        return (f"detect: {self.frames} frames ({self.resumed} already done), "
-                f"{self.laser_bins} bins ranged by the laser, {self.stereo_bins} by stereo, "
-                f"{rate:.1f} frames/s -> {self.table}")
+    write_text_atomic(batch.part_path(i), csv_rows(res.table(i, task.info.time_s)))
+    return i
 
 
 def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | None = None,
                params: DetectParams | None = None, jobs: int = 1, save_images: bool = False,
-               overwrite: bool = False, left_topic: str = "/stereo/left/image_raw",
-               right_topic: str = "/stereo/right/image_raw", max_dt_s: float = 0.01,
-               on_frame: Callable[[], None] | None = None,
-               on_total: Callable[[int], None] | None = None) -> DetectSummary:
+               overwrite: bool = False, left_topic: str = DEFAULT_LEFT_TOPIC,
+               right_topic: str = DEFAULT_RIGHT_TOPIC, max_dt_s: float = DEFAULT_MAX_DT_S,
+               on_bad_frame: str = "stop", on_progress: Progress | None = None,
+               frames: range | None = None, lock: bool = True) -> RunSummary:
     """Detect obstacles in every frame of a sequence folder or ROS bag.
 
     Writes ``OUT/ranges.csv`` (docs/detect.md) and with ``save_images`` also
     ``OUT/disparity/``, ``OUT/distance/``, ``OUT/mask/`` and ``OUT/laser.csv``. The run
     resumes where an earlier one with the same settings stopped; ``jobs`` processes
-    give the same bytes as one.
-    """
-    from slitcli.io.bags import is_bag, pair_bag
+    give the same bytes as one. Progress: ``on_progress(done, total)``.
 
+    A frame that cannot be read stops the run (``on_bad_frame="stop"``: the error names
+    the file; finished frames are kept for the resume) or is skipped (``"skip"``: no
+    rows, listed in ``OUT/skipped_frames.csv`` and in the summary; a re-run tries it
+    again).
+
+    ``lock=False`` leaves OUT's run lock and temporaries to a caller that holds the lock
+    (the client of a cluster run, :mod:`slitcli.multi`).
+
+    ``frames`` (a ``range`` of frame numbers, step 1) computes only those frames' parts
+    and writes no table: one chunk of a run split over many workers
+    (:mod:`slitcli.cluster`); a later call without ``frames`` finds them finished and
+    assembles the table, byte-identical to a run in one piece.
+
+    Returns
+    -------
+    RunSummary
+        ``counts``: ``laser_bins`` and ``stereo_bins`` (bins whose fused range came from
+        each sensor). For a chunk: ``frames`` and ``resumed`` of the chunk, no outputs.
+    """
     t0 = time.perf_counter()
     params = DetectParams() if params is None else params
-    src = Path(source)
-    if is_bag(src):
-        pairs = pair_bag(src, left_topic, right_topic, max_dt_s)
-        if rig_path is None:
-            raise SlitcliError(f"{src}: a bag carries no rig; give the camera's rig with --rig")
-        from slitcli.rig import load_rig
-
-        rig = load_rig(rig_path)
-        n = len(pairs)
-        ident = {"kind": "bag", "frames": n, "left_topic": left_topic,
-                 "right_topic": right_topic, "max_dt_s": max_dt_s,
-                 "stamps": int(np.bitwise_xor.reduce(pairs.left_ns))}
-        seq = None
-    else:
-        seq = StereoSequence(src)
-        rig = seq.rig(rig_path)
-        n = len(seq)
-        ident = {"kind": "folder", "frames": n,
-                 "names": [r.name for r in seq.refs],
-                 "bytes": int(sum(r.left_path.stat().st_size + r.right_path.stat().st_size
-                                  for r in seq.refs))}
-    manifest = {"command": "detect", "format": 1, "input": ident, "rig": rig.to_dict(),
-                "params": _jsonable(asdict(params)), "save_images": save_images}
-    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite)
+    check_jobs(jobs)
+    src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
+                      max_dt_s=max_dt_s)
+    rig = src.rig(rig_path)
+    detector = Detector(rig, params)  # checks every parameter before anything is written
+    n = len(src)
+    todo = range(n) if frames is None else frames
+    if todo.step != 1 or not 0 <= todo.start <= todo.stop <= n:
+        raise SlitcliError(f"`frames` {todo} is not a sub-range of the input's {n} frames",
+                           param="frames")
+    manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
+                "params": manifest_value(asdict(params)), "save_images": save_images}
+    subs = ("disparity", "distance", "mask") if save_images else ()
+    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
+                       hold_lock=lock)
+    # where the input lies, for `slitcli report`; not part of the identity, so a moved
+    # input still resumes
+    write_text_atomic(batch.dir / "source.json",
+                      json.dumps({"path": str(Path(source).resolve())}))
     kinds = ("rows", "laser") if save_images else ("rows",)
     if save_images:
-        for sub in ("disparity", "distance", "mask"):
+        for sub in IMAGE_FOLDERS:
             (batch.out / sub).mkdir(exist_ok=True)
-    finished = {i for i in range(n) if batch.is_done(i, kinds)}
-    if on_total is not None:
-        on_total(n - len(finished))
-    detector = Detector(rig, params)
-    tasks = (_folder_tasks(seq, rig, finished.__contains__) if seq is not None
-             else _bag_tasks(pairs, rig, finished.__contains__))
-    from functools import partial
+    # a finished frame is kept while its input (bytes, name, time) is unchanged
+    finished = batch.resume({i: frame_identity(src, i) for i in todo}, kinds)
+    done = len(finished)
+    if on_progress is not None:
+        on_progress(done, len(todo))
+    # frames outside the chunk are neither decoded nor computed
+    skip = finished if frames is None else finished | (frozenset(range(n)) - set(todo))
 
-    for _ in run_pool(tasks, partial(_work, detector, batch, save_images), jobs=jobs,
+    def tasks() -> Iterator[_Task]:
+        for f in src.frames(rig, skip=skip, on_bad=on_bad_frame):
+            if isinstance(f, BadFrame):
+                batch.mark_skipped(f.index, f.name, f.reason, kinds)
+                continue
+            batch.clear_skipped(f.index)
+            yield _Task(src.info[f.index], f.left_bgr, f.right_bgr)
+
+    for _ in run_pool(tasks(), partial(_work, detector, batch, save_images), jobs=jobs,
                       initializer=single_thread_worker if jobs > 1 else None):
-        if on_frame is not None:
-            on_frame()
-    table = batch.out / "ranges.csv"
-    batch.assemble(n, "rows", table, ",".join(RANGE_COLUMNS))
+        done += 1
+        if on_progress is not None:
+            on_progress(done, len(todo))
+    if frames is not None:
+        return RunSummary("detect", len(todo), len(finished), time.perf_counter() - t0, ())
+    if on_progress is not None:
+        on_progress(n, n)
+    table = batch.out / RANGES.file
+    batch.assemble(n, "rows", table, RANGES.header)
+    outputs: tuple[Path, ...] = (table,)
+    notes = src.notes()
+    skipped = batch.write_skipped(n, batch.out / SKIPPED_FILE)
+    if skipped:
+        outputs += (batch.out / SKIPPED_FILE,)
+        notes += (f"{skipped} frame(s) could not be read and were skipped (no rows): "
+                  f"{batch.out / SKIPPED_FILE}",)
     if save_images:
-        batch.assemble(n, "laser", batch.out / "laser.csv", ",".join(LASER_COLUMNS))
-    counts = pd.read_csv(table, usecols=["fused_source"])["fused_source"].value_counts()
-    return DetectSummary(n, len(finished), int(counts.get("laser", 0)),
-                         int(counts.get("stereo", 0)), time.perf_counter() - t0, table)
+        batch.assemble(n, "laser", batch.out / LASER.file, LASER.header)
+        outputs += (batch.out / LASER.file,)
+    import pandas as pd
+
+    rows = pd.read_csv(table, usecols=["frame", "laser_range_m", "fused_source"])
+    counts = rows["fused_source"].value_counts()
+    lit = rows.groupby("frame")["laser_range_m"].count()
+    notes += no_laser_note(int((lit == 0).sum()), len(lit))
+    return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
+                      MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
+                                        "stereo_bins": int(counts.get("stereo", 0)),
+                                        "skipped_frames": skipped}), notes)
 
 
-def _jsonable(d: object) -> object:
-    if isinstance(d, dict):
-        return {k: _jsonable(v) for k, v in d.items()}
-    if isinstance(d, list | tuple):
-        return [_jsonable(v) for v in d]
-    if isinstance(d, float) and not math.isfinite(d):
-        return str(d)
-    return d
+def summary_line(summary: RunSummary) -> str:
+    """The line ``slitcli detect`` prints."""
+    c = summary.counts
+    return summary.line(f"{c['laser_bins']} bins ranged by the laser, "
+                        f"{c['stereo_bins']} by stereo")
 
 
-__all__ = ["RANGE_COLUMNS", "DetectParams", "DetectSummary", "Detector", "FrameDetection",
-           "run_detect"]
+
+__all__ = ["COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection", "check_colour_order",
+           "run_detect", "summary_line"]

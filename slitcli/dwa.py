@@ -22,137 +22,16 @@ centre, so rotating in place can never hit anything.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from types import MappingProxyType
+from dataclasses import dataclass
 
 import numpy as np
 
-from slitcli.errors import SlitcliError
+from slitcli.dwa_params import DwaParams
+from slitcli.prediction import MovingDiscs, moving_contact_time
 
 # Work arrays of D_collision have (pairs x points) elements; blocks of points keep them
 # near 8 MB each whatever the size of the obstacle memory.
 _MAX_BLOCK_ELEMENTS = 1 << 20
-
-# Option spelled on the command line for each parameter, so errors name what users type.
-_OPTION = MappingProxyType({
-    "v_max_mps": "--v-max-mps", "w_max_dps": "--w-max-dps", "acc_mps2": "--acc-mps2",
-    "ang_acc_dps2": "--ang-acc-dps2", "dt_s": "--dt-s",
-    "heading_clamp_deg": "--heading-clamp-deg", "v_res_mps": "--v-res-mps",
-    "w_res_dps": "--w-res-dps", "heading_horizon_s": "--heading-horizon-s",
-    "goal_close_m": "--goal-close-m", "footprint_radius_m": "--footprint-radius-m",
-    "d_max_m": "--d-max-m", "alpha": "--alpha", "beta": "--beta", "gamma": "--gamma",
-    "turn_circle_close": "--turn-circle-close/--no-turn-circle-close",
-    "discrete_braking": "--discrete-braking/--no-discrete-braking",
-})
-
-
-@dataclass(frozen=True, kw_only=True)
-class DwaParams:
-    """Parameters of the modified DWA (DESIGN §8). Units are in the names.
-
-    Attributes
-    ----------
-    v_max_mps, w_max_dps : float
-        Speed limits (paper §4: 0.2 m/s, 7.5 deg/s). v is never negative.
-    acc_mps2 : float
-        Translational acceleration and braking limit (paper: 0.2 m/s^2).
-    ang_acc_dps2 : float
-        Angular acceleration limit. The paper gives none; 75 deg/s^2 lets the robot go
-        from standing to full turn rate (7.5 deg/s) within 0.1 s, i.e. inside one
-        control period, so the window spans every turn rate and the paper's sampling
-        gives 9 x 151 = 1359 pairs per step (about 1.4k).
-    dt_s : float
-        Control period T (the paper's "0.2 ms" read as 0.2 s). The window is what the
-        robot can reach within T.
-    heading_clamp_deg : float
-        The goal bearing theta in Eq. 12 is clamped to +-this (paper: +-90 deg).
-    v_res_mps, w_res_dps : float
-        Sampling of the window. Samples lie on the lattice k * resolution so that
-        v = 0 and w = 0 are always samples when the window contains them.
-    heading_horizon_s : float
-        Horizon of Eq. 12's heading term, 1 - |theta - w T_h| / pi. With T_h = T the
-        term moves by at most 1.5 deg / 180 deg across the window and cannot steer;
-        2 s makes it a proportional heading controller (w = theta / 2 s) that saturates
-        at w_max for heading errors above 15 deg.
-    goal_close_m : float
-        Radius of Eq. 13's switch: within it V = 1 - v / v_max (brake), outside it
-        V = v / v_max. It is also the arrival radius: a robot standing inside it is
-        commanded (0, 0) and nothing else (no rotation chasing the goal bearing).
-    footprint_radius_m : float
-        Disc used for D_collision: the robot radius plus a safety margin.
-    d_max_m : float
-        Cap on D_collision and the normaliser of Eq. 12's clearance term. Arcs that
-        meet nothing within d_max_m of travel score 1.
-    alpha, beta, gamma : float
-        Weights of the heading, clearance and velocity terms of Eq. 12.
-    turn_circle_close : bool
-        Also count the robot as close to the goal (Eq. 13's braking branch) while the
-        goal lies inside its current turning circle; see :func:`goal_is_close`.
-    discrete_braking : bool
-        Admissibility counts the distance covered while a command is held for T; see
-        :func:`admissible`.
-    """
-
-    v_max_mps: float = 0.2
-    w_max_dps: float = 7.5
-    acc_mps2: float = 0.2
-    ang_acc_dps2: float = 75.0
-    dt_s: float = 0.2
-    heading_clamp_deg: float = 90.0
-    v_res_mps: float = 0.01
-    w_res_dps: float = 0.1
-    heading_horizon_s: float = 2.0
-    goal_close_m: float = 0.3
-    footprint_radius_m: float = 0.3
-    d_max_m: float = 3.0
-    alpha: float = 1.0
-    beta: float = 1.0
-    gamma: float = 1.0
-    turn_circle_close: bool = True
-    discrete_braking: bool = True
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.type in ("bool", bool):
-                if not isinstance(value, bool):
-                    raise _bad(f.name, value, "must be true or false")
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float) \
-                    or not math.isfinite(value):
-                raise _bad(f.name, value, "must be a finite number")
-        for name in ("v_max_mps", "w_max_dps", "acc_mps2", "ang_acc_dps2", "dt_s",
-                     "v_res_mps", "w_res_dps", "heading_horizon_s", "goal_close_m",
-                     "footprint_radius_m", "d_max_m"):
-            if getattr(self, name) <= 0:
-                raise _bad(name, getattr(self, name), "must be > 0")
-        for name in ("alpha", "beta", "gamma"):
-            if getattr(self, name) < 0:
-                raise _bad(name, getattr(self, name), "must be >= 0")
-        if self.alpha + self.beta + self.gamma <= 0:
-            raise _bad("alpha", self.alpha, "and beta, gamma are all 0; give one a weight > 0")
-        if not 0 < self.heading_clamp_deg <= 180:
-            raise _bad("heading_clamp_deg", self.heading_clamp_deg, "must be in (0, 180]")
-        if self.v_res_mps > self.v_max_mps or self.w_res_dps > self.w_max_dps:
-            raise _bad("v_res_mps" if self.v_res_mps > self.v_max_mps else "w_res_dps",
-                       self.v_res_mps if self.v_res_mps > self.v_max_mps else self.w_res_dps,
-                       "is coarser than the speed limit; give a finer resolution")
-
-    @property
-    def w_max_rps(self) -> float:
-        """Turn-rate limit in rad/s."""
-        return math.radians(self.w_max_dps)
-
-    @property
-    def ang_acc_rps2(self) -> float:
-        """Angular acceleration limit in rad/s^2."""
-        return math.radians(self.ang_acc_dps2)
-
-
-def _bad(name: str, value: object, problem: str) -> SlitcliError:
-    return SlitcliError(f"DWA parameter {name} ({_OPTION.get(name, name)}) = {value!r} "
-                        f"{problem}")
-
 
 # ------------------------------------------------------------------ the window
 def dynamic_window(v_mps: float, w_rps: float, params: DwaParams) -> tuple[np.ndarray, np.ndarray]:
@@ -390,7 +269,8 @@ def velocity_term(v_mps: np.ndarray, close: bool, params: DwaParams) -> np.ndarr
 class PairScores:
     """Every pair of one step and its terms; all arrays have shape (P,).
 
-    ``score`` is Eq. 12 (-inf for inadmissible pairs).
+    ``score`` is Eq. 12 (-inf for inadmissible pairs); ``t_contact_s`` the time to the
+    first predicted contact with a moving obstacle (inf: none within the horizon).
     """
 
     v_mps: np.ndarray
@@ -401,11 +281,18 @@ class PairScores:
     clearance: np.ndarray
     velocity: np.ndarray
     score: np.ndarray
+    t_contact_s: np.ndarray
 
 
 def evaluate_pairs(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndarray,
-                   points_xy: np.ndarray, params: DwaParams) -> PairScores:
+                   points_xy: np.ndarray, params: DwaParams,
+                   moving: MovingDiscs | None = None) -> PairScores:
     """Window, prediction, admissibility and Eq. 12 for every pair at once.
+
+    With ``moving`` obstacles, D_collision of each pair is also capped at the distance
+    it travels before meeting one of them (v x :func:`moving_contact_time`), so that the
+    clearance term and the admissibility test see the obstacle where it will be when
+    the robot gets there.
 
     Parameters
     ----------
@@ -414,19 +301,39 @@ def evaluate_pairs(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np
     goal_xy : (2,)
         Goal in the robot frame, metres.
     points_xy : ndarray, shape (N, 2)
-        Obstacle points in the robot frame, metres.
+        Static obstacle points in the robot frame, metres.
     params : DwaParams
+    moving : MovingDiscs, optional
     """
     v, w = window_pairs(v_mps, w_rps, params)
     d = collision_distance(v, w, points_xy, radius_m=params.footprint_radius_m,
                            d_max_m=params.d_max_m)
     ok = admissible(v, w, d, params)
+    c = clearance_term(d, params)
+    t_c = np.full(v.shape, np.inf)
+    if moving is not None and len(moving.radius_m):
+        t_c, gap = moving_contact_time(v, w, moving, radius_m=params.footprint_radius_m,
+                                       horizon_s=params.predict_horizon_s,
+                                       step_s=params.predict_step_s)
+        hit = np.isfinite(t_c)
+        t_hit = np.where(hit, t_c, 0.0)
+        # braking: the robot must be able to stop before the place of contact
+        d = np.minimum(d, np.where(hit, v * t_hit, np.inf))
+        ok = admissible(v, w, d, params)
+        # clearance against moving obstacles, in [0, 1] like D / D_max: a pair that
+        # meets one scores half its time to contact as a share of the horizon (whatever
+        # its speed: a slower pair meets the person at the same time, only nearer the
+        # start); one that passes scores from 1/2 (grazing) to 1 (a buffer away)
+        pass_c = 0.5 + 0.5 * np.clip(gap / params.moving_buffer_m, 0.0, 1.0)
+        c = np.minimum(c, np.where(hit, 0.5 * t_hit / params.predict_horizon_s, pass_c))
+        # a pair predicted to meet a moving obstacle is chosen only if every pair does
+        if np.any(ok & ~hit):
+            ok &= ~hit
     theta, dist = goal_bearing(goal_xy)
     h = heading_term(theta, w, params)
-    c = clearance_term(d, params)
     vel = velocity_term(v, goal_is_close(dist, theta, v_mps, params), params)
     s = params.alpha * h + params.beta * c + params.gamma * vel
-    return PairScores(v, w, d, ok, h, c, vel, np.where(ok, s, -np.inf))
+    return PairScores(v, w, d, ok, h, c, vel, np.where(ok, s, -np.inf), t_c)
 
 
 @dataclass(frozen=True)
@@ -439,6 +346,9 @@ class DwaCommand:
     ``rotate``  far from the goal no translating pair beats standing still (a local minimum
                 in front of an obstacle): rotate in place at the window's largest turn rate,
                 away from the nearest obstacle point, until one does;
+    ``wait``    far from the goal the best pair is a standing one because translating
+                pairs would meet a moving obstacle's predicted path: the best standing
+                pair (Eq. 12), i.e. stand and let it pass;
     ``brake``   no admissible pair at all (an obstacle appeared inside the stopping
                 distance): full braking on the current arc.
     ``d_collision_m`` and ``score`` belong to the chosen pair (NaN for ``brake``).
@@ -459,7 +369,8 @@ class DwaCommand:
 
 
 def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndarray,
-              points_xy: np.ndarray, params: DwaParams) -> DwaCommand:
+              points_xy: np.ndarray, params: DwaParams,
+              moving: MovingDiscs | None = None) -> DwaCommand:
     """One modified-DWA step: the command to hold for the next control period.
 
     Parameters
@@ -469,8 +380,10 @@ def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndar
     goal_xy : (2,)
         Goal in the robot frame (rotation centre origin, x forward, y left), metres.
     points_xy : ndarray, shape (N, 2)
-        Obstacle points in the robot frame, metres (N may be 0).
+        Static obstacle points in the robot frame, metres (N may be 0).
     params : DwaParams
+    moving : MovingDiscs, optional
+        Predicted moving obstacles (:func:`evaluate_pairs`).
 
     Returns
     -------
@@ -480,7 +393,7 @@ def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndar
     at_goal = dist <= params.goal_close_m
     if at_goal and v_mps <= 1e-12:
         return DwaCommand(0.0, 0.0, "goal", params.d_max_m, float("nan"), 0, 0)
-    sc = evaluate_pairs(v_mps, w_rps, goal_xy, points_xy, params)
+    sc = evaluate_pairs(v_mps, w_rps, goal_xy, points_xy, params, moving)
     n_ok = int(sc.admissible.sum())
     if n_ok == 0:
         dv = params.acc_mps2 * params.dt_s
@@ -493,23 +406,32 @@ def plan_step(v_mps: float, w_rps: float, goal_xy: tuple[float, float] | np.ndar
         status = "goal"
     elif sc.v_mps[i] > 0:
         status = "move"
+    elif np.any((sc.v_mps > 0) & np.isfinite(sc.t_contact_s)):
+        # forward pairs are blocked by a moving obstacle's predicted path, not by a
+        # wall: stand (turning to the goal at most) and let it pass
+        status = "wait"
     else:
         status = "rotate"
-        i = _rotate_away(sc, points_xy)
+        i = _rotate_away(sc, points_xy, v_mps, w_rps)
     return DwaCommand(float(sc.v_mps[i]), float(sc.w_rps[i]), status, float(sc.d_collision_m[i]),
                       float(sc.score[i]), sc.v_mps.size, n_ok)
 
 
-def _rotate_away(sc: PairScores, points_xy: np.ndarray) -> int:
+def _rotate_away(sc: PairScores, points_xy: np.ndarray, v_mps: float = 1.0,
+                 w_rps: float = 0.0) -> int:
     """Index of the in-place rotation with the largest turn rate away from the nearest point.
 
     Turning away from the nearest point is self-consistent (as the robot turns, that
     point moves further to the other side), so the robot does not dither between
-    turning left and right in front of a symmetric obstacle.
+    turning left and right in front of a symmetric obstacle. A robot already rotating
+    in place keeps its direction: between two obstacles the nearest point can swap
+    sides as it turns, and re-deciding every step then dithers on the spot for ever.
     """
     pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
     side = 1.0
-    if len(pts):
+    if v_mps <= 0 and w_rps != 0:
+        side = math.copysign(1.0, w_rps)
+    elif len(pts):
         nearest = pts[np.argmin(np.hypot(pts[:, 0], pts[:, 1]))]
         side = -1.0 if nearest[1] > 0 else 1.0
     cand = np.flatnonzero((sc.v_mps <= 0) & sc.admissible)

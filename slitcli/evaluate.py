@@ -1,7 +1,8 @@
 """Measured results against the ground truth and against the paper's claims.
 
-Reads tables (detect's ``ranges.csv``, render's ``gt/ranges.csv``, simulate-dwa's
-``metrics.csv``) and reduces them to the numbers in ``docs/reproduction.md``.
+Reads tables (detect's ``ranges.csv``, render's ``gt/ranges.csv`` and
+``gt/laser_ranges.csv``, simulate-dwa's ``metrics.csv``) and reduces them to the
+numbers in ``docs/reproduction.md``.
 """
 
 from __future__ import annotations
@@ -11,8 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-
-from slitcli.laser.frame import bin_boundary_points
 
 SENSORS = ("fused", "laser", "stereo")
 
@@ -71,44 +70,18 @@ class Claim:
         return f"| {self.claim} | {self.measured} | {self.holds} |"
 
 
-def laser_truth_bins(truth_laser: pd.DataFrame, *, bin_deg: float = 1.0,
-                     boundary_jump_m: float = 0.05) -> pd.DataFrame:
-    """Nearest true lit point per frame and bearing bin, from render's ``gt/laser.csv``:
-    where the laser sheet really meets an obstacle (columns frame, bearing_deg,
-    laser_true_m).
-
-    As for the range truth, a bin's value is the nearest lit point anywhere in its
-    wedge: the true points (one per column) are also interpolated at the bin
-    boundaries between neighbouring columns of one surface, as the laser's own
-    reduction does (:func:`slitcli.laser.nearest_range_per_bin`).
-    """
-    t = truth_laser.sort_values(["frame", "u_px"], kind="stable")
-    fr = t["frame"].to_numpy()
-    u = t["u_px"].to_numpy()
-    r = t["range_m"].to_numpy(dtype=float)
-    b = t["bearing_deg"].to_numpy(dtype=float)
-    adjacent = (fr[1:] == fr[:-1]) & (u[1:] - u[:-1] == 1)
-    b_rng, k, first = bin_boundary_points(r, b, np.isfinite(r) & np.isfinite(b), bin_deg,
-                                          boundary_jump_m, adjacent=adjacent)
-    cols = pd.DataFrame({"frame": fr, "bearing_deg": np.floor(b / bin_deg + 0.5) * bin_deg,
-                         "laser_true_m": r})
-    sides = [pd.DataFrame({"frame": fr[first], "bearing_deg": (k + s) * bin_deg,
-                           "laser_true_m": b_rng}) for s in (0, 1)]
-    # a boundary point only refines a bin that holds true columns of its own
-    known = cols[["frame", "bearing_deg"]].drop_duplicates()
-    extra = pd.concat(sides).merge(known, on=["frame", "bearing_deg"])
-    return (pd.concat([cols, extra])
-            .groupby(["frame", "bearing_deg"], as_index=False)["laser_true_m"].min())
-
-
-def laser_range_claim(ranges: pd.DataFrame, truth_laser: pd.DataFrame
+def laser_range_claim(ranges: pd.DataFrame, truth_laser_ranges: pd.DataFrame
                       ) -> tuple[Claim, pd.DataFrame]:
     """"An active sensor minimum range is 0.6 m and maximum range is 1 m" (paper §4).
 
-    Scored on the bins where the sheet truly lights an obstacle (the truth's stripe),
-    so obstacles above the sheet or outside the image do not count against the laser.
+    Scored on the bins where the sheet truly lights an obstacle the camera sees: the
+    renderer's ``gt/laser_ranges.csv`` (frame, bearing_deg, laser_true_m), computed from
+    the scene's geometry alone (:func:`slitcli.sim.laser_truth.lit_wedge_ranges`), so
+    obstacles above the sheet or outside the image do not count against the laser, and
+    no part of the laser's own estimator enters its truth.
     """
-    t = laser_truth_bins(truth_laser)
+    t = truth_laser_ranges[["frame", "bearing_deg", "laser_true_m"]]
+    t = t[np.isfinite(t["laser_true_m"])]
     j = ranges.merge(t, on=["frame", "bearing_deg"], how="inner")
     err = pd.DataFrame({"true_m": j["laser_true_m"],
                         "laser_err_m": j["laser_range_m"] - j["laser_true_m"]})

@@ -86,6 +86,7 @@ def draw_fig4(ax: Axes, left_rgb: np.ndarray, laser: pd.DataFrame,
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
     ax.set_title("Laser stripe and forward distance of each obstacle")
+    ax.legend(loc="upper right", markerscale=4, framealpha=0.85)
     return notes
 
 
@@ -127,11 +128,38 @@ def _draw_obstacles(ax: Axes, segments_xy: np.ndarray, circles_xyr: np.ndarray) 
         ax.add_patch(Circle((cx, cy), r, fc="0.75", ec="0.3"))
 
 
+def shared_limits(trajectories: dict[str, pd.DataFrame], segments_xy: np.ndarray,
+                  circles_xyr: np.ndarray, goal_xy: tuple[float, float] | None = None,
+                  margin_m: float = 0.3) -> tuple[tuple[float, float], tuple[float, float]]:
+    """One x and one y range (m) holding every path, obstacle and the goal, so panels
+    side by side compare at a glance."""
+    xs = [t["x_m"].to_numpy(dtype=float) for t in trajectories.values()]
+    ys = [t["y_m"].to_numpy(dtype=float) for t in trajectories.values()]
+    if len(segments_xy):
+        xs.append(np.asarray(segments_xy)[..., 0].ravel())
+        ys.append(np.asarray(segments_xy)[..., 1].ravel())
+    if len(circles_xyr):
+        c = np.asarray(circles_xyr)
+        xs += [c[:, 0] - c[:, 2], c[:, 0] + c[:, 2]]
+        ys += [c[:, 1] - c[:, 2], c[:, 1] + c[:, 2]]
+    if goal_xy is not None:
+        xs.append(np.array([goal_xy[0]]))
+        ys.append(np.array([goal_xy[1]]))
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    return ((float(np.nanmin(x)) - margin_m, float(np.nanmax(x)) + margin_m),
+            (float(np.nanmin(y)) - margin_m, float(np.nanmax(y)) + margin_m))
+
+
 def draw_fig8(axes: Sequence[Axes], trajectories: dict[str, pd.DataFrame],
               segments_xy: np.ndarray, circles_xyr: np.ndarray,
               goal_xy: tuple[float, float] | None = None,
               robot_radius_m: float | None = None) -> None:
-    """Fig. 8: one x-y panel per case with its trajectory and the obstacles."""
+    """Fig. 8: one x-y panel per case with its trajectory and the obstacles.
+
+    Every panel shows the same x and y range (:func:`shared_limits`) at one scale.
+    """
+    xlim, ylim = shared_limits(trajectories, segments_xy, circles_xyr, goal_xy,
+                               margin_m=0.3 + (robot_radius_m or 0.0))
     for (case, traj), ax, colour in zip(trajectories.items(), axes, CASE_COLOURS,
                                         strict=False):
         _draw_obstacles(ax, segments_xy, circles_xyr)
@@ -142,22 +170,141 @@ def draw_fig8(axes: Sequence[Axes], trajectories: dict[str, pd.DataFrame],
                                 fill=False, ec=colour, ls="--"))
         if goal_xy is not None:
             ax.plot(*goal_xy, "k*", ms=10)
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlim(*xlim)
+        ax.set_ylim(*ylim)
+        ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.set_title(case)
         ax.grid(alpha=0.3)
 
 
-def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> None:
-    """Fig. 9: robot-obstacle distance against time, one line per case."""
-    for (case, traj), colour in zip(trajectories.items(), CASE_COLOURS, strict=False):
-        ax.plot(traj["t_s"], traj["nearest_obstacle_m"], color=colour, label=case)
+# Line style, marker and width per case: wider lines first, so a case whose curve
+# coincides with an earlier one still shows as a narrower, differently dashed line on
+# top of it, with its own markers.
+CASE_STYLES = (("-", "o", 4.2), ("--", "s", 2.8), ("-.", "^", 2.2), (":", "D", 1.6),
+               ((0, (5, 1, 1, 1)), "v", 1.2), ((0, (1, 1)), "P", 1.0))
+
+
+def coinciding_cases(trajectories: dict[str, pd.DataFrame], column: str,
+                     tol: float = 0.005) -> dict[str, list[str]]:
+    """For each case, the other cases whose ``column`` over time is the same curve
+    (same times, values within ``tol``)."""
+    same: dict[str, list[str]] = {c: [] for c in trajectories}
+    items = list(trajectories.items())
+    for i, (a, ta) in enumerate(items):
+        for b, tb in items[i + 1:]:
+            if len(ta) == len(tb) and np.allclose(ta["t_s"], tb["t_s"]) and \
+                    np.nanmax(np.abs(ta[column].to_numpy() - tb[column].to_numpy())) <= tol:
+                same[a].append(b)
+                same[b].append(a)
+    return same
+
+
+def draw_fig9(ax: Axes, trajectories: dict[str, pd.DataFrame]) -> dict[str, list[str]]:
+    """Fig. 9: robot-obstacle distance against time, one line per case.
+
+    Each case has its own colour, line style, width and marker (``CASE_STYLES``); a
+    case whose curve coincides with another's says so in the legend.
+
+    Returns
+    -------
+    dict
+        Per case, the cases drawn on the same curve (:func:`coinciding_cases`).
+    """
+    same = coinciding_cases(trajectories, "nearest_obstacle_m")
+    n_cases = max(len(trajectories), 1)
+    for k, ((case, traj), colour, (ls, marker, lw)) in enumerate(
+            zip(trajectories.items(), CASE_COLOURS, CASE_STYLES, strict=False)):
+        every = max(len(traj) // 12, n_cases)
+        # markers start at a different sample per case, so coinciding curves show all
+        label = case if not same[case] else \
+            f"{case} (same curve as {', '.join(same[case])})"
+        ax.plot(traj["t_s"], traj["nearest_obstacle_m"], color=colour, ls=ls, lw=lw,
+                marker=marker, ms=6, mfc="white", mew=1.4,
+                markevery=(k * every // n_cases, every), label=label, zorder=2 + k)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("robot-obstacle distance (m)")
     ax.set_title("Distance to the nearest obstacle")
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
+    return same
+
+
+def draw_dynamic_case(axes: Sequence[Axes], traj: pd.DataFrame, world, *, title: str = "",
+                      mark_every_s: float = 5.0) -> None:
+    """Figs. 8/9 for a world with moving objects: the x-y paths with each moving object's
+    track (markers at the same instants on both), and the clearance against time.
+
+    ``world`` is the :class:`slitcli.sim.scene.Scene` run (static outlines at t = 0 are
+    drawn grey; moving objects as their centre tracks and their outline at each marker).
+    """
+    from slitcli.sim.scene import Cylinder, Wall, centre_at
+    from slitcli.sim.truth import footprints
+
+    xy, dist = axes[0], axes[1]
+    still = [o for o in world.objects if isinstance(o, Wall) or not o.motion]
+    moving = [o for o in world.objects if not isinstance(o, Wall) and o.motion]
+    fp = footprints(type(world)(name=world.name, objects=tuple(still)), z_low_m=0.0,
+                    z_high_m=np.inf)
+    _draw_obstacles(xy, fp.segments_xy, fp.circles_xyr)
+    t = traj["t_s"].to_numpy()
+    xy.plot(traj["x_m"], traj["y_m"], color="tab:blue", lw=1.8, label="robot")
+    marks = np.arange(0.0, t[-1] + 1e-9, mark_every_s)
+    idx = np.searchsorted(t, marks).clip(0, len(t) - 1)
+    xy.plot(traj["x_m"].to_numpy()[idx], traj["y_m"].to_numpy()[idx], "o", color="tab:blue",
+            ms=4)
+    for i, ob in enumerate(moving):
+        track = np.array([centre_at(ob.motion, float(x)) for x in t])
+        xy.plot(track[:, 0], track[:, 1], "--", color="tab:red", lw=1.2,
+                label="person" if i == 0 else None)
+        for m in marks:
+            c = centre_at(ob.motion, float(m))
+            r = ob.radius_m if isinstance(ob, Cylinder) else 0.5 * math.hypot(*ob.size_m[:2])
+            xy.add_patch(Circle(c, r, fill=False, ec="tab:red", lw=0.6, alpha=0.6))
+            xy.annotate(f"{m:g}", c, fontsize=6, color="tab:red", ha="center", va="center")
+    for m, j in zip(marks, idx, strict=True):
+        xy.annotate(f"{m:g}", (traj["x_m"].iloc[j], traj["y_m"].iloc[j]), fontsize=6,
+                    xytext=(2, 2), textcoords="offset points")
+    if world.goal_xy_m is not None:
+        xy.plot(*world.goal_xy_m, "k*", ms=10)
+    xy.set_aspect("equal", adjustable="datalim")
+    xy.set_xlabel("x (m)")
+    xy.set_ylabel("y (m)")
+    xy.set_title(title or world.name)
+    xy.grid(alpha=0.3)
+    xy.legend(fontsize=7)
+    dist.plot(t, traj["nearest_obstacle_m"], color="tab:blue")
+    dist.set_xlabel("time (s)")
+    dist.set_ylabel("robot-obstacle distance (m)")
+    dist.set_title("Distance to the nearest obstacle (moving ones where they are)")
+    dist.grid(alpha=0.3)
+
+
+def dwa_run_figures(run_dir: str | Path, *, fmt: str = "png", dpi: int = 120) -> list[Path]:
+    """One Figs. 8/9-style figure per case of a ``simulate-dwa`` output folder.
+
+    Writes ``RUN/plots/<case>.<fmt>`` (x-y paths with the moving objects' tracks, and
+    the clearance over time) and returns the paths.
+    """
+    import yaml
+
+    from slitcli.sim.scene import load_scene
+
+    check_format(fmt, dpi)
+    run = Path(run_dir)
+    params = yaml.safe_load(_need(run / "params.yaml", "slitcli simulate-dwa").read_text())
+    cases = params["cases"]
+    single = len({c["world"] for c in cases}) == 1
+    written = []
+    for c in cases:
+        world = load_scene(run / ("world.yaml" if single else f"world_{c['world']}.yaml"))
+        traj = pd.read_csv(_need(run / f"trajectory_{c['case']}.csv", "slitcli simulate-dwa"))
+        fig = Figure(figsize=(11, 4.5), layout="constrained")
+        draw_dynamic_case(fig.subplots(1, 2, width_ratios=[1.6, 1]), traj, world,
+                          title=f"{c['case']} (sensing {c['sensing_range_m']:g} m)")
+        written.append(save(fig, run / "plots" / f"{c['case']}.{fmt}", dpi=dpi))
+    return written
 
 
 # ----------------------------------------------------------------------------- accuracy
@@ -170,12 +317,18 @@ def draw_accuracy(ax: Axes, errors: pd.DataFrame, *, bin_m: float = 0.25) -> dic
     centres = 0.5 * (edges[:-1] + edges[1:])
     k = np.digitize(errors["true_m"], edges) - 1
     drawn = {}
-    for name, colour in (("fused", "k"), ("laser", "tab:red"), ("stereo", "tab:blue")):
+    # fused is drawn last, dashed with open squares, so it stays visible where it is
+    # the same curve as stereo (beyond the laser's band fused takes stereo's ranges)
+    styles = {"laser": {"color": "tab:red", "marker": "o", "ls": "-", "lw": 1.5, "ms": 5},
+              "stereo": {"color": "tab:blue", "marker": "o", "ls": "-", "lw": 1.5, "ms": 5},
+              "fused": {"color": "k", "marker": "s", "ls": "--", "lw": 1.8, "ms": 10,
+                        "mfc": "none", "mew": 1.6}}
+    for z, name in enumerate(("laser", "stereo", "fused")):
         e = errors[f"{name}_err_m"].abs()
         med = np.array([np.nanmedian(e[(k == i) & e.notna()]) if ((k == i) & e.notna()).sum()
                         >= 5 else np.nan for i in range(len(centres))])
         ok = np.isfinite(med)
-        ax.plot(centres[ok], 100 * med[ok], "o-", color=colour, label=name)
+        ax.plot(centres[ok], 100 * med[ok], label=name, zorder=3 + z, **styles[name])
         drawn[name] = int(ok.sum())
     ax.set_yscale("log")
     ax.axvspan(0.0, 0.6, color="0.9", zorder=0, label="below both sensors' range")

@@ -48,7 +48,7 @@ class _Stages:
 
 def run(out: Path, figures: Path, report: Path) -> None:
     """Run every stage; see the module docstring."""
-    from slitcli.detect import DetectParams, run_detect
+    from slitcli.detect import DetectParams, run_detect, summary_line
     from slitcli.dwa import DwaParams
     from slitcli.rig import paper_rig
     from slitcli.sim.loop import SimParams, simulate_dwa
@@ -74,7 +74,7 @@ def run(out: Path, figures: Path, report: Path) -> None:
         def detect(scene: str = scene, mode: str = mode, target: Path = target) -> str:
             s = run_detect(out / "sequences" / scene, target,
                            params=DetectParams(fusion_mode=mode), save_images=True, jobs=2)
-            return s.line()
+            return summary_line(s)
 
         stages.run(f"detect {label}", (target / "ranges.csv").exists(), detect)
     dwa_out = out / "dwa"
@@ -113,7 +113,7 @@ def write_report(out: Path, report: Path) -> str:
         for s in SCENES], ignore_index=True)
     ranges_all = pd.concat([pd.read_csv(out / "detect" / s / "ranges.csv").assign(scene=s)
                             for s in SCENES], ignore_index=True)
-    laser_truth = pd.concat([pd.read_csv(out / "sequences" / s / "gt" / "laser.csv")
+    laser_truth = pd.concat([pd.read_csv(out / "sequences" / s / "gt" / "laser_ranges.csv")
                              .assign(scene=s) for s in SCENES], ignore_index=True)
     laser_claim, laser_table = laser_range_claim(
         ranges_all.assign(frame=ranges_all["scene"] + ":" + ranges_all["frame"].astype(str)),
@@ -155,7 +155,8 @@ change only when the code or the sample data change.
 {markdown_table(laser_table)}
 
 Scored on the bins where the laser sheet truly lights an obstacle (render's
-`gt/laser.csv`). `within_tol`: laser range within 1 % of the truth; `returned`: any
+`gt/laser_ranges.csv`: the nearest lit point per bin, from the scene's geometry).
+`within_tol`: laser range within 1 % of the truth; `returned`: any
 laser return in the bin.
 
 ## Stereo (passive) range, per true distance

@@ -11,9 +11,7 @@ The paper's rig (Hombot, §4 of the paper) is :func:`paper_rig`.
 
 from __future__ import annotations
 
-import difflib
 import math
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,8 +20,16 @@ import numpy as np
 import yaml
 
 from slitcli.errors import SlitcliError
+from slitcli.io.keys import KeyReader, image_size
+from slitcli.io.yamlfile import brief
 
 SCHEMA_VERSION = 1
+MIN_BIN_DEG = 0.05
+"""Narrowest bearing bin, degrees (below it bins are finer than a pixel of a 4k image)."""
+MAX_BIN_DEG = 10.0
+"""Widest bearing bin, degrees."""
+MAX_FOCAL_PX = 1e7
+"""Largest focal length accepted, pixels (a 0.1-degree field of view on 16k pixels)."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +115,9 @@ class RawCalibration:
     the left (``X_right = R X_left + T``, metres), ``R1``, ``R2``, ``P1``, ``P2`` the
     rectification from :func:`cv2.stereoRectify`. ``image_size_px`` is the raw
     (width, height). Matrices are stored as nested tuples so the rig stays immutable.
+    ``model`` is the lens model of both cameras: ``pinhole`` (OpenCV's k1 k2 p1 p2
+    [k3 ...]) or ``equidistant`` (``cv2.fisheye``, Kalibr's pinhole-equidistant: D is
+    k1 k2 k3 k4).
     """
 
     image_size_px: tuple[int, int]
@@ -122,6 +131,7 @@ class RawCalibration:
     R2: tuple
     P1: tuple
     P2: tuple
+    model: str = "pinhole"
 
     def array(self, name: str) -> np.ndarray:
         """One of the matrices as a float array."""
@@ -313,8 +323,10 @@ class Rig:
         centres, lower, upper : ndarray, shape (B,)
             Degrees, sensor frame, positive left, ascending (right to left).
         """
-        if not bin_deg > 0:
-            raise ValueError("bin_deg must be positive")
+        if not MIN_BIN_DEG <= bin_deg <= MAX_BIN_DEG:
+            # a width is also a count: 1e-6 deg would make 6e7 bins of a 60-deg view
+            raise SlitcliError(f"bearing bin width bin_deg = {bin_deg!r} is out of range; give "
+                               f"{MIN_BIN_DEG:g} to {MAX_BIN_DEG:g} degrees")
         right, left = self.bearing_limits_deg()
         k0 = math.ceil(right / bin_deg - 1e-9)
         k1 = math.floor(left / bin_deg + 1e-9)
@@ -342,6 +354,8 @@ class Rig:
             raw: dict[str, Any] = {"image_size_px": [int(v) for v in self.raw.image_size_px]}
             for key in _RAW_SHAPES:
                 raw[key] = np.asarray(getattr(self.raw, key), dtype=float).tolist()
+            if self.raw.model != "pinhole":
+                raw["model"] = self.raw.model
             d["raw"] = raw
         return d
 
@@ -386,74 +400,13 @@ _RAW_SHAPES: dict[str, tuple[int, ...]] = {
     "K1": (3, 3), "D1": (-1,), "K2": (3, 3), "D2": (-1,), "R": (3, 3), "T": (3,),
     "R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4),
 }
+RAW_MODELS = ("pinhole", "equidistant")
 _TOP_KEYS = ("slitcli_rig", "name", "image_size_px", "left", "baseline_m", "mount",
              "laser", "stereo", "raw")
 _LEFT_KEYS = ("fx_px", "fy_px", "cx_px", "cy_px")
 _MOUNT_KEYS = ("height_m", "tilt_deg", "roll_deg", "forward_m")
 _LASER_KEYS = ("normal", "offset_m", "min_range_m", "max_range_m")
 _STEREO_KEYS = ("max_range_m",)
-
-
-class _Reader:
-    """Walks the YAML mapping and raises one-line errors naming file and key."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, key: str, problem: str, fix: str) -> SlitcliError:
-        return SlitcliError(f"{self.source}: key '{key}' {problem}; {fix}")
-
-    def mapping(self, value: Any, key: str, allowed: tuple[str, ...],
-                required: tuple[str, ...]) -> Mapping[str, Any]:
-        if not isinstance(value, Mapping):
-            raise self.fail(key, "must be a mapping", f"give it the keys {', '.join(allowed)}")
-        for k in value:
-            if k not in allowed:
-                close = difflib.get_close_matches(str(k), allowed, n=1)
-                hint = f"did you mean '{close[0]}'?" if close else \
-                    f"allowed keys are {', '.join(allowed)}"
-                name = f"{key}.{k}" if key else str(k)
-                raise SlitcliError(f"{self.source}: unknown key '{name}'; {hint}")
-        for k in required:
-            if k not in value:
-                name = f"{key}.{k}" if key else k
-                raise SlitcliError(f"{self.source}: missing key '{name}'; add it "
-                                   "(see `slitcli rig init` for a complete example)")
-        return value
-
-    def number(self, m: Mapping[str, Any], key: str, prefix: str, *, default: float | None = None,
-               low: float | None = None, high: float | None = None, low_open: bool = False,
-               high_open: bool = False) -> float:
-        name = f"{prefix}.{key}" if prefix else key
-        if key not in m:
-            if default is None:
-                raise SlitcliError(f"{self.source}: missing key '{name}'; add it")
-            return default
-        v = m[key]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise self.fail(name, f"= {v!r} is not a finite number", "give a number")
-        v = float(v)
-        if low is not None and (v < low or (low_open and v == low)):
-            sign = ">" if low_open else ">="
-            raise self.fail(name, f"= {v:g} is out of range", f"it must be {sign} {low:g}")
-        if high is not None and (v > high or (high_open and v == high)):
-            sign = "<" if high_open else "<="
-            raise self.fail(name, f"= {v:g} is out of range", f"it must be {sign} {high:g}")
-        return v
-
-    def vector(self, value: Any, key: str, shape: tuple[int, ...]) -> np.ndarray:
-        try:
-            a = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise self.fail(key, "is not a numeric matrix", f"give a list of shape {shape}") \
-                from None
-        ok = a.ndim == len(shape) and all(s == -1 or s == n for s, n in zip(shape, a.shape,
-                                                                          strict=False))
-        if not ok or not np.all(np.isfinite(a)):
-            want = "x".join("N" if s == -1 else str(s) for s in shape)
-            raise self.fail(key, f"has shape {'x'.join(map(str, a.shape)) or 'scalar'}",
-                            f"give a finite {want} list")
-        return a
 
 
 def _freeze(a: np.ndarray) -> tuple:
@@ -469,25 +422,23 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
         Naming ``source`` and the offending key, for unknown or missing keys, a
         wrong schema version and impossible values.
     """
-    r = _Reader(source)
+    r = KeyReader(source)
     top = r.mapping(data, "", _TOP_KEYS, ("slitcli_rig", "image_size_px", "left",
                                           "baseline_m", "mount", "laser"))
     version = top["slitcli_rig"]
-    if version != SCHEMA_VERSION:
-        raise r.fail("slitcli_rig", f"= {version!r} is not a schema version this slitcli reads",
-                     f"use {SCHEMA_VERSION} (write a fresh file with `slitcli rig init`)")
-    name = str(top.get("name", Path(source).stem))
-    size = top["image_size_px"]
-    if (not isinstance(size, list | tuple) or len(size) != 2
-            or not all(isinstance(s, int) and not isinstance(s, bool) for s in size)
-            or min(size) < 8):
-        raise r.fail("image_size_px", f"= {size!r} is not a valid size",
-                     "give [width, height] as whole numbers of at least 8 pixels")
-    w, h = int(size[0]), int(size[1])
+    # `true` == 1 in Python: a boolean is not a version number
+    if isinstance(version, bool) or version != SCHEMA_VERSION:
+        raise r.fail("slitcli_rig", f"= {brief(version)} is not a schema version this slitcli "
+                     "reads", f"use {SCHEMA_VERSION} (write a fresh file with `slitcli rig init`)")
+    name = top.get("name", Path(source).stem)
+    if not isinstance(name, str | int | float) or isinstance(name, bool) or len(str(name)) > 200:
+        raise r.fail("name", f"= {brief(name)} is not a short name", "give a string")
+    name = str(name)
+    w, h = image_size(r, top["image_size_px"], "image_size_px")
     lm = r.mapping(top["left"], "left", _LEFT_KEYS, _LEFT_KEYS)
     left = Intrinsics(
-        fx_px=r.number(lm, "fx_px", "left", low=0.0, low_open=True),
-        fy_px=r.number(lm, "fy_px", "left", low=0.0, low_open=True),
+        fx_px=r.number(lm, "fx_px", "left", low=0.0, low_open=True, high=MAX_FOCAL_PX),
+        fy_px=r.number(lm, "fy_px", "left", low=0.0, low_open=True, high=MAX_FOCAL_PX),
         cx_px=r.number(lm, "cx_px", "left", low=0.0, high=float(w - 1)),
         cy_px=r.number(lm, "cy_px", "left", low=0.0, high=float(h - 1)),
     )
@@ -510,29 +461,56 @@ def rig_from_dict(data: Any, source: str = "rig") -> Rig:
     laser = Laser(
         normal=_freeze(normal),
         offset_m=r.number(la, "offset_m", "laser", low=0.0, low_open=True, high=20.0),
-        min_range_m=r.number(la, "min_range_m", "laser", default=0.6, low=0.0),
-        max_range_m=r.number(la, "max_range_m", "laser", default=1.0, low=0.0, low_open=True),
+        min_range_m=r.number(la, "min_range_m", "laser", default=0.6, low=0.0, high=100.0),
+        max_range_m=r.number(la, "max_range_m", "laser", default=1.0, low=0.0, low_open=True,
+                             high=100.0),
     )
     if laser.min_range_m >= laser.max_range_m:
         raise r.fail("laser.min_range_m", f"= {laser.min_range_m:g} is not below "
                      f"laser.max_range_m = {laser.max_range_m:g}", "swap or correct them")
+    _check_sheet_above_floor(r, mount, laser)
     st = top.get("stereo") or {}
     st = r.mapping(st, "stereo", _STEREO_KEYS, ())
     stereo = StereoLimits(max_range_m=r.number(st, "max_range_m", "stereo", default=3.0,
-                                               low=0.0, low_open=True))
+                                               low=0.0, low_open=True, high=1000.0))
     raw = None
     if top.get("raw") is not None:
-        rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES),
+        rm = r.mapping(top["raw"], "raw", ("image_size_px", *_RAW_SHAPES, "model"),
                        ("image_size_px", *_RAW_SHAPES))
-        rs = rm["image_size_px"]
-        if (not isinstance(rs, list | tuple) or len(rs) != 2
-                or not all(isinstance(s, int) and s >= 8 for s in rs)):
-            raise r.fail("raw.image_size_px", f"= {rs!r} is not a valid size",
-                         "give [width, height] in pixels")
+        rw, rh = image_size(r, rm["image_size_px"], "raw.image_size_px")
         arrays = {k: _freeze(r.vector(rm[k], f"raw.{k}", s)) for k, s in _RAW_SHAPES.items()}
-        raw = RawCalibration(image_size_px=(int(rs[0]), int(rs[1])), **arrays)
+        model = rm.get("model", "pinhole")
+        if model not in RAW_MODELS:
+            raise r.fail("raw.model", f"= {model!r} is not a lens model slitcli reads",
+                         f"use one of {', '.join(RAW_MODELS)}")
+        if model == "equidistant" and not len(arrays["D1"]) == len(arrays["D2"]) == 4:
+            raise r.fail("raw.D1", "must hold 4 coefficients (k1 k2 k3 k4) for the "
+                         "equidistant model", "fix D1 and D2")
+        raw = RawCalibration(image_size_px=(rw, rh), **arrays, model=model)
     return Rig(name=name, image_size_px=(w, h), left=left, baseline_m=baseline, mount=mount,
                laser=laser, stereo=stereo, raw=raw)
+
+
+def _check_sheet_above_floor(r: KeyReader, mount: Mount, laser: Laser) -> None:
+    """Refuse a laser sheet that lies below the floor over the whole trusted band.
+
+    Where the sheet is not vertical, its height above the floor straight ahead at
+    forward distance x solves ``n_s . (x, 0, z) = d_s``; if it is below z = 0 at both
+    ends of ``[min_range_m, max_range_m]`` (a plane is linear in x, so everywhere
+    between), no obstacle in the band can ever be lit.
+    """
+    probe = Rig(name="probe", image_size_px=(8, 8), left=Intrinsics(1.0, 1.0, 3.5, 3.5),
+                baseline_m=1.0, mount=mount, laser=laser)
+    n_s, d_s = probe.laser_plane_sensor()
+    if abs(n_s[2]) < 1e-9:
+        return
+    z = [(d_s - n_s[0] * x) / n_s[2] for x in (laser.min_range_m, laser.max_range_m)]
+    if max(z) < 0:
+        raise r.fail("laser.offset_m", f"= {laser.offset_m:g} puts the laser sheet "
+                     f"{-max(z):.3g} m below the floor between {laser.min_range_m:g} and "
+                     f"{laser.max_range_m:g} m ahead",
+                     "a horizontal sheet needs laser.offset_m < mount.height_m "
+                     f"({mount.height_m:g}); check the sign of laser.normal")
 
 
 def load_rig(path: str | Path) -> Rig:

@@ -99,9 +99,38 @@ def d_collision(v: float, w: float, points: list[tuple[float, float]], p: DwaPar
     return best
 
 
+def moving_contact(v: float, w: float, discs: list[tuple[float, float, float, float, float]],
+                   p: DwaParams) -> tuple[float, float]:
+    """First predicted contact time with moving discs (x, y, vx, vy, r), and the closest pass.
+
+    Same instants and contact rule as slitcli.dwa.moving_contact_time, written as loops.
+    """
+    n = math.floor(p.predict_horizon_s / p.predict_step_s + 1e-9)
+    prev = [math.hypot(x, y) for x, y, _, _, _ in discs]
+    t_c, min_free = math.inf, math.inf
+    for k in range(1, n + 1):
+        t = k * p.predict_step_s
+        if w == 0:
+            rx, ry = v * t, 0.0
+        else:
+            rx, ry = math.sin(w * t) * v / w, (1.0 - math.cos(w * t)) * v / w
+        for j, (x, y, vx, vy, r) in enumerate(discs):
+            gap = math.hypot(rx - (x + vx * t), ry - (y + vy * t))
+            reach = p.footprint_radius_m + r + 0.5 * p.predict_step_s * (v + math.hypot(vx, vy))
+            min_free = min(min_free, gap - reach)
+            if gap < reach and gap < prev[j] and t_c == math.inf:
+                t_c = t
+            prev[j] = gap
+    return t_c, min_free
+
+
 def choose(v0: float, w0: float, goal: tuple[float, float], points: list[tuple[float, float]],
-           p: DwaParams) -> tuple[float, float, float]:
-    """Best admissible (v, w) by Eq. 12 (first maximum in v-major order) and its score."""
+           p: DwaParams, discs: list[tuple[float, float, float, float, float]] | None = None
+           ) -> tuple[float, float, float]:
+    """Best admissible (v, w) by Eq. 12 (first maximum in v-major order) and its score.
+
+    ``discs``: moving obstacles (x, y, vx, vy, radius), robot frame.
+    """
     vs, ws = window(v0, w0, p)
     theta_raw = math.atan2(goal[1], goal[0])
     dist = math.hypot(goal[0], goal[1])
@@ -110,22 +139,34 @@ def choose(v0: float, w0: float, goal: tuple[float, float], points: list[tuple[f
     close = dist <= p.goal_close_m or (
         p.turn_circle_close
         and dist < 2 * v0 / math.radians(p.w_max_dps) * abs(math.sin(theta_raw)))
-    best = (-math.inf, math.nan, math.nan)
+    rows = []
     for v in vs:
         for w in ws:
             d = d_collision(v, w, points, p)
+            c = d / p.d_max_m
+            t_c = math.inf
+            if discs:
+                t_c, free = moving_contact(v, w, discs, p)
+                if t_c < math.inf:
+                    d = min(d, v * t_c)
+                    c = min(c, 0.5 * t_c / p.predict_horizon_s)
+                else:
+                    c = min(c, 0.5 + 0.5 * min(max(free / p.moving_buffer_m, 0.0), 1.0))
+            ok = True
             if v > 0:
                 d_brake = max(d - 0.5 * p.dt_s * v, 0.0) if p.discrete_braking else d
-                if v > math.sqrt(2 * d_brake * p.acc_mps2) + 1e-12:
-                    continue
                 theta_c = abs(w) * d_brake / v
-                if abs(w) > math.sqrt(2 * theta_c * math.radians(p.ang_acc_dps2)) + 1e-12:
-                    continue
+                ok = (v <= math.sqrt(2 * d_brake * p.acc_mps2) + 1e-12
+                      and abs(w) <= math.sqrt(2 * theta_c * math.radians(p.ang_acc_dps2)) + 1e-12)
             h = 1 - abs(theta - w * p.heading_horizon_s) / math.pi
             vel = v / p.v_max_mps
             if close:
                 vel = 1 - vel
-            s = p.alpha * h + p.beta * d / p.d_max_m + p.gamma * vel
-            if s > best[0]:
-                best = (s, v, w)
+            rows.append((ok, t_c, p.alpha * h + p.beta * c + p.gamma * vel, v, w))
+    # a pair meeting a moving obstacle is chosen only if every admissible pair does
+    free_exists = any(ok and t_c == math.inf for ok, t_c, _, _, _ in rows)
+    best = (-math.inf, math.nan, math.nan)
+    for ok, t_c, s, v, w in rows:
+        if ok and not (free_exists and t_c < math.inf) and s > best[0]:
+            best = (s, v, w)
     return best[1], best[2], best[0]

@@ -84,18 +84,18 @@ def test_opencv_files_are_real_filestorage(rig_file, tmp_path):
 def test_unsupported_models_rejected(rig_file, tmp_path):
     _invoke("rig", "export", str(rig_file), "--format", "ros", "-o", str(tmp_path / "ros"))
     left = yaml.safe_load((tmp_path / "ros" / "left.yaml").read_text())
-    left["distortion_model"] = "equidistant"
+    left["distortion_model"] = "fisheye"
     (tmp_path / "ros" / "left.yaml").write_text(yaml.safe_dump(left))
     out = tmp_path / "x.yaml"
     res = _invoke("rig", "import", str(tmp_path / "ros" / "left.yaml"),
                   str(tmp_path / "ros" / "right.yaml"), "-o", str(out))
-    assert res.exit_code == 2 and "distortion_model 'equidistant' is not supported" in res.output
+    assert res.exit_code == 2 and "distortion_model 'fisheye' is not supported" in res.output
     assert len(res.output.strip().splitlines()) == 1 and not out.exists()
 
     _invoke("rig", "export", str(rig_file), "--format", "kalibr", "-o", str(tmp_path / "k"))
     chain = yaml.safe_load((tmp_path / "k" / "camchain.yaml").read_text())
     for cam, key, value in (("cam0", "camera_model", "omni"),
-                            ("cam1", "distortion_model", "equidistant")):
+                            ("cam1", "distortion_model", "fov")):
         bad = yaml.safe_load(yaml.safe_dump(chain))
         bad[cam][key] = value
         (tmp_path / "k" / "bad.yaml").write_text(yaml.safe_dump(bad))

@@ -106,7 +106,6 @@ def test_plane_from_rendered_images_three_poses(scene):
 
 def test_plane_from_rendered_images_with_the_laser_module(scene):
     # the production path: stripe rows from slitcli.laser (paper Eqs. 1-4) on the board
-    pytest.importorskip("slitcli.laser")
     rig = scene["rig"]
     res = calibrate_laser_images(["a", "b", "c"], scene["images"][:3], rig,
                                  LaserPlaneParams(board=SPEC))

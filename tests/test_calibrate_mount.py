@@ -90,3 +90,116 @@ def test_cli_calibrate_mount(floor_view, tmp_path):
                                    str(tmp_path / "nope"), "-o", str(out)])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1
     assert "nope" in res.output and not out.exists()
+
+
+# ---------------------------------------------------------------- refusing what is not a floor
+def _plane_points(noise_scale: float, seed: int, rig) -> tuple[np.ndarray, np.ndarray]:
+    """Floor points 0.5 m below a 25-deg camera, depth noise ``noise_scale`` x the model's."""
+    rng = np.random.default_rng(seed)
+    t = math.radians(25.0)
+    n = np.array([0.0, math.cos(t), math.sin(t)])
+    e1, e2 = np.array([1.0, 0.0, 0.0]), np.cross(n, [1.0, 0.0, 0.0])
+    p = 0.5 * n + rng.uniform(-1, 1, (8000, 1)) * e1 + rng.uniform(-1.5, 1.5, (8000, 1)) * e2
+    p = p[(p[:, 2] > 0.4) & (p[:, 2] < 2.8)]
+    sigma = p[:, 2] ** 2 * MountParams().disparity_sigma_px / (rig.focal_px * rig.baseline_m)
+    # depth error along the ray (the stereo noise model), scaled to the point
+    dz = rng.normal(size=p.shape[0]) * sigma * noise_scale
+    return p * (1 + dz / p[:, 2])[:, None], n
+
+
+def test_normalised_rms_threshold_is_the_midpoint_of_the_two_hypotheses():
+    from statistics import NormalDist
+
+    from slitcli.calibrate.mount import normalised_rms_threshold
+
+    nd = NormalDist()
+    for k in (2.0, 3.0, 4.0):
+        rho_g = math.sqrt(1 - 2 * k * nd.pdf(k) / (2 * nd.cdf(k) - 1))
+        assert normalised_rms_threshold(k) == pytest.approx(0.5 * (rho_g + k / math.sqrt(3)),
+                                                            rel=1e-12)
+    assert normalised_rms_threshold(3.0) == pytest.approx(1.3593, abs=1e-4)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_floor_check_accepts_model_noise_and_refuses_a_scatter(seed):
+    from slitcli.calibrate.mount import floor_plane_check
+    from slitcli.errors import SlitcliError
+
+    rig = rig_with_raw(demo_raw_calibration())
+    pts, _ = _plane_points(1.0, seed, rig)
+    plane = fit_floor_ransac(pts, rig, MountParams(seed=seed))
+    # truncated standard normal at 3 sigma: RMS 0.987, share 99.7 % (a few % sampling slack)
+    assert plane.normalised_rms == pytest.approx(0.987, abs=0.05)
+    assert plane.inliers / plane.points > 0.98
+    floor_plane_check(plane, MountParams())
+    # noise 2.5 x the model: 77 % inside the band, normalised RMS 2.5 * 0.628 = 1.57 > 1.36
+    pts, _ = _plane_points(2.5, seed, rig)
+    plane = fit_floor_ransac(pts, rig, MountParams(seed=seed))
+    assert plane.normalised_rms == pytest.approx(1.57, abs=0.08)
+    with pytest.raises(SlitcliError, match=r"x the stereo depth noise \(at most 1\.36"):
+        floor_plane_check(plane, MountParams())
+
+
+def _render_pairs(floors, seed):
+    raw = demo_raw_calibration()
+    lc, rc = stereo_cameras(raw)
+    return [(TargetRenderer(lc).render_floor(f, seed=seed + 2 * i),
+             TargetRenderer(rc).render_floor(f, seed=seed + 2 * i + 1))
+            for i, f in enumerate(floors)], rig_with_raw(raw)
+
+
+def _write_seq(root, pairs):
+    (root / "left").mkdir(parents=True)
+    (root / "right").mkdir()
+    for i, (left, right) in enumerate(pairs):
+        cv2.imwrite(str(root / "left" / f"{i:03d}.png"), left)
+        cv2.imwrite(str(root / "right" / f"{i:03d}.png"), right)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_cli_refuses_views_without_a_floor(tmp_path, seed):
+    from slitcli.sim.targets import Floor
+
+    rng = np.random.default_rng(seed)
+    # five "rooms": floors at unrelated heights and tilts, as frames of one sequence
+    rooms = [floor_for_mount(float(h), float(t), seed=seed + i) for i, (h, t) in enumerate(
+        zip(rng.uniform(0.3, 1.2, 5), [5.0, 40.0, 60.0, 12.0, 28.0], strict=True))]
+    wall = [Floor(up_left=(0.0, 0.0, -1.0), height_m=float(rng.uniform(0.8, 1.6)), seed=seed)]
+    # a wall: no floor-like RANSAC candidate at all, or a candidate that refines to the wall
+    for name, floors, why in (("rooms", rooms, ("lie on the best floor plane",)),
+                              ("wall", wall, ("not the floor", "no floor-like plane"))):
+        pairs, rig = _render_pairs(floors, seed)
+        _write_seq(tmp_path / name, pairs)
+        rig_path, out = tmp_path / f"{name}_rig.yaml", tmp_path / f"{name}_out.yaml"
+        save_rig(rig, rig_path)
+        before = rig_path.read_text()
+        res = CliRunner().invoke(cli, ["calibrate", "mount", "--rig", str(rig_path),
+                                       str(tmp_path / name), "-o", str(out)])
+        assert res.exit_code == 2, res.output
+        assert len(res.output.strip().splitlines()) == 1
+        assert any(w in res.output for w in why), res.output
+        assert not out.exists() and rig_path.read_text() == before
+        # in place: the rig is left as it was
+        res = CliRunner().invoke(cli, ["calibrate", "mount", "--rig", str(rig_path),
+                                       str(tmp_path / name)])
+        assert res.exit_code == 2 and rig_path.read_text() == before
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_corridor_sample_still_gives_its_mount(tmp_path, seed):
+    from pathlib import Path
+
+    from slitcli.calibrate.mount import run_calibrate_mount
+
+    seq = Path(__file__).resolve().parents[1] / "sample_data" / "sequences" / "corridor"
+    truth = load_rig(seq / "rig.yaml").mount  # the rig the sample was rendered with
+    out = tmp_path / "rig.yaml"
+    res = run_calibrate_mount(seq / "rig.yaml", seq, MountParams(seed=seed), out_rig=out)
+    m = load_rig(out).mount
+    # the sample's walls take a third of the points; the floor still holds the majority
+    assert res.floor.inliers / res.floor.points > 0.5
+    # tolerance: a 0.25 px disparity bias of the compressed, rendered images at the floor's
+    # mean disparity (~15 px) scales height by 1.7 % (11 mm) and tilts it by ~0.6 deg
+    assert m.height_m == pytest.approx(truth.height_m, abs=0.015)
+    assert m.tilt_deg == pytest.approx(truth.tilt_deg, abs=1.0)
+    assert abs(m.roll_deg - truth.roll_deg) < 1.0

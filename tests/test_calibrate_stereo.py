@@ -170,3 +170,56 @@ def test_cli_bad_input_exit_2_one_line_nothing_written(views, tmp_path, case):
     expect = {"wrong_board": "no 8x6 chessboard found", "counts": "5 right images but 6",
               "unreadable": "03.png: unreadable image", "no_board": "no 9x6 chessboard found"}
     assert expect[case] in lines[0]
+
+
+# ---------------------------------------------------------------------- epipolar report, preview
+def test_report_gives_the_rectified_epipolar_error(calibrated):
+    e = calibrated.epipolar
+    assert e is not None and e.corners == N_CAL * 54
+    # the calibration views themselves: as the held-out bound above
+    assert e.median_px <= 0.1 and e.median_px <= e.p95_px <= e.max_px < 0.5
+    assert "rectified epipolar error |dy| px: median" in "\n".join(calibrated.report_lines())
+
+
+@pytest.mark.parametrize("delta_deg", [0.0, 0.1, 0.25, 0.5, 1.0])
+def test_epipolar_error_measures_a_rotation_about_the_baseline(views, delta_deg):
+    """True corners, rectified with the truth except R turned by delta about x: the right
+    image shifts by about f tan(delta) rows (hand-derived), no shift for delta = 0."""
+    import math
+
+    from slitcli.calibrate.rectify import rectify_raw, rig_with_raw
+    from slitcli.calibrate.stereo import epipolar_error
+
+    truth = views["raw"]
+    lc, rc = views["cams"]
+    rig = rig_with_raw(truth)
+    d = math.radians(delta_deg)
+    Rx = np.array([[1, 0, 0], [0, math.cos(d), -math.sin(d)], [0, math.sin(d), math.cos(d)]])
+    wrong = rectify_raw(truth.array("K1"), truth.array("D1"), truth.array("K2"),
+                        truth.array("D2"), truth.image_size_px, Rx @ truth.array("R"),
+                        truth.array("T"))
+    rig_wrong = rig_with_raw(wrong)
+    poses = views["poses"][:5]
+    cl = [project_board_corners(lc, BOARD, p) for p in poses]
+    cr = [project_board_corners(rc, BOARD, p) for p in poses]
+    assert epipolar_error(rig, cl, cr).max_px < 1e-3
+    e = epipolar_error(rig_wrong, cl, cr)
+    want = rig_wrong.focal_px * math.tan(d)
+    assert e.median_px == pytest.approx(want, rel=0.15, abs=2e-3)
+
+
+def test_cli_writes_preview_placeholder_comment_and_note(views, tmp_path):
+    _write_views(tmp_path / "L", views["left"][:5])
+    _write_views(tmp_path / "R", views["right"][:5])
+    out = tmp_path / "rig.yaml"
+    res = CliRunner().invoke(cli, ["calibrate", "stereo", str(tmp_path / "L"), str(tmp_path / "R"),
+                                   "--board", "9x6", "--square-m", "0.025", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "note: the rig's mount and laser plane are placeholders" in res.output
+    assert out.read_text().startswith("# mount and laser were NOT calibrated")
+    load_rig(out)  # the comment keeps the file a valid rig
+    preview = cv2.imread(str(tmp_path / "rig_rectified.png"))
+    assert preview.shape == (360, 960, 3)
+    # the drawn lines: every 24 rows from row 12, alternating green and magenta
+    assert (preview[12] == (0, 255, 0)).all() and (preview[36] == (255, 0, 255)).all()
+    assert not (preview[13] == (0, 255, 0)).all()

@@ -229,8 +229,12 @@ def test_array_step_matches_python_loop_reference(seed):
     ({"w_res_dps": 10.0}, "--w-res-dps"), ({"turn_circle_close": 1}, "turn-circle"),
 ])
 def test_impossible_parameters_are_refused(kw, option):
-    with pytest.raises(SlitcliError, match=option) as e:
+    from slitcli.cli.main import user_message
+
+    with pytest.raises(SlitcliError) as e:
         DwaParams(**kw)
+    # the library names the parameter; the command line shows the user its option
+    assert e.value.params == tuple(kw) and option in user_message(e.value)
     assert "\n" not in str(e.value)
 
 
@@ -262,3 +266,163 @@ def test_point_memory_keeps_recent_points_one_per_cell():
     assert m3.points_xy.tolist() == [[1.02, 1.02]]    # the t = 0 point has expired
     off = m.update([[5.0, 5.0]], 0.2, keep_s=0.0, cell_m=0.05)
     assert off.points_xy.tolist() == [[5.0, 5.0]]     # no memory: only what is seen now
+
+
+# ---------------------------------------------------------------- ray clearing
+def _rays(ranges, free_m=0.0):
+    from slitcli.local_map import ScanRays
+
+    b = np.arange(-30.0, 30.01, 1.0)
+    r = np.full(b.shape, np.nan)
+    for bearing, rng in ranges.items():
+        r[int(bearing + 30)] = rng
+    return ScanRays(np.zeros(2), 0.0, b, r, free_m, 0.05)
+
+
+def test_scan_rays_state_hand_values():
+    from slitcli.local_map import FREE, OCCLUDED, SURFACE, UNSEEN
+
+    rays = _rays({0.0: 2.0})
+    # tolerance at range r: 0.05 + r * 1 deg = 0.085 m at 2 m
+    pts = [[1.0, 0.0], [1.9, 0.0], [2.05, 0.0], [1.95, 0.0], [2.2, 0.0], [3.0, 0.0],
+           [1.0, math.tan(math.radians(0.4))]]                # 0.4 deg: still the 0 deg bin
+    np.testing.assert_array_equal(rays.state(pts), [FREE, FREE, SURFACE, SURFACE, OCCLUDED,
+                                                     OCCLUDED, FREE])
+    # outside the field of view, or no return in the bin: unseen unless free_m says free
+    side = [[0.0, 1.0], [1.0, math.tan(math.radians(10.0))]]
+    np.testing.assert_array_equal(rays.state(side), [UNSEEN, UNSEEN])
+    np.testing.assert_array_equal(_rays({0.0: 2.0}, free_m=3.0).state(side), [UNSEEN, FREE])
+
+
+def test_obstacle_map_keeps_out_of_view_clears_seen_free():
+    from slitcli.local_map import ObstacleMap, ScanRays
+
+    wall = np.column_stack([np.full(11, 2.0), np.linspace(-0.5, 0.5, 11)])
+    m = ObstacleMap.empty().add(wall, 0.0, np.zeros(11, dtype=np.int64), cell_m=0.05)
+    assert len(m.points_xy) == 11
+    # robot turned 90 deg left: the wall is out of view; nothing is forgotten
+    b = np.arange(-30.0, 30.01, 1.0)
+    away = ScanRays(np.zeros(2), math.pi / 2, b, np.full(b.shape, np.nan), 3.0, 0.05)
+    assert len(m.clear(away).points_xy) == 11
+    # looking at it again with a missed return (vision, free_m = 0): kept
+    look = ScanRays(np.zeros(2), 0.0, b, np.full(b.shape, np.nan), 0.0, 0.05)
+    assert len(m.clear(look).points_xy) == 11
+    # a farther return through it (the wall has gone): cleared where the rays pass
+    far = ScanRays(np.zeros(2), 0.0, b, np.full(b.shape, 4.0), 0.0, 0.05)
+    assert len(m.clear(far).points_xy) == 0
+    # exact sensing says "nothing within 3 m": cleared too
+    assert len(m.clear(ScanRays(np.zeros(2), 0.0, b, np.full(b.shape, np.nan), 3.0,
+                                0.05)).points_xy) == 0
+    assert len(m.drop_tracks(np.array([0])).points_xy) == 0
+
+
+# ---------------------------------------------------------------- tracking
+def _disc_scan(centre, radius, origin, bearings_deg):
+    """Exact ranges from ``origin`` to a disc per bearing (NaN on a miss): (B,)."""
+    a = np.radians(bearings_deg)
+    d = np.column_stack([np.cos(a), np.sin(a)])
+    oc = np.asarray(centre) - origin
+    b = d @ oc
+    disc = b * b - (oc @ oc - radius * radius)
+    return np.where(disc >= 0, b - np.sqrt(np.maximum(disc, 0)), np.nan)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_tracker_velocity_of_a_walking_disc_and_static_box(seed):
+    from slitcli.local_map import ScanRays
+    from slitcli.tracking import Tracker
+
+    rng = np.random.default_rng(seed)
+    speed = rng.uniform(0.3, 1.0)
+    ang = rng.uniform(0, 2 * np.pi)
+    vel = speed * np.array([math.cos(ang), math.sin(ang)])
+    c0 = np.array([2.5, rng.uniform(-0.5, 0.5)]) - 0.6 * vel    # passes near (2.5, y)
+    b = np.arange(-32.0, 32.01, 0.5)
+    tr = Tracker()
+    for k in range(8):                                            # 1.4 s at 5 Hz
+        t = 0.2 * k
+        r = _disc_scan(c0 + vel * t, 0.25, np.zeros(2), b)
+        ok = np.isfinite(r)
+        pts = np.column_stack([r[ok] * np.cos(np.radians(b[ok])),
+                               r[ok] * np.sin(np.radians(b[ok]))])
+        rays = ScanRays(np.zeros(2), 0.0, b, r, 5.0, 0.05)
+        snap = tr.update(pts, t, rays.state, origin_xy=np.zeros(2))
+    assert len(snap.track_id) == 1 and snap.moving[0]
+    # error budget: 0.5 deg bins at 2.5 m (2 cm per point) over a 1.4 s baseline
+    assert np.hypot(*(snap.velocity_xy[0] - vel)) < 0.06
+    # a static box seen from a robot driving past it at 0.2 m/s is never moving
+    tr = Tracker()
+    box = np.column_stack([np.full(30, 2.0), np.linspace(-0.3, 0.6, 30)])
+    for k in range(10):
+        o = np.array([0.04 * k, rng.uniform(-0.01, 0.01)])
+        rel = box - o
+        brg = np.degrees(np.arctan2(rel[:, 1], rel[:, 0]))
+        idx = np.floor((brg - b[0]) / 0.5 + 0.5).astype(int)
+        keep = (idx >= 0) & (idx < len(b))
+        near = np.full(b.shape, np.inf)
+        np.minimum.at(near, idx[keep], np.hypot(*rel[keep].T))
+        r = np.where(np.isfinite(near), near, np.nan)
+        ok = np.isfinite(r)
+        pts = o + np.column_stack([r[ok] * np.cos(np.radians(b[ok])),
+                                   r[ok] * np.sin(np.radians(b[ok]))])
+        snap = tr.update(pts, 0.2 * k, ScanRays(o, 0.0, b, r, 5.0, 0.05).state, origin_xy=o)
+    assert not snap.ever_moving.any()
+
+
+# ---------------------------------------------------------------- prediction
+def test_moving_contact_time_hand_values():
+    from slitcli.prediction import MovingDiscs, moving_contact_time
+
+    v, w = np.array([0.2, 0.0, 0.2]), np.array([0.0, 0.0, 0.3])
+    # a person walking at the robot along its line at 0.5 m/s from 3 m: the two discs
+    # (0.3 + 0.25) meet when the gap closes, (3 - 0.55 - slack) / 0.7 s for the moving
+    # robot, (3 - 0.55 - slack) / 0.5 s for the standing one; slack = half a step's
+    # relative travel
+    m = MovingDiscs(np.array([[3.0, 0.0]]), np.array([[-0.5, 0.0]]), np.array([0.25]))
+    t_c, gap = moving_contact_time(v, w, m, radius_m=0.3, horizon_s=10.0, step_s=0.1)
+    for i, closing in ((0, 0.7), (1, 0.5)):
+        slack = 0.05 * (v[i] + 0.5)
+        exact = (3.0 - 0.55 - slack) / closing
+        assert exact <= t_c[i] < exact + 0.1 + 1e-9
+    assert gap[0] < 0
+    # the same person walking away never meets the robot: inf, and the gap stays open
+    m2 = MovingDiscs(np.array([[3.0, 0.0]]), np.array([[0.5, 0.0]]), np.array([0.25]))
+    t2, gap2 = moving_contact_time(v, w, m2, radius_m=0.3, horizon_s=10.0, step_s=0.1)
+    assert np.all(np.isinf(t2)) and gap2.min() > 0
+    # a disc overlapping the margin but moving off sideways does not block the robot
+    m3 = MovingDiscs(np.array([[0.0, 0.5]]), np.array([[0.0, 1.0]]), np.array([0.25]))
+    assert np.all(np.isinf(moving_contact_time(v, w, m3, radius_m=0.3, horizon_s=5.0,
+                                               step_s=0.1)[0]))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_array_step_with_prediction_matches_loop_reference(seed):
+    from slitcli.prediction import MovingDiscs
+
+    rng = np.random.default_rng(100 + seed)
+    pts = rng.uniform([-0.5, -2.0], [3.0, 2.0], size=(30, 2))
+    pts = pts[np.hypot(*pts.T) > R + 0.01]
+    c = rng.uniform([0.8, -2.0], [3.0, 2.0], size=(3, 2))
+    u = rng.uniform(-1.0, 1.0, size=(3, 2))
+    r = rng.uniform(0.0, 0.2, size=3)
+    v0, w0 = float(rng.uniform(0.05, 0.2)), float(rng.uniform(-0.1, 0.1))
+    goal = (float(rng.uniform(1, 5)), float(rng.uniform(-3, 3)))
+    cmd = plan_step(v0, w0, goal, pts, P, MovingDiscs(c, u, r))
+    v, w, s = ref.choose(v0, w0, goal, [tuple(q) for q in pts], P,
+                         [(*c[i], *u[i], r[i]) for i in range(3)])
+    assert (cmd.v_mps, cmd.w_rps) == (v, w)
+    assert cmd.score == pytest.approx(s, abs=1e-9)
+
+
+def test_a_person_crossing_ahead_makes_the_robot_wait_not_rotate():
+    from slitcli.prediction import MovingDiscs
+
+    # standing robot, goal straight ahead, a person just in front (0.56 m: 1 cm outside
+    # the 0.3 + 0.25 m contact distance, within the half-step slack) walking left at
+    # 0.3 m/s: every forward arc closes the gap at once, standing lets it open
+    m = MovingDiscs(np.array([[0.56, 0.0]]), np.array([[0.0, 0.3]]), np.array([0.25]))
+    cmd = plan_step(0.0, 0.0, (4.0, 0.0), np.zeros((0, 2)), P, m)
+    assert cmd.status == "wait" and cmd.v_mps == 0.0 and cmd.w_rps == 0.0
+    # once it has passed, the robot goes
+    gone = MovingDiscs(np.array([[1.0, 1.5]]), np.array([[0.0, 1.0]]), np.array([0.25]))
+    assert plan_step(0.0, 0.0, (4.0, 0.0), np.zeros((0, 2)), P, gone).status == "move"

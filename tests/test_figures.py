@@ -92,6 +92,74 @@ def test_accuracy_joins_truth_and_bins_errors():
     fig, ax = plt.subplots()
     drawn = draw_accuracy(ax, err)
     assert drawn == {"fused": 3, "laser": 1, "stereo": 3}
-    assert ax.lines[0].get_ydata() == pytest.approx([2.0, 2.0, 2.0])
+    lines = {ln.get_label(): ln for ln in ax.lines}
+    assert lines["fused"].get_ydata() == pytest.approx([2.0, 2.0, 2.0])
     assert ax.get_ylabel() == "median |range error| (cm)"
+    plt.close(fig)
+
+
+def test_accuracy_fused_stays_visible_on_top_of_the_same_stereo_curve():
+    true = np.repeat([1.2, 1.6, 2.4], 10)
+    ranges = pd.DataFrame({"frame": 0, "bearing_deg": np.arange(30), "laser_range_m": np.nan,
+                           "stereo_range_m": true + 0.05, "fused_range_m": true + 0.05})
+    truth = pd.DataFrame({"frame": 0, "bearing_deg": np.arange(30), "range_m": true})
+    fig, ax = plt.subplots()
+    draw_accuracy(ax, range_errors(ranges, truth))
+    lines = {ln.get_label(): ln for ln in ax.lines}
+    fused, stereo = lines["fused"], lines["stereo"]
+    np.testing.assert_allclose(fused.get_ydata(), stereo.get_ydata())  # the same curve
+    assert fused.get_zorder() > stereo.get_zorder()
+    assert fused.get_linestyle() != stereo.get_linestyle()
+    assert fused.get_marker() != stereo.get_marker() and fused.get_markerfacecolor() == "none"
+    # the open square is wider than stereo's dot: stereo shows inside, fused around it
+    assert fused.get_markersize() > 1.5 * stereo.get_markersize()
+    plt.close(fig)
+
+
+def test_fig9_every_case_visible_where_curves_coincide():
+    base = _traj(30, 0.0)
+    other = _traj(30, 0.0)
+    other["nearest_obstacle_m"] = np.linspace(2.0, 1.0, 30)
+    trajs = {"sensing 0.6 m": base, "sensing 1 m": base.copy(),
+             "sensing 1.5 m": other, "sensing 2 m": other.copy()}
+    fig, ax = plt.subplots()
+    same = draw_fig9(ax, trajs)
+    assert same["sensing 0.6 m"] == ["sensing 1 m"] and same["sensing 2 m"] == ["sensing 1.5 m"]
+    lines = ax.lines
+    assert len(lines) == 4
+    styles = {(str(ln.get_linestyle()), ln.get_marker()) for ln in lines}
+    assert len(styles) == 4  # no two cases share style and marker
+    for a, b in ((0, 1), (2, 3)):
+        # the data are not shifted: the coinciding lines hold the same values
+        np.testing.assert_array_equal(lines[a].get_ydata(), lines[b].get_ydata())
+        # the later case is narrower and on top, so both show
+        assert lines[b].get_linewidth() < lines[a].get_linewidth()
+        assert lines[b].get_zorder() > lines[a].get_zorder()
+        # their markers sit on different samples
+        assert lines[a].get_markevery()[0] != lines[b].get_markevery()[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[0] == "sensing 0.6 m (same curve as sensing 1 m)"
+    assert labels[3] == "sensing 2 m (same curve as sensing 1.5 m)"
+    plt.close(fig)
+
+
+def test_fig8_panels_share_their_ranges():
+    trajs = {f"sensing {s} m": _traj(20, peak) for s, peak in ((0.6, 1.8), (2, -0.8))}
+    seg = np.array([[[2.9, -0.2], [3.1, -0.2]], [[3.1, -0.2], [3.1, 0.2]],
+                    [[3.1, 0.2], [2.9, 0.2]], [[2.9, 0.2], [2.9, -0.2]]])
+    fig, axes = plt.subplots(1, 2)
+    draw_fig8(axes, trajs, seg, np.zeros((0, 3)), goal_xy=(4.0, 0.0), robot_radius_m=0.2)
+    assert axes[0].get_ylim() == axes[1].get_ylim()
+    assert axes[0].get_xlim() == axes[1].get_xlim()
+    lo, hi = axes[0].get_ylim()
+    y = np.concatenate([t["y_m"] for t in trajs.values()])
+    # both paths, with the margin of 0.3 m plus the robot's radius
+    assert lo == pytest.approx(y.min() - 0.5) and hi == pytest.approx(y.max() + 0.5)
+    plt.close(fig)
+
+
+def test_fig4_legend_names_the_stripe():
+    fig, ax = plt.subplots()
+    draw_fig4(ax, np.zeros((240, 320, 3), np.uint8), _laser(np.arange(30, 120), 236.0, 0.6))
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["detected stripe"]
     plt.close(fig)

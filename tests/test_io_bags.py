@@ -40,7 +40,7 @@ def test_missing_topic_lists_the_image_topics(tmp_path, frames):
 
 def test_unpaired_explains_offset_and_time_unit(tmp_path, frames):
     path = write_bag(tmp_path / "late", frames, ros=2, right_offset_ns=80_000_000)
-    with pytest.raises(SlitcliError, match=r"0\.08 s apart.*try --max-dt 0\.12"):
+    with pytest.raises(SlitcliError, match=r"0\.08 s apart.*try `max_dt_s` 0\.12"):
         pair_bag(path, LEFT, RIGHT, 0.01)
     # a right camera stamping microseconds into the nanosecond field
     path = write_bag(tmp_path / "units.bag", frames, ros=1, right_divisor=1000)

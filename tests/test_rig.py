@@ -128,5 +128,6 @@ def test_bearing_bins_by_hand():
         np.testing.assert_allclose(np.diff(centres), width)
         np.testing.assert_allclose(hi - lo, width)
         np.testing.assert_allclose((lo + hi) / 2, centres)
-    with pytest.raises(ValueError):
-        rig.bearing_bins(0.0)
+    for width in (0.0, -1.0, 1e-6, 11.0, float("nan")):
+        with pytest.raises(SlitcliError, match="bin_deg"):
+            rig.bearing_bins(width)

@@ -13,9 +13,15 @@ from stereo_synth import plane_pair
 
 from slitcli.cli import cli
 from slitcli.rig import paper_rig, save_rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.obstacles import ObstacleParams, obstacle_points
 
 DISPARITIES = (11.0, 14.5, 18.25)  # fronto-parallel planes at 2.0, 1.52 and 1.21 m
+
+
+def geo(rig):
+    """The rig's stereo geometry with 1-degree bins."""
+    return StereoGeometry.for_rig(rig)
 
 
 def make_sequence(root: Path, disparities=DISPARITIES, size=(320, 240)) -> Path:
@@ -58,7 +64,7 @@ def test_stereo_writes_the_design_folders(tmp_path):
         assert ((dist_png > 0) == valid).all()
         # the mask is the obstacle test of the written disparity (hand-checked geometry)
         _, _, expect, _ = obstacle_points(np.where(valid, disp_png / 256.0, np.nan)
-                                          .astype(np.float32), rig, ObstacleParams())
+                                          .astype(np.float32), geo(rig), ObstacleParams())
         assert ((mask_png == 255) == expect).mean() >= 0.999
         assert expect.sum() > 1000
     table = pd.read_csv(out / "stereo_ranges.csv")
@@ -82,7 +88,7 @@ def test_rerun_skips_finished_frames_and_refuses_other_settings(tmp_path):
     (out / "disparity" / "f000.png").unlink()   # as if killed while writing frame 0
     res = run("stereo", seq, "-o", out)
     assert res.exit_code == 0
-    assert "1 computed, 1 already done" in res.output
+    assert "2 frames (1 already done)" in res.output
     assert (out / "disparity" / "f000.png").exists()
     assert (out / "disparity" / "f001.png").stat().st_mtime_ns == before
     res = run("stereo", seq, "-o", out, "--window", "7")
@@ -98,6 +104,23 @@ def test_opencv_matchers_through_the_command(tmp_path, matcher):
     assert run("stereo", seq, "-o", out, "--matcher", matcher).exit_code == 0
     disp = cv2.imread(str(out / "disparity" / "f000.png"), cv2.IMREAD_UNCHANGED)
     assert np.median(np.abs(disp[disp > 0] / 256.0 - 14.5)) <= 0.3
+
+
+def test_sgm_aggregation_through_the_command(tmp_path):
+    import json
+
+    seq = make_sequence(tmp_path, disparities=(14.5,))
+    out = tmp_path / "out"
+    res = run("stereo", seq, "-o", out, "--aggregation", "sgm")
+    assert res.exit_code == 0, res.output
+    disp = cv2.imread(str(out / "disparity" / "f000.png"), cv2.IMREAD_UNCHANGED)
+    assert (disp > 0)[:, 40:].mean() >= 0.95
+    assert np.median(np.abs(disp[disp > 0] / 256.0 - 14.5)) <= 0.1
+    # the settings are recorded, so a re-run can tell
+    manifest = json.loads((out / ".slitcli" / "stereo" / "manifest.json").read_text())
+    assert manifest["params"]["matcher"]["aggregation"] == "sgm"
+    # another aggregation is another setting: refused without --overwrite
+    assert run("stereo", seq, "-o", out).exit_code == 2
 
 
 def _one_line_exit_2(res, out: Path, fragment: str) -> None:
@@ -143,6 +166,7 @@ def test_missing_right_frame(tmp_path):
     (["--window", "nine"], "--window 'nine'"),
     (["--num-disparities", "400"], "exceeds the image width"),
     (["--matcher", "bm", "--num-disparities", "40"], "multiple of 16"),
+    (["--matcher", "bm", "--aggregation", "sgm"], "aggregation 'sgm'"),
 ])
 def test_bad_options(tmp_path, args, fragment):
     seq = make_sequence(tmp_path, disparities=(12.0,))

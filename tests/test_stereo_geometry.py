@@ -10,18 +10,23 @@ import numpy as np
 import pytest
 from stereo_synth import texture
 
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.rig import RawCalibration, paper_rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.obstacles import (
     ObstacleParams,
     bearing_ranges,
     depth_from_disparity,
     floor_check,
-    floor_disparity,
     obstacle_points,
     trim_silhouettes,
 )
-from slitcli.stereo.rectify import rectification_maps, rectify_pair
+
+
+def geo(rig):
+    """The rig's stereo geometry with 1-degree bins."""
+    return StereoGeometry.for_rig(rig)
 
 
 def wall_and_floor_disparity(rig, wall_x_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -54,7 +59,7 @@ def test_wall_ranges_mask_and_floor():
     wall = 1.5
     disp, sees_wall = wall_and_floor_disparity(rig, wall)
     params = ObstacleParams()
-    depth, pts, obstacle, feature = obstacle_points(disp.astype(np.float32), rig, params)
+    depth, pts, obstacle, feature = obstacle_points(disp.astype(np.float32), geo(rig), params)
     # reprojection is exact: wall points at x = 1.5 m, floor points at z = 0
     np.testing.assert_allclose(pts[sees_wall][:, 0], wall, atol=1e-4)
     np.testing.assert_allclose(pts[~sees_wall][:, 2], 0.0, atol=1e-4)
@@ -69,7 +74,7 @@ def test_wall_ranges_mask_and_floor():
     assert expect.sum() > 10000
     assert not obstacle[~sees_wall].any()           # the floor is never an obstacle
     assert not obstacle[sees_wall & (z > params.robot_height_m)].any()
-    br = bearing_ranges(pts, obstacle, feature, rig, params)
+    br = bearing_ranges(pts, obstacle, feature, geo(rig), params)
     np.testing.assert_array_equal(br.bearing_deg, np.arange(-32, 33))
     # nearest wall point in the bin [b - 0.5, b + 0.5]: 1.5 / cos of the bin edge
     # nearer to 0; the 10th percentile of the bin's points lies within 1 cm above it
@@ -86,18 +91,18 @@ def test_wall_ranges_mask_and_floor():
 def test_points_beyond_range_or_without_enough_pixels_are_no_return():
     rig = paper_rig()
     disp, _ = wall_and_floor_disparity(rig, 3.5)  # beyond the rig's 3 m stereo range
-    _depth, pts, obstacle, feature = obstacle_points(disp.astype(np.float32), rig,
+    _depth, pts, obstacle, feature = obstacle_points(disp.astype(np.float32), geo(rig),
                                                     ObstacleParams())
     assert not obstacle.any()
-    br = bearing_ranges(pts, obstacle, feature, rig, ObstacleParams())
+    br = bearing_ranges(pts, obstacle, feature, geo(rig), ObstacleParams())
     assert np.isnan(br.range_m).all()
     assert br.has_features[np.abs(br.bearing_deg) <= 31].all()  # the far wall is seen
     # a handful of stray pixels cannot make an obstacle (min_obstacle_px = 8)
     disp2 = np.full(disp.shape, np.nan, np.float32)
     disp2[100:102, 150:153] = 22.0
-    _, pts2, obs2, feat2 = obstacle_points(disp2, rig, ObstacleParams())
+    _, pts2, obs2, feat2 = obstacle_points(disp2, geo(rig), ObstacleParams())
     assert obs2.sum() == 6
-    br2 = bearing_ranges(pts2, obs2, feat2, rig, ObstacleParams())
+    br2 = bearing_ranges(pts2, obs2, feat2, geo(rig), ObstacleParams())
     assert np.isnan(br2.range_m).all()
     assert not br2.has_features.any()
 
@@ -127,29 +132,30 @@ def test_a_partial_near_object_is_ranged_from_its_own_points():
     ranges = np.r_[face, np.full(85, 2.9)]
     pts, obstacle, feature = _one_bin_points(ranges)
     k = 32   # the 0 deg bin of -32..32
-    br = bearing_ranges(pts, obstacle, feature, rig, ObstacleParams())
+    br = bearing_ranges(pts, obstacle, feature, geo(rig), ObstacleParams())
     assert br.obstacle_px[k] == 100
     assert abs(br.range_m[k] - face[1]) <= cell
     # without the surface split, the plain percentile of the bin (the old rule)
-    plain = bearing_ranges(pts, obstacle, feature, rig, ObstacleParams(surface_gap_px=0.0))
+    plain = bearing_ranges(pts, obstacle, feature, geo(rig), ObstacleParams(surface_gap_px=0.0))
     assert abs(plain.range_m[k] - face[9]) <= cell
     # a near object below the percentile's share (8 of 100 points) is still outvoted:
     # the split never admits points the plain percentile would not reach
     pts2, obs2, feat2 = _one_bin_points(np.r_[face[:8], np.full(92, 2.9)])
-    br2 = bearing_ranges(pts2, obs2, feat2, rig, ObstacleParams())
+    br2 = bearing_ranges(pts2, obs2, feat2, geo(rig), ObstacleParams())
     assert abs(br2.range_m[k] - 2.9) <= cell
     # a surface that only steps by less than the gap is one surface: ranges 2.0-2.9 m
     # in 0.05 m steps (disparity steps of 0.13-0.27 px) give the plain percentile
     ramp = np.repeat(np.arange(2.0, 2.91, 0.05), 5)
     pts3, obs3, feat3 = _one_bin_points(ramp)
-    one = bearing_ranges(pts3, obs3, feat3, rig, ObstacleParams())
-    ref = bearing_ranges(pts3, obs3, feat3, rig, ObstacleParams(surface_gap_px=0.0))
+    one = bearing_ranges(pts3, obs3, feat3, geo(rig), ObstacleParams())
+    ref = bearing_ranges(pts3, obs3, feat3, geo(rig), ObstacleParams(surface_gap_px=0.0))
     assert one.range_m[k] == ref.range_m[k]
     with pytest.raises(SlitcliError, match="surface gap"):
         ObstacleParams(surface_gap_px=-1.0)
 
 
-def test_floor_pixels_given_an_objects_disparity_are_floor():
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_floor_pixels_given_an_objects_disparity_are_floor(seed):
     # A hand-made rectified pair: the right image a random texture, the left image the
     # floor seen through the rig (each left pixel is the right image at the floor's
     # disparity, Eq. 8 on the floor plane), except an object over columns 150-169,
@@ -157,9 +163,9 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     # columns (170-173) with the object's disparity: they see floor.
     rig = paper_rig()
     w, h = rig.image_size_px
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     right = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)), (0, 0), 1.0)
-    dfl = floor_disparity(rig).astype(np.float64)
+    dfl = StereoGeometry.for_rig(rig).floor_disparity_px.astype(np.float64)
     # the floor's disparity is Eq. 8 at the depth where the pixel's ray meets the floor
     rays = rig.pixel_rays_cam(np.array([160.0]), np.array([200.0]))[0]
     rz = (rays @ rig.R_sensor_from_cam.T)[2]
@@ -172,7 +178,7 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     disp[140:200, 170:174] = 20.0            # fattening: floor pixels at the object's disparity
     mask = np.zeros((h, w), bool)
     mask[140:200, 150:174] = True
-    out = floor_check(mask, left, right, disp, rig, ObstacleParams())
+    out = floor_check(mask, left, right, disp, geo(rig), ObstacleParams(floor_check_ratio=0.5))
     # the object is kept wherever its 5-row column lies on it (its top and bottom 2 rows
     # straddle the floor: either hypothesis may win there)
     assert out[142:198, 150:170].all()
@@ -183,7 +189,7 @@ def test_floor_pixels_given_an_objects_disparity_are_floor():
     assert far.size >= 30
     assert not out[far][:, 170:174].any()
     assert mask[140:200, 150:174].all()      # input not modified
-    off = floor_check(mask, left, right, disp, rig, ObstacleParams(floor_check_ratio=0.0))
+    off = floor_check(mask, left, right, disp, geo(rig), ObstacleParams())  # off by default
     assert (off == mask).all()
     with pytest.raises(SlitcliError, match="floor check"):
         ObstacleParams(floor_check_half_px=-1)
@@ -225,14 +231,48 @@ def test_obstacle_runs_are_cut_back_to_the_silhouette_on_plain_backgrounds():
     assert np.array_equal(out, mask)
 
 
-def test_floor_test_allows_for_disparity_noise():
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_floor_test_allows_for_disparity_noise(seed):
     rig = paper_rig()
     disp, sees_wall = wall_and_floor_disparity(rig, 2.9)
-    noisy = disp + np.random.default_rng(1).normal(0.0, 0.25, disp.shape)
-    _, _pts, obstacle, _ = obstacle_points(noisy.astype(np.float32), rig, ObstacleParams())
+    noisy = disp + np.random.default_rng(seed).normal(0.0, 0.25, disp.shape)
+    _, _pts, obstacle, _ = obstacle_points(noisy.astype(np.float32), geo(rig), ObstacleParams())
     # 0.25 px of disparity noise lifts far floor points by centimetres; the test widens
     # its margin with depth, so almost no floor pixel becomes an obstacle
     assert obstacle[~sees_wall].mean() <= 0.01
+
+
+@pytest.mark.parametrize("bin_deg", [0.5, 1.0, 2.0])
+def test_stereo_pixels_use_the_one_bin_rule(bin_deg):
+    # every pixel's bin is slitcli.ranges' floor(b / w + 1/2): a bearing on a boundary
+    # goes to the larger-bearing bin, as for the laser and the truth
+    from slitcli.ranges import BearingBins
+
+    rig = paper_rig()
+    g = StereoGeometry.for_rig(rig, bin_deg)
+    bins = BearingBins.for_rig(rig, bin_deg)
+    np.testing.assert_array_equal(g.pixel_bin, bins.index(g.bearing_deg))
+    np.testing.assert_array_equal(g.bins.centres_deg, bins.centres_deg)
+    # the pixel nearest a boundary on each side of it lands in the bins on either side,
+    # and an obstacle placed on a pixel is counted in that pixel's bin
+    b = g.bearing_deg.astype(np.float64)
+    edge = (bins.first + 3 + 0.5) * bin_deg
+    row = 120
+    left_of = np.flatnonzero(b[row] >= edge)
+    right_of = np.flatnonzero(b[row] < edge)
+    u_in, u_out = left_of.max(), right_of.min()
+    assert g.pixel_bin[row, u_in] == 4 and g.pixel_bin[row, u_out] == 3
+    pts = np.full((*g.bearing_deg.shape, 3), np.nan, np.float32)
+    mask = np.zeros(g.bearing_deg.shape, bool)
+    rows = np.arange(60, 80)
+    mask[rows, u_in] = True
+    pts[rows, u_in] = [1.0, 0.0, 0.3]
+    p = ObstacleParams(bin_width_deg=bin_deg)
+    br = bearing_ranges(pts, mask, mask, g, p)
+    assert br.obstacle_px[4] == rows.size - (g.pixel_bin[rows, u_in] != 4).sum()
+    assert br.obstacle_px.sum() == rows.size
+    with pytest.raises(SlitcliError, match="another rig or bin width"):
+        bearing_ranges(pts, mask, mask, g, ObstacleParams(bin_width_deg=bin_deg * 2))
 
 
 # ------------------------------------------------------------------ rectification
@@ -269,7 +309,7 @@ def test_raw_images_are_rectified_with_the_rig_calibration():
     rect = cv2.undistortPoints(raw_px, k, dist, R=r1, P=p1).reshape(h, w, 2)
     raw_left = np.clip(np.rint(texture(rect[..., 0], rect[..., 1])), 0, 255).astype(np.uint8)
     raw_bgr = cv2.cvtColor(raw_left, cv2.COLOR_GRAY2BGR)
-    left_rect, _ = rectify_pair(raw_bgr, raw_bgr, rig)
+    left_rect, _ = rectify_pair(rig, raw_bgr, raw_bgr)
     truth = texture(u, v)
     err = np.abs(left_rect[..., 0].astype(float) - truth)[20:-20, 20:-20]
     # what is left is the bilinear resampling of a texture up to 0.22 cycles/px
@@ -278,26 +318,33 @@ def test_raw_images_are_rectified_with_the_rig_calibration():
     assert np.median(np.abs(raw_left.astype(float) - truth)[20:-20, 20:-20]) > 5.0
     # geometry of the tables: rectified pixel -> raw pixel (fixed point, 1/32 px) ->
     # back through the calibration lands on the same rectified pixel
-    maps = rectification_maps(rig.raw, tuple(rig.image_size_px))
+    maps = RectificationMaps.for_rig(rig)
     ys, xs = np.mgrid[10:h - 10:23, 10:w - 10:29]
-    m1, m2 = maps[0][ys, xs].astype(float), maps[1][ys, xs].astype(int)
+    m1, m2 = maps.left_map1[ys, xs].astype(float), maps.left_map2[ys, xs].astype(int)
     raw_x = m1[..., 0] + (m2 & 31) / 32.0
     raw_y = m1[..., 1] + (m2 >> 5) / 32.0
     back = cv2.undistortPoints(np.stack([raw_x, raw_y], -1).reshape(-1, 1, 2), k, dist,
                                R=r1, P=p1).reshape((*raw_x.shape, 2))
     assert np.abs(back[..., 0] - xs).max() <= 0.05
     assert np.abs(back[..., 1] - ys).max() <= 0.05
-    assert maps is rectification_maps(rig.raw, tuple(rig.image_size_px))  # computed once
-    assert not maps[0].flags.writeable
+    # built once per rig with its stereo geometry, and read-only
+    geo = StereoGeometry.for_rig(rig)
+    assert geo.rectification is not None and not geo.rectification.left_map1.flags.writeable
+    np.testing.assert_array_equal(geo.rectification.left_map1, maps.left_map1)
+    again, _ = rectify_pair(rig, raw_bgr, maps=geo.rectification)
+    np.testing.assert_array_equal(again, left_rect)
+    assert StereoGeometry.for_rig(paper_rig()).rectification is None
 
 
 def test_rectify_checks_the_raw_size():
     rig, *_ = raw_rig_with_distortion()
     img = np.zeros((200, 300, 3), np.uint8)
     with pytest.raises(SlitcliError, match=r"raw\.image_size_px"):
-        rectify_pair(img, img, rig)
+        rectify_pair(rig, img, img)
     with pytest.raises(SlitcliError, match="image_size_px is 320x240"):
-        rectify_pair(img, img, paper_rig())
+        rectify_pair(paper_rig(), img, img)
+    with pytest.raises(SlitcliError, match="right image is 300x200"):
+        rectify_pair(paper_rig(), np.zeros((240, 320), np.uint8), img)
 
 
 def test_pipeline_rectifies_raw_pairs_before_matching():

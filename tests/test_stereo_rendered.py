@@ -1,4 +1,9 @@
-"""Stereo on rendered scenes (slitcli.sim): disparity, textureless surfaces, ranges."""
+"""Stereo on rendered scenes (slitcli.sim): disparity, textureless surfaces, ranges.
+
+Scene-level checks, apart from the matcher's unit tests (test_stereo_matcher.py): each
+scene is rendered with 5 texture seeds (the scene's ``seed``), and the bounds are the
+issue's limits, not one render's numbers.
+"""
 
 from __future__ import annotations
 
@@ -45,10 +50,14 @@ SCENE = {
 }
 
 
-@pytest.fixture(scope="module")
-def corridor():
-    """Frame 0 of :data:`SCENE` and the stereo pipeline's result on it."""
-    scene = scene_from_dict(SCENE, "stereo-test scene")
+TEXTURE_SEEDS = [11, 12, 13, 14, 15]
+
+
+@pytest.fixture(scope="module", params=TEXTURE_SEEDS)
+def corridor(request):
+    """Frame 0 of :data:`SCENE` (texture seed from the parameter) and the stereo
+    pipeline's result on it."""
+    scene = scene_from_dict({**SCENE, "seed": request.param}, "stereo-test scene")
     rig = paper_rig()
     frame = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
     return rig, frame, process_stereo_pair(frame.left_bgr, frame.right_bgr, rig)
@@ -83,7 +92,7 @@ def test_textureless_surfaces_are_invalid_not_guessed(corridor):
 
 
 # One textureless object of each kind before the textured corridor of SCENE, lit by the
-# laser; measured (docs/stereo.md): 97.4 %, 96.1 %, 96.2 % and 98.6 % invalid.
+# laser; measured (docs/notes/stereo-kernels.md): 97.4 %, 96.1 %, 96.2 % and 98.6 % invalid.
 _PLAIN_OBJECTS = {
     "box 0.5 m wide at 1.2 m": [
         {"type": "box", "centre_xy_m": [1.2, 0.0], "size_m": [0.4, 0.5, 0.6],
@@ -102,9 +111,11 @@ _PLAIN_OBJECTS = {
 }
 
 
+@pytest.mark.parametrize("seed", [5, 6, 7, 8, 9])
 @pytest.mark.parametrize("name", list(_PLAIN_OBJECTS))
-def test_single_textureless_objects_are_invalid_not_guessed(name):
-    scene_dict = {**SCENE, "seed": 5, "objects": SCENE["objects"][:3] + _PLAIN_OBJECTS[name]}
+def test_single_textureless_objects_are_invalid_not_guessed(name, seed):
+    scene_dict = {**SCENE, "seed": seed,
+                  "objects": SCENE["objects"][:3] + _PLAIN_OBJECTS[name]}
     if "6 DN" in name:
         scene_dict["image"] = {"noise_sigma_dn": 6.0}
     scene = scene_from_dict(scene_dict, name)
@@ -117,7 +128,9 @@ def test_single_textureless_objects_are_invalid_not_guessed(name):
     err = np.abs(res.disparity_px - t.disparity_px)
     assert plain.sum() > 5000
     assert (~valid[plain]).mean() >= 0.95                  # issue 5
-    assert (plain & valid & (err > 1.0)).sum() / plain.sum() <= 0.015
+    # of the at most 5 % valid plain pixels (silhouettes, the stripe) at most half are
+    # more than 1 px off: 2.5 % of the plain pixels, as for the corridor's plain boxes
+    assert (plain & valid & (err > 1.0)).sum() / plain.sum() <= 0.025
 
 
 def test_nearer_surfaces_do_not_spill_past_their_silhouettes(corridor):
@@ -161,7 +174,8 @@ def test_ranges_per_bearing_against_the_truth(corridor):
     assert agree.mean() >= 0.95
 
 
-def test_silhouette_trim_removes_spill_onto_a_plain_background():
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+def test_silhouette_trim_removes_spill_onto_a_plain_background(seed):
     # A textured box and cylinder at 1.5-2 m before a plain wall at 3.6 m (beyond the
     # stereo range, so never an obstacle itself): the window carries the objects'
     # disparity past their silhouettes onto the plain wall; cutting each row's runs at
@@ -170,7 +184,7 @@ def test_silhouette_trim_removes_spill_onto_a_plain_background():
     from slitcli.stereo.pipeline import StereoParams
 
     textured = _surface("noise", [0.55, 0.6, 0.5], 0.02, 0.7)
-    scene = scene_from_dict({"slitcli_scene": 1, "seed": 1, "objects": [
+    scene = scene_from_dict({"slitcli_scene": 1, "seed": seed, "objects": [
         {"type": "box", "centre_xy_m": [1.5, 0.1], "size_m": [0.3, 0.4, 0.6], "yaw_deg": 20,
          "surface": textured},
         {"type": "cylinder", "centre_xy_m": [2.0, -0.5], "radius_m": 0.12, "height_m": 0.9,

@@ -6,10 +6,23 @@ StereoSGBM: only a plane is wanted here, not the paper's Eq. 10 matcher), and
 reprojected to 3-D in the rig's camera frame (Eq. 8: ``Z = f W / disparity``). A plane
 ``n . X = d`` is found by RANSAC and refined by weighted least squares on its inliers;
 point weights and the inlier threshold follow the stereo depth error
-``sigma_Z = Z^2 sigma_d / (f W)``. With ``n`` pointing away from the floor's up side
-(``d > 0``) the mount (conventions of :class:`slitcli.rig.Mount`) is
+``sigma_Z = Z^2 sigma_d / (f W)``: a point moves along its ray, so its distance to the
+plane ``n . X = d`` varies by ``sigma_perp = sigma_Z |n . X| / Z`` (``= s Z |n . r|``
+with the relative noise ``s = Z sigma_d / (f W)``). With ``n`` pointing away from the
+floor's up side (``d > 0``) the mount (conventions of :class:`slitcli.rig.Mount`) is
 
     height_m = d,  tilt_deg = asin(n_z),  roll_deg = atan2(n_x, n_y).
+
+A fit is refused when it does not look like a floor (:func:`floor_plane_check`). The
+two thresholds follow from the same noise model: an inlier's residual, divided by its
+``sigma_perp``, is a standard normal cut at ``+-k`` (``k = inlier_sigmas``), whose RMS is
+``rho_G = sqrt(1 - 2 k phi(k) / (2 Phi(k) - 1))`` (0.987 for k = 3); points that do not
+lie on one plane spread evenly over the band, RMS ``rho_U = k / sqrt(3)`` (1.732). The
+fit is refused above the midpoint ``(rho_G + rho_U) / 2`` (1.36 for k = 3; a true
+floor whose disparity noise is 1.6 x ``disparity_sigma_px`` still passes). The floor
+must also hold the majority of the points in the depth band (``min_inlier_fraction``
+0.5; a floor-only view holds ``2 Phi(k) - 1`` = 99.7 %): with fewer, the plane is not
+what the view mostly shows and RANSAC may have picked any flat patch.
 """
 
 from __future__ import annotations
@@ -23,7 +36,7 @@ import numpy as np
 
 from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
-from slitcli.io.sequence import StereoSequence, read_frame
+from slitcli.io.frames import open_frames
 from slitcli.rig import Mount, Rig, load_rig, save_rig
 
 
@@ -37,7 +50,11 @@ class MountParams:
     ``inlier_sigmas``: inlier threshold in depth standard deviations.
     ``ransac_iterations``: candidate planes; ``max_points``: points used (seeded sample).
     ``max_tilt_deg``: candidate floors must have ``|tilt|`` below this (rejects walls).
-    ``min_inlier_fraction``: refuse when fewer of the points lie on the plane.
+    ``min_inlier_fraction``: refuse when fewer of the points lie on the plane (the
+    majority rule of the module docstring).
+    ``max_normalised_rms``: refuse when the inliers' RMS residual, in units of their
+    predicted ``sigma_Z``, exceeds this (default: midpoint of the floor and no-plane
+    hypotheses, :func:`normalised_rms_threshold`).
     ``photometric_refinement``: polish the RANSAC plane by direct image alignment
     (:func:`refine_floor_photometric`).
     """
@@ -50,7 +67,8 @@ class MountParams:
     ransac_iterations: int = 400
     max_points: int = 20000
     max_tilt_deg: float = 75.0
-    min_inlier_fraction: float = 0.3
+    min_inlier_fraction: float = 0.5
+    max_normalised_rms: float | None = None
     photometric_refinement: bool = True
     seed: int = 0
 
@@ -79,6 +97,42 @@ class FloorPlane:
     inliers: int
     points: int
     residual_rms_m: float
+    normalised_rms: float = float("nan")
+
+
+def normalised_rms_threshold(inlier_sigmas: float) -> float:
+    """Midpoint between the normalised inlier RMS of a floor and of no plane.
+
+    ``rho_G``: RMS of a standard normal truncated at ``+-k``; ``rho_U = k / sqrt(3)``:
+    RMS of residuals spread evenly over the band (module docstring).
+    """
+    k = float(inlier_sigmas)
+    pdf = math.exp(-0.5 * k * k) / math.sqrt(2.0 * math.pi)
+    mass = math.erf(k / math.sqrt(2.0))
+    rho_g = math.sqrt(max(0.0, 1.0 - 2.0 * k * pdf / mass))
+    return 0.5 * (rho_g + k / math.sqrt(3.0))
+
+
+def floor_plane_check(plane: FloorPlane, params: MountParams, *, source: str = "floor") -> None:
+    """Refuse a fitted plane that is not a floor (thresholds: module docstring).
+
+    Each failure has its own message naming the measured number and its threshold.
+    """
+    share = plane.inliers / max(plane.points, 1)
+    if share < params.min_inlier_fraction:
+        raise SlitcliError(
+            f"{source}: only {plane.inliers} of {plane.points} stereo points "
+            f"({100 * share:.0f} %, at least {100 * params.min_inlier_fraction:.0f} % needed) "
+            "lie on the best floor plane; the views show no floor, or too little of it: "
+            "record views with mostly flat, textured floor")
+    limit = (params.max_normalised_rms if params.max_normalised_rms is not None
+             else normalised_rms_threshold(params.inlier_sigmas))
+    if not plane.normalised_rms <= limit:
+        raise SlitcliError(
+            f"{source}: the floor plane's residual RMS is {1000 * plane.residual_rms_m:.1f} mm "
+            f"= {plane.normalised_rms:.2f} x the stereo depth noise (at most {limit:.2f} for "
+            "a floor); the points do not lie on one plane: record views of a flat, textured "
+            "floor, all from one robot pose on it")
 
 
 def fit_floor_ransac(points_xyz: np.ndarray, rig: Rig, params: MountParams, *,
@@ -100,8 +154,9 @@ def fit_floor_ransac(points_xyz: np.ndarray, rig: Rig, params: MountParams, *,
     if p.shape[0] > params.max_points:
         p = p[rng.choice(p.shape[0], params.max_points, replace=False)]
     fb = rig.focal_px * rig.baseline_m
-    sigma = p[:, 2] ** 2 * params.disparity_sigma_px / fb
-    thr = params.inlier_sigmas * sigma
+    # relative depth noise sigma_Z / Z; times |n . X| it is the point-to-plane sigma
+    rel = p[:, 2] * params.disparity_sigma_px / fb
+    k_rel = params.inlier_sigmas * rel
     k = params.ransac_iterations
     idx = rng.integers(0, p.shape[0], size=(k, 3))
     a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
@@ -121,28 +176,39 @@ def fit_floor_ransac(points_xyz: np.ndarray, rig: Rig, params: MountParams, *,
     scores = np.zeros(n.shape[0], dtype=np.int64)
     pf = p.astype(np.float32)
     for s in range(0, n.shape[0], 64):
-        res = np.abs(pf @ n[s:s + 64].T.astype(np.float32) - d[s:s + 64].astype(np.float32))
-        scores[s:s + 64] = (res <= thr[:, None]).sum(axis=0)
+        dist = pf @ n[s:s + 64].T.astype(np.float32)
+        res = np.abs(dist - d[s:s + 64].astype(np.float32))
+        scores[s:s + 64] = (res <= k_rel[:, None].astype(np.float32) * np.abs(dist)).sum(axis=0)
     best = int(np.argmax(scores))
     normal, offset = n[best], float(d[best])
-    inl = np.abs(p @ normal - offset) <= thr
+    inl = np.abs(p @ normal - offset) <= k_rel * np.abs(p @ normal)
+    if inl.sum() < 3:
+        raise SlitcliError(f"{source}: no plane holds more than {int(inl.sum())} of the "
+                           f"{p.shape[0]} stereo points; record views of a flat, textured floor")
     for _ in range(5):
-        w = 1.0 / sigma[inl] ** 2
+        w = 1.0 / rel[inl] ** 2
         c = (p[inl] * w[:, None]).sum(axis=0) / w.sum()
         _, _, vt = np.linalg.svd((p[inl] - c) * np.sqrt(w)[:, None], full_matrices=False)
         normal = vt[2] if vt[2][1] >= 0 else -vt[2]
         offset = float(normal @ c)
-        new = np.abs(p @ normal - offset) <= thr
+        new = np.abs(p @ normal - offset) <= k_rel * np.abs(p @ normal)
         if np.array_equal(new, inl):
             break
         inl = new
-    if offset <= 0 or inl.sum() < params.min_inlier_fraction * p.shape[0]:
-        raise SlitcliError(f"{source}: only {int(inl.sum())} of {p.shape[0]} stereo points lie "
-                           "on one floor plane; record a view with mostly flat, textured floor")
+    tilt = math.degrees(math.acos(min(1.0, float(normal[1]))))
+    if tilt > params.max_tilt_deg:
+        raise SlitcliError(f"{source}: the refined plane is tilted {tilt:.1f} deg from the "
+                           f"image's down axis (at most {params.max_tilt_deg:g}); it is a wall "
+                           "or a slope, not the floor: record views of the floor")
+    if offset <= 0:
+        raise SlitcliError(f"{source}: the fitted plane passes {abs(offset):.3f} m above the "
+                           "camera, not below it; the camera must look down at the floor")
     r = p[inl] @ normal - offset
+    rn = r / (rel[inl] * np.abs(p[inl] @ normal))
     return FloorPlane(normal=tuple(float(v) for v in normal), height_m=offset,
                       inliers=int(inl.sum()), points=int(p.shape[0]),
-                      residual_rms_m=float(np.sqrt(np.mean(r**2))))
+                      residual_rms_m=float(np.sqrt(np.mean(r**2))),
+                      normalised_rms=float(np.sqrt(np.mean(rn**2))))
 
 
 def mount_from_floor(plane: FloorPlane, forward_m: float = 0.0) -> Mount:
@@ -168,7 +234,8 @@ class MountCalibration:
                 f"{self.floor.normal[1]:.5f}, {self.floor.normal[2]:.5f}], "
                 f"distance {self.floor.height_m:.4f} m",
                 f"inliers: {self.floor.inliers} of {self.floor.points} points (RANSAC), "
-                f"residual_rms_mm {1000 * self.floor.residual_rms_m:.2f}",
+                f"residual_rms_mm {1000 * self.floor.residual_rms_m:.2f} "
+                f"({self.floor.normalised_rms:.2f} x the stereo depth noise)",
                 f"mount: height_m {m.height_m:.4f}, tilt_deg {m.tilt_deg:.3f}, roll_deg "
                 f"{m.roll_deg:.3f} (forward_m {m.forward_m:g} kept)"]
 
@@ -247,12 +314,13 @@ def calibrate_mount_frames(names: list[str], pairs: list[tuple[np.ndarray, np.nd
         pixels.append((u, v))
         grays.append((gl.astype(np.float32), gr.astype(np.float32)))
     plane = fit_floor_ransac(np.concatenate(clouds), rig, params, source=source)
+    floor_plane_check(plane, params, source=source)
     n = np.asarray(plane.normal)
     fb = rig.focal_px * rig.baseline_m
     frames = []
     for (gl, gr), pts, (u, v) in zip(grays, clouds, pixels, strict=True):
         z = pts[:, 2]
-        thr = params.inlier_sigmas * z**2 * params.disparity_sigma_px / fb
+        thr = params.inlier_sigmas * z * params.disparity_sigma_px / fb * np.abs(pts @ n)
         on = (np.abs(pts @ n - plane.height_m) <= thr) & (z >= params.min_depth_m) \
             & (z <= params.max_depth_m)
         mask = np.zeros(gl.shape, dtype=bool)
@@ -271,11 +339,11 @@ def run_calibrate_mount(rig_path: str | Path, seq_dir: str | Path, params: Mount
     ``out_rig`` defaults to ``rig_path``. Nothing is written on error.
     """
     rig = load_rig(rig_path)
-    seq = StereoSequence(seq_dir)
-    n = len(seq)
+    src = open_frames(seq_dir)
+    n = len(src)
     take = np.unique(np.linspace(0, n - 1, min(n, max(1, params.max_frames))).round()
                      .astype(int))
-    frames = [read_frame(seq.refs[i], rig) for i in take]
+    frames = list(src.frames(rig, skip=frozenset(range(n)) - frozenset(take.tolist())))
     result = calibrate_mount_frames([f.name for f in frames],
                                     [(f.left_bgr, f.right_bgr) for f in frames], rig, params,
                                     source=str(seq_dir))

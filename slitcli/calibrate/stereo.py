@@ -16,9 +16,9 @@ import cv2
 import numpy as np
 
 from slitcli.calibrate.board import BoardSpec, find_corners, list_views, load_views
-from slitcli.calibrate.rectify import rectify_raw, rig_with_raw
+from slitcli.calibrate.rectify import rectify_pair, rectify_points, rectify_raw, rig_with_raw
 from slitcli.errors import SlitcliError
-from slitcli.rig import Rig, load_rig, save_rig
+from slitcli.rig import Rig, load_rig
 
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-10)
 
@@ -50,6 +50,67 @@ class ViewReport:
     rms_right_px: float = float("nan")
 
 
+PLACEHOLDER_NOTE = ("the rig's mount and laser plane are placeholders (the paper rig's, or "
+                    "--base's), not calibrated: run `slitcli calibrate laser` and "
+                    "`slitcli calibrate mount`, or set them with `slitcli rig set`")
+PLACEHOLDER_COMMENT = (
+    "# mount and laser were NOT calibrated by `slitcli calibrate stereo`: they are\n"
+    "# placeholders (the paper rig's, or the --base rig's). Measure them with\n"
+    "# `slitcli calibrate laser` and `slitcli calibrate mount`, or set them with\n"
+    "# `slitcli rig set RIG --mount-height-m H --tilt-deg T --laser-height-m Z`.\n")
+
+
+@dataclass(frozen=True)
+class EpipolarError:
+    """Row difference |dy| of matching board corners after rectification, pixels.
+
+    In a perfectly rectified pair every corner lies on the same row in both images;
+    ``dy`` measures what the stereo matcher (which searches one row) will see.
+    """
+
+    median_px: float
+    p95_px: float
+    max_px: float
+    corners: int
+
+
+def epipolar_error(rig: Rig, corners_left_raw: list[np.ndarray],
+                   corners_right_raw: list[np.ndarray]) -> EpipolarError:
+    """|dy| statistics of corresponding raw corners mapped into the rectified pair.
+
+    Parameters
+    ----------
+    corners_left_raw, corners_right_raw : per view, (N, 2) or (N, 1, 2) raw pixels of
+        the same corners in the same order.
+    """
+    left = np.concatenate([rectify_points(rig, c.reshape(-1, 2), camera="left")
+                           for c in corners_left_raw])
+    right = np.concatenate([rectify_points(rig, c.reshape(-1, 2), camera="right")
+                            for c in corners_right_raw])
+    dy = np.abs(left[:, 1] - right[:, 1])
+    return EpipolarError(median_px=float(np.median(dy)), p95_px=float(np.percentile(dy, 95)),
+                         max_px=float(dy.max()), corners=int(dy.size))
+
+
+def rectified_preview(rig: Rig, left_bgr: np.ndarray, right_bgr: np.ndarray, *,
+                      spacing_px: int = 24) -> np.ndarray:
+    """The rectified pair side by side with horizontal lines every ``spacing_px`` rows.
+
+    A feature must sit on the same line in both halves; returns (H, 2 W, 3) uint8 BGR.
+    """
+    lr, rr = rectify_pair(rig, left_bgr, right_bgr)
+    assert rr is not None
+    pair = np.concatenate([np.atleast_3d(lr), np.atleast_3d(rr)], axis=1)
+    if pair.shape[2] == 1:
+        pair = np.repeat(pair, 3, axis=2)
+    pair = np.ascontiguousarray(pair.astype(np.uint8))
+    rows = np.arange(spacing_px // 2, pair.shape[0], spacing_px)
+    # alternate colours so a line can be followed across the seam
+    pair[rows[0::2]] = (0, 255, 0)
+    pair[rows[1::2]] = (255, 0, 255)
+    return pair
+
+
 @dataclass(frozen=True)
 class StereoCalibration:
     """The result: the rig and the reprojection statistics (pixels)."""
@@ -59,6 +120,9 @@ class StereoCalibration:
     rms_left_mono_px: float
     rms_right_mono_px: float
     views: tuple[ViewReport, ...]
+    epipolar: EpipolarError | None = None
+    preview: np.ndarray | None = None
+    notes: tuple[str, ...] = (PLACEHOLDER_NOTE,)
 
     def report_lines(self) -> list[str]:
         """Human-readable summary: overall and per-view RMS, skipped views, the result."""
@@ -79,7 +143,36 @@ class StereoCalibration:
         c = self.rig.left
         lines.append(f"rectified: fx {c.fx_px:.3f} fy {c.fy_px:.3f} cx {c.cx_px:.3f} "
                      f"cy {c.cy_px:.3f}, baseline_m {self.rig.baseline_m:.5f}")
+        if self.epipolar is not None:
+            e = self.epipolar
+            lines.append(f"rectified epipolar error |dy| px: median {e.median_px:.4f}, p95 "
+                         f"{e.p95_px:.4f}, max {e.max_px:.4f} ({e.corners} corners)")
         return lines
+
+
+def _board_views(names: list[str], left_bgr: list[np.ndarray], right_bgr: list[np.ndarray],
+                 board: BoardSpec) -> tuple[list[ViewReport], list[int], list[np.ndarray],
+                                            list[np.ndarray]]:
+    """Corners of the board in both images of each view; views missing it are reported."""
+    reports: list[ViewReport] = []
+    used_idx: list[int] = []
+    pts_l: list[np.ndarray] = []
+    pts_r: list[np.ndarray] = []
+    for i, (name, li, ri) in enumerate(zip(names, left_bgr, right_bgr, strict=True)):
+        cl, cr = find_corners(li, board), find_corners(ri, board)
+        if cl is None or cr is None:
+            side = "left and right" if cl is None and cr is None else \
+                ("left" if cl is None else "right")
+            reports.append(ViewReport(name, False, f"no {board.cols}x{board.rows} board found "
+                                      f"in the {side} image"))
+            continue
+        if np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
+            cr = cr[::-1].copy()
+        reports.append(ViewReport(name, True))
+        used_idx.append(i)
+        pts_l.append(cl.astype(np.float32).reshape(-1, 1, 2))
+        pts_r.append(cr.astype(np.float32).reshape(-1, 1, 2))
+    return reports, used_idx, pts_l, pts_r
 
 
 def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
@@ -108,24 +201,7 @@ def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
                            f"{right_bgr[0].shape[0]}, left images {w}x{h}; both cameras must "
                            "have one image size")
     board = params.board
-    reports: list[ViewReport] = []
-    used_idx: list[int] = []
-    pts_l: list[np.ndarray] = []
-    pts_r: list[np.ndarray] = []
-    for i, (name, li, ri) in enumerate(zip(names, left_bgr, right_bgr, strict=True)):
-        cl, cr = find_corners(li, board), find_corners(ri, board)
-        if cl is None or cr is None:
-            side = "left and right" if cl is None and cr is None else \
-                ("left" if cl is None else "right")
-            reports.append(ViewReport(name, False, f"no {board.cols}x{board.rows} board found "
-                                      f"in the {side} image"))
-            continue
-        if np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
-            cr = cr[::-1].copy()
-        reports.append(ViewReport(name, True))
-        used_idx.append(i)
-        pts_l.append(cl.astype(np.float32).reshape(-1, 1, 2))
-        pts_r.append(cr.astype(np.float32).reshape(-1, 1, 2))
+    reports, used_idx, pts_l, pts_r = _board_views(names, left_bgr, right_bgr, board)
     if not used_idx:
         raise SlitcliError(f"{source}: no {board.cols}x{board.rows} chessboard found in any of "
                            f"the {len(names)} views; check --board (inner corners, COLSxROWS) "
@@ -158,6 +234,9 @@ def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
                       alpha=params.alpha, source=source)
     rig = rig_with_raw(raw, base, name=(base.name if base is not None else "calibrated"),
                        source=source)
+    epi = epipolar_error(rig, pts_l, pts_r)
+    first = used_idx[0]
+    preview = rectified_preview(rig, left_bgr[first], right_bgr[first])
     k = 0
     final: list[ViewReport] = []
     for v in reports:
@@ -168,7 +247,14 @@ def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
         else:
             final.append(v)
     return StereoCalibration(rig=rig, rms_px=float(rms), rms_left_mono_px=float(rms_l),
-                             rms_right_mono_px=float(rms_r), views=tuple(final))
+                             rms_right_mono_px=float(rms_r), views=tuple(final),
+                             epipolar=epi, preview=preview)
+
+
+def preview_path(out_rig: str | Path) -> Path:
+    """Where ``calibrate stereo`` writes the rectified preview: ``<rig stem>_rectified.png``."""
+    p = Path(out_rig)
+    return p.with_name(f"{p.stem}_rectified.png")
 
 
 def run_calibrate_stereo(left_dir: str | Path, right_dir: str | Path, out_rig: str | Path,
@@ -177,7 +263,9 @@ def run_calibrate_stereo(left_dir: str | Path, right_dir: str | Path, out_rig: s
     """``slitcli calibrate stereo``: read both folders, calibrate, write the rig atomically.
 
     Views pair up in name order; the two folders must hold the same number of images.
-    Nothing is written when any check fails.
+    Writes the rig (headed by a comment that mount and laser are placeholders) and the
+    rectified preview of the first usable view (:func:`preview_path`). Nothing is
+    written when any check fails.
     """
     lv, rv = list_views(left_dir, "left"), list_views(right_dir, "right")
     if len(lv) != len(rv):
@@ -189,5 +277,9 @@ def run_calibrate_stereo(left_dir: str | Path, right_dir: str | Path, out_rig: s
              for a, b in zip(lv, rv, strict=True)]
     result = calibrate_stereo_images(names, left, right, params, base=base,
                                      source=f"{left_dir} + {right_dir}")
-    save_rig(result.rig, out_rig)
+    from slitcli.io.atomic import write_png_atomic, write_text_atomic
+
+    assert result.preview is not None
+    write_png_atomic(preview_path(out_rig), result.preview)
+    write_text_atomic(Path(out_rig), PLACEHOLDER_COMMENT + result.rig.to_yaml())
     return result

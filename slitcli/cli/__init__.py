@@ -1,89 +1,42 @@
 """The command line: parses options, builds parameter dataclasses, calls the library.
 
 Every command calls one library function. The library's own :class:`SlitcliError`
-becomes exit status 2 with one line on stderr; click's usage errors too; any other
-exception is an internal error (exit 1, one line; the traceback with ``--debug``).
+becomes exit status 2 with one line on stderr (its parameter names turned into this
+command line's flags, :func:`slitcli.cli.main.user_message`); click's usage errors
+too; any other exception is an internal error (exit 1, one line; the traceback with
+``--debug``). Command modules import nothing heavy at import time, so ``--help`` is
+quick.
 """
 
-from __future__ import annotations
-
-import sys
-import traceback
-from typing import Any
-
-import click
-
-from slitcli import __version__
-from slitcli.errors import SlitcliError
-
-
-class _Group(click.Group):
-    """A group whose errors are one line on stderr (exit 2 for bad input, 1 for bugs)."""
-
-    def main(self, args: Any = None, prog_name: str | None = None,
-             complete_var: str | None = None, standalone_mode: bool = True,
-             **extra: Any) -> Any:
-        argv = list(sys.argv[1:] if args is None else args)
-        debug = "--debug" in argv
-        try:
-            rv = super().main(args=argv, prog_name=prog_name or "slitcli",
-                              complete_var=complete_var, standalone_mode=False, **extra)
-        except SlitcliError as e:
-            if debug:
-                traceback.print_exc()
-            click.echo(f"slitcli: error: {e}", err=True)
-            sys.exit(2)
-        except click.exceptions.NoArgsIsHelpError as e:
-            click.echo(e.ctx.get_help() if e.ctx else str(e), err=True)
-            sys.exit(2)
-        except click.UsageError as e:
-            where = f" (see '{e.ctx.command_path} --help')" if e.ctx is not None else ""
-            click.echo(f"slitcli: error: {e.format_message()}{where}", err=True)
-            sys.exit(2)
-        except click.ClickException as e:
-            click.echo(f"slitcli: error: {e.format_message()}", err=True)
-            sys.exit(e.exit_code)
-        except click.exceptions.Abort:
-            click.echo("slitcli: interrupted", err=True)
-            sys.exit(130)
-        except KeyboardInterrupt:
-            click.echo("slitcli: interrupted", err=True)
-            sys.exit(130)
-        except Exception as e:
-            if debug:
-                traceback.print_exc()
-            msg = str(e).splitlines()[0] if str(e) else ""
-            click.echo(f"slitcli: internal error: {e.__class__.__name__}: {msg} "
-                       "(run with --debug for the traceback)", err=True)
-            sys.exit(1)
-        sys.exit(rv if isinstance(rv, int) else 0)
-
-
-@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"],
-                                           "max_content_width": 100})
-@click.option("--debug", is_flag=True, help="Print the full traceback on errors.")
-@click.version_option(__version__, prog_name="slitcli")
-def cli(debug: bool) -> None:
-    """Obstacle detection with a stereo camera and a red laser slit, and a modified DWA.
-
-    \b
-    Typical session:
-      slitcli rig init rig.yaml              # the paper's rig, edit to taste
-      slitcli render sample_data/corridor.yaml out/corridor
-      slitcli detect out/corridor -o out/det # per-bearing range table
-      slitcli simulate-dwa --scenario paper -o out/dwa
-
-    Frames: sensor x forward, y left, z up, origin on the floor below the left camera.
-    """
-
-
-def main() -> None:
-    """Console-script entry point (also ``python -m slitcli``)."""
-    cli.main()
-
-
 # The subcommands register themselves on `cli` when their modules are imported.
-from slitcli.cli import calibrate, detect, dwa, figures, laser, rig, sim, stereo  # noqa: E402
+from slitcli.cli import (
+    calibrate,
+    detect,
+    dwa,
+    export,
+    figures,
+    laser,
+    report,
+    rig,
+    sim,
+    stereo,
+)
+from slitcli.cli.main import PARAM_FLAGS, bag_options, cli, main, user_message
 
-__all__ = ["calibrate", "cli", "detect", "dwa", "figures", "laser", "main", "rig", "sim",
-           "stereo"]
+__all__ = [
+    "PARAM_FLAGS",
+    "bag_options",
+    "calibrate",
+    "cli",
+    "detect",
+    "dwa",
+    "export",
+    "figures",
+    "laser",
+    "main",
+    "report",
+    "rig",
+    "sim",
+    "stereo",
+    "user_message",
+]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (points where four squares meet), e.g. 9x6."
 _SQUARE_HELP = "Side of one chessboard square in metres, e.g. 0.025."
@@ -29,7 +29,7 @@ def calibrate_group() -> None:
 @click.argument("right_dir", type=click.Path(path_type=Path))
 @click.option("--board", required=True, help=_BOARD_HELP)
 @click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
-@click.option("-o", "--output", "out", required=True,
+@click.option("-o", "--out", "--output", "out", required=True,
               type=click.Path(dir_okay=False, path_type=Path), help="Rig file to write (YAML).")
 @click.option("--base", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig whose name, mount, laser plane and range limits are kept "
@@ -47,9 +47,12 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
 
     LEFT_DIR and RIGHT_DIR hold the raw images of the two cameras (PNG/JPEG), paired in
     name order. Views where either camera misses the board are named and skipped.
-    Prints the RMS reprojection error (px) overall and per view, and writes a rig whose
-    `raw` holds K1 D1 K2 D2 R T R1 R2 P1 P2 and whose `left` / `baseline_m` are the
-    rectified camera.
+    Prints the RMS reprojection error (px) overall and per view and the rectified
+    epipolar error (|dy| of the board corners, median / p95 / max, px), and writes a rig
+    whose `raw` holds K1 D1 K2 D2 R T R1 R2 P1 P2 and whose `left` / `baseline_m` are the
+    rectified camera, plus OUT_rectified.png (the first view rectified, side by side,
+    with horizontal lines). Mount and laser plane are placeholders (a note says so):
+    calibrate them next, or set them with `slitcli rig set`.
 
     Example: slitcli calibrate stereo calib/left calib/right --board 9x6 --square-m 0.025
     -o rig.yaml
@@ -59,10 +62,15 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
 
     params = StereoCalibrationParams(board=BoardSpec.parse(board, square_m),
                                      min_views=min_views, k3=k3, alpha=alpha)
+    from slitcli.calibrate.stereo import preview_path
+    from slitcli.cli.main import echo_notes
+
     result = run_calibrate_stereo(left_dir, right_dir, out, params, base_rig=base)
     for line in result.report_lines():
         click.echo(line)
+    echo_notes(result.notes)
     click.echo(f"wrote {out}")
+    click.echo(f"wrote {preview_path(out)} (rectified first view, lines every 24 rows)")
 
 
 @calibrate_group.command("laser")
@@ -71,7 +79,7 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
               help="Stereo-calibrated rig; its laser plane is replaced.")
 @click.option("--board", required=True, help=_BOARD_HELP)
 @click.option("--square-m", type=float, required=True, help=_SQUARE_HELP)
-@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("-o", "--out", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file to write [default: update --rig in place].")
 @click.option("--min-views", type=click.IntRange(min=2), default=2, show_default=True,
               help="Board poses with the stripe on the board required.")
@@ -100,7 +108,7 @@ def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: 
 @click.argument("seq", type=click.Path(path_type=Path))
 @click.option("--rig", "rig_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Stereo-calibrated rig; its mount height, tilt and roll are replaced.")
-@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("-o", "--out", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file to write [default: update --rig in place].")
 @click.option("--frames", type=click.IntRange(min=1), default=5, show_default=True,
               help="Frames used, spread over the sequence.")
@@ -112,7 +120,10 @@ def calibrate_mount_cmd(seq: Path, rig_path: Path, out: Path | None, frames: int
 
     SEQ is a stereo sequence folder (left/, right/) looking at a flat floor. The floor
     plane is found by RANSAC on StereoSGBM points and polished by aligning the two
-    images through the plane; `mount.forward_m` is kept.
+    images through the plane; `mount.forward_m` is kept. Views that show no floor are
+    refused (exit 2, nothing written): fewer than 50 % of the stereo points on the
+    plane, a residual RMS above 1.36 x the stereo depth noise, a plane tilted over
+    75 deg or above the camera; the message names the numbers (docs/calibration.md).
 
     Example: slitcli calibrate mount --rig rig.yaml floor_seq/
     """

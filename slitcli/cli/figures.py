@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import cli
 
 
 @cli.command("figures", short_help="Draw Figs. 4, 7, 8, 9 and range accuracy.")

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 
 
 def _laser_defaults() -> dict[str, Any]:
@@ -21,103 +21,129 @@ def _laser_defaults() -> dict[str, Any]:
 _LD = _laser_defaults()
 
 
+def laser_options(f: Any) -> Any:
+    """The laser tuning options (fields of :class:`slitcli.laser.params.LaserParams`), shared
+    by ``laser`` and ``detect``."""
+    options = [
+        click.option("--method", type=click.Choice(["model", "paper"]), default=_LD["method"],
+                     show_default=True,
+                     help="model: the stripe model with noise, width, profile and laser colour "
+                          "measured on each image; paper: the paper's Eqs. 1-4 taken literally per "
+                          "pixel (a baseline for comparison)."),
+        click.option("--search", type=click.Choice(["rig", "full"]), default=_LD["search"],
+                     show_default=True,
+                     help="rig: only rows where the rig's laser plane lies within "
+                          "--max-search-range-m; full: every row (a camera whose geometry is "
+                          "unknown or differs from the rig)."),
+        click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
+                     help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a stripe "
+                          "adds "
+                          "above the surface (unitless; grey is 0.333)."),
+        click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
+                     help="Eq. 2: minimum R - max(G, B) of that added light (unitless)."),
+        click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
+                     help="Eq. 3 white rejection (paper 0.32), --method paper: red must exceed "
+                          "alpha x max(g, b) (unitless)."),
+        click.option("--beta", type=float, default=_LD["beta"], show_default=True,
+                     help="Eq. 4 weight of the continuity term f(y) (paper 0.25); the model "
+                          "method weighs the previous frame's row with it."),
+        click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
+                     help="Eq. 4 weight of the narrowness term g(I) (paper 0.25), --method paper."),
+        click.option("--max-width-share", type=float, default=_LD["max_width_share"],
+                     show_default=True,
+                     help="Widest stripe (equivalent width, 2.5 Gaussian sigmas) as a share of the "
+                          "image height: 8 px at 240 rows, 32 px at 960 (unitless)."),
+        click.option("--seed-z", type=float, default=_LD["seed_z"], show_default=True,
+                     help="Candidates start where the laser evidence is this many noise sigmas "
+                          "high (noise measured on each image; unitless)."),
+        click.option("--min-z", type=float, default=_LD["min_z"], show_default=True,
+                     help="Root mean square significance (peak over its standard error) of a "
+                          "segment's columns (unitless)."),
+        click.option("--weak-z", type=float, default=_LD["weak_z"], show_default=True,
+                     help="Least significance of one column of a segment (unitless, <= --min-z)."),
+        click.option("--shape-error", type=float, default=_LD["shape_error"], show_default=True,
+                     help="Relative error of the Gaussian profile (speckle, demosaicing, JPEG) "
+                          "allowed by the shape test (unitless)."),
+        click.option("--max-chi2", type=float, default=_LD["max_chi2"], show_default=True,
+                     help="Largest reduced chi-square of a Gaussian profile; a worse fit is "
+                          "centred by its upper half instead (unitless)."),
+        click.option("--colour-error", type=float, default=_LD["colour_error"], show_default=True,
+                     help="Share by which a candidate's colour may leave the plane of the laser's "
+                          "colour (measured on the frame) and the surface's (unitless)."),
+        click.option("--noise-floor-dn", type=float, default=_LD["noise_floor_dn"],
+                     show_default=True,
+                     help="Smallest noise sigma of the laser evidence (quantisation and "
+                          "compression), DN."),
+        click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
+                     help="Level from which a pixel counts as clipped, DN."),
+        click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
+                     help="Scale of the row change between neighbouring columns, px."),
+        click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
+                     help="Largest row step between neighbouring columns of one segment, px."),
+        click.option("--min-segment-share", type=float, default=_LD["min_segment_share"],
+                     show_default=True,
+                     help="Shorter segments (share of the image width; 8 columns at 320) are "
+                          "dropped unless their columns are strong (unitless)."),
+        click.option("--min-stripe-share", type=float, default=_LD["min_stripe_share"],
+                     show_default=True,
+                     help="A frame whose longest segment spans less than this share of the width "
+                          "shows no stripe (unitless)."),
+        click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
+                     show_default=True,
+                     help="--search rig: rows whose laser-plane range is at most this, m."),
+        click.option("--sheet-sigma-mm", type=float, default=_LD["sheet_sigma_mm"],
+                     show_default=True,
+                     help="--search rig: laser sheet thickness (Gaussian sigma across the plane), "
+                          "mm; 0 = no thickness test."),
+        click.option("--sheet-tolerance", type=float, default=_LD["sheet_tolerance"],
+                     show_default=True,
+                     help="A candidate whose width implies a sheet this many times thicker or "
+                          "thinner is rejected (> 1)."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+LASER_OPTION_NAMES = tuple(_LD)
+
+
 @cli.command("laser", short_help="Laser stripe rows and ranges of a sequence.")
-@click.argument("seq", type=click.Path(path_type=Path))
+@click.argument("seq", metavar="SEQ|BAG", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
               help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Rig file (default: SEQ/rig.yaml, else the paper rig).")
+              help="Rig file (default: SEQ/rig.yaml, else the paper rig; required for bags). "
+              "A rig with a raw calibration rectifies the images first.")
 @click.option("--overlay", is_flag=True,
               help="Also write OUT/laser_overlay/<frame>.png: stripe drawn, ranges annotated "
                    "(paper Fig. 4 style).")
-@click.option("--method", type=click.Choice(["model", "paper"]), default=_LD["method"],
-              show_default=True,
-              help="model: the stripe model with noise, width, profile and laser colour "
-                   "measured on each image; paper: the paper's Eqs. 1-4 taken literally per "
-                   "pixel (a baseline for comparison).")
-@click.option("--search", type=click.Choice(["rig", "full"]), default=_LD["search"],
-              show_default=True,
-              help="rig: only rows where the rig's laser plane lies within "
-                   "--max-search-range-m; full: every row (a camera whose geometry is "
-                   "unknown or differs from the rig).")
-@click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
-              help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a stripe adds "
-                   "above the surface (unitless; grey is 0.333).")
-@click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
-              help="Eq. 2: minimum R - max(G, B) of that added light (unitless).")
-@click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
-              help="Eq. 3 white rejection (paper 0.32), --method paper: red must exceed "
-                   "alpha x max(g, b) (unitless).")
-@click.option("--beta", type=float, default=_LD["beta"], show_default=True,
-              help="Eq. 4 weight of the continuity term f(y) (paper 0.25); the model "
-                   "method weighs the previous frame's row with it.")
-@click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
-              help="Eq. 4 weight of the narrowness term g(I) (paper 0.25), --method paper.")
-@click.option("--max-width-share", type=float, default=_LD["max_width_share"],
-              show_default=True,
-              help="Widest stripe (equivalent width, 2.5 Gaussian sigmas) as a share of the "
-                   "image height: 8 px at 240 rows, 32 px at 960 (unitless).")
-@click.option("--seed-z", type=float, default=_LD["seed_z"], show_default=True,
-              help="Candidates start where the laser evidence is this many noise sigmas "
-                   "high (noise measured on each image; unitless).")
-@click.option("--min-z", type=float, default=_LD["min_z"], show_default=True,
-              help="Root mean square significance (peak over its standard error) of a "
-                   "segment's columns (unitless).")
-@click.option("--weak-z", type=float, default=_LD["weak_z"], show_default=True,
-              help="Least significance of one column of a segment (unitless, <= --min-z).")
-@click.option("--shape-error", type=float, default=_LD["shape_error"], show_default=True,
-              help="Relative error of the Gaussian profile (speckle, demosaicing, JPEG) "
-                   "allowed by the shape test (unitless).")
-@click.option("--max-chi2", type=float, default=_LD["max_chi2"], show_default=True,
-              help="Largest reduced chi-square of a Gaussian profile; a worse fit is "
-                   "centred by its upper half instead (unitless).")
-@click.option("--colour-error", type=float, default=_LD["colour_error"], show_default=True,
-              help="Share by which a candidate's colour may leave the plane of the laser's "
-                   "colour (measured on the frame) and the surface's (unitless).")
-@click.option("--noise-floor-dn", type=float, default=_LD["noise_floor_dn"],
-              show_default=True,
-              help="Smallest noise sigma of the laser evidence (quantisation and "
-                   "compression), DN.")
-@click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
-              help="Level from which a pixel counts as clipped, DN.")
-@click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
-              help="Scale of the row change between neighbouring columns, px.")
-@click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
-              help="Largest row step between neighbouring columns of one segment, px.")
-@click.option("--min-segment-share", type=float, default=_LD["min_segment_share"],
-              show_default=True,
-              help="Shorter segments (share of the image width; 8 columns at 320) are "
-                   "dropped unless their columns are strong (unitless).")
-@click.option("--min-stripe-share", type=float, default=_LD["min_stripe_share"],
-              show_default=True,
-              help="A frame whose longest segment spans less than this share of the width "
-                   "shows no stripe (unitless).")
-@click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
-              show_default=True,
-              help="--search rig: rows whose laser-plane range is at most this, m.")
-@click.option("--sheet-sigma-mm", type=float, default=_LD["sheet_sigma_mm"], show_default=True,
-              help="--search rig: laser sheet thickness (Gaussian sigma across the plane), "
-                   "mm; 0 = no thickness test.")
-@click.option("--sheet-tolerance", type=float, default=_LD["sheet_tolerance"],
-              show_default=True,
-              help="A candidate whose width implies a sheet this many times thicker or "
-                   "thinner is rejected (> 1).")
-def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool,
-              **tuning: Any) -> None:
+@bag_options
+@bad_frame_option
+@laser_options
+def laser_cmd(seq: Path, out: Path, rig_path: Path | None, overlay: bool, left_topic: str,
+              right_topic: str, max_dt: float, on_bad_frame: str, **tuning: Any) -> None:
     """Extract the red laser stripe (paper Eqs. 1-4) and triangulate it (Eqs. 5-7).
 
-    Reads the left images of the sequence SEQ and writes OUT/laser.csv: one row per
-    frame and image column with a stripe (frame, u_px, v_px, strength [DN], x_m,
-    y_m, range_m, bearing_deg in the sensor frame, in_band = 1 inside the rig's
-    laser band). Points outside the band stay in the table, flagged in_band = 0.
+    Reads the left images of the sequence folder or ROS bag SEQ and writes
+    OUT/laser.csv: one row per frame and image column with a stripe (frame, u_px,
+    v_px, strength [DN], x_m, y_m, range_m, bearing_deg in the sensor frame,
+    in_band = 1 inside the rig's laser band). Points outside the band stay in the
+    table, flagged in_band = 0.
 
-    Example: slitcli laser out/corridor -o out/laser --overlay --search full
+    Example: slitcli laser sample_data/sequences/corridor -o out/laser --overlay
+    (add --search full for a camera whose geometry differs from the rig)
     """
+    from slitcli.io.progress import progress
     from slitcli.laser.batch import run_laser
     from slitcli.laser.params import LaserParams
 
     params = LaserParams(**tuning)
-    path = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay)
-    click.echo(f"wrote {path}")
+    with progress("laser") as on_progress:
+        summary = run_laser(seq, out, rig_path=rig_path, params=params, overlay=overlay,
+                            left_topic=left_topic, right_topic=right_topic, max_dt_s=max_dt,
+                            on_bad_frame=on_bad_frame, on_progress=on_progress)
+    echo_notes(summary.notes)
+    click.echo(summary.line(f"{summary.counts['stripe_columns']} stripe columns"))
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from slitcli.cli import cli
+from slitcli.cli.main import bad_frame_option, bag_options, cli, echo_notes
 from slitcli.errors import SlitcliError
 
 
@@ -27,12 +27,28 @@ def _parse_window(text: str) -> tuple[int, int]:
     return w, h
 
 
+_AGGREGATION_KEY = "slitcli.stereo.aggregation"
+
+
+def _keep_aggregation(ctx: click.Context, _param: click.Parameter, value: str) -> str:
+    # not passed to the command functions (their signatures stay as they are):
+    # stereo_params reads it from the context
+    ctx.meta[_AGGREGATION_KEY] = value
+    return value
+
+
 def matcher_options(f: Any) -> Any:
     """The Eq. 10 matcher and obstacle options, shared by ``stereo`` and ``detect``."""
     options = [
         click.option("--matcher", type=click.Choice(["nssd", "bm", "sgbm"]), default="nssd",
               show_default=True, help="nssd = the paper's normalised SSD (Eq. 10); bm, sgbm "
               "= OpenCV's StereoBM / StereoSGBM."),
+        click.option("--aggregation", type=click.Choice(["none", "sgm"]), default="none",
+              show_default=True, expose_value=False, callback=_keep_aggregation,
+              help="nssd only: none = the paper's local Eq. 10 window; sgm = semi-global "
+              "aggregation of the Eq. 10 cost along 4 paths (denser on weak texture, "
+              "follows slanted floors; 4-6x slower), then the same checks. Example: "
+              "--aggregation sgm"),
         click.option("--num-disparities", type=int, default=48, show_default=True,
               help="Disparities searched, px (48 px: 0.46 m and beyond for the paper rig)."),
         click.option("--min-disparity", type=int, default=0, show_default=True,
@@ -85,8 +101,11 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
     from slitcli.stereo.pipeline import StereoParams
 
     w, h = _parse_window(window)
+    ctx = click.get_current_context(silent=True)
+    aggregation = ctx.meta.get(_AGGREGATION_KEY, "none") if ctx is not None else "none"
     return StereoParams(
         matcher=MatcherParams(matcher, num_disparities, min_disparity, w, h,
+                              aggregation=aggregation,
                               prefilter=prefilter, texture_min_dn=texture_min,
                               uniqueness_ratio=uniqueness, lr_max_diff_px=lr_max_diff,
                               support_min_zncc=support_min,
@@ -98,14 +117,18 @@ def stereo_params(matcher: str, num_disparities: int, min_disparity: int, window
 
 
 @cli.command("stereo", short_help="Disparity, distance and obstacle images (Eq. 10).")
-@click.argument("seq", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("seq", metavar="SEQ|BAG", type=click.Path(path_type=Path))
 @click.option("-o", "--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output folder for disparity/, distance/, mask/ and stereo_ranges.csv.")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="Rig file [default: SEQ/rig.yaml, else the paper rig].")
+              default=None, help="Rig file [default: SEQ/rig.yaml, else the paper rig; "
+              "required for bags].")
+@bag_options
+@bad_frame_option
 @matcher_options
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
-def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, matcher: str,
+def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, left_topic: str,
+               right_topic: str, max_dt: float, on_bad_frame: str, matcher: str,
                num_disparities: int, min_disparity: int, window: str, prefilter: str,
                texture_min: float, uniqueness: float, lr_max_diff: int, support_min: float,
                support_cross_min: float, speckle_window: int, speckle_range: float,
@@ -120,21 +143,18 @@ def stereo_cmd(seq: Path, out: Path, rig_path: Path | None, matcher: str,
 
     Example: slitcli stereo out/corridor -o out/corridor-stereo --window 9x7
     """
-    from slitcli.io.progress import progress_bar
+    from slitcli.io.progress import progress
     from slitcli.stereo.run import run_stereo
 
     params = stereo_params(matcher, num_disparities, min_disparity, window, prefilter,
                            texture_min, uniqueness, lr_max_diff, support_min,
                            support_cross_min, speckle_window,
                            speckle_range, subpixel, floor_margin, robot_height, max_range)
-    bar = progress_bar(0, "stereo")
-    with bar:
-        def tick(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    with progress("stereo") as on_progress:
         summary = run_stereo(seq, out, rig_path=rig_path, params=params,
-                             overwrite=overwrite, on_frame=tick)
-    click.echo(f"stereo: {summary['frames']} frames to {out} ({summary['computed']} computed, "
-               f"{summary['skipped']} already done); mean valid disparity fraction "
-               f"{summary['valid_fraction']:.3f}")
+                             overwrite=overwrite, left_topic=left_topic,
+                             right_topic=right_topic, max_dt_s=max_dt,
+                             on_bad_frame=on_bad_frame, on_progress=on_progress)
+    echo_notes(summary.notes)
+    click.echo(summary.line(f"mean valid disparity fraction "
+                            f"{summary.counts['valid_fraction']:.3f}"))

@@ -39,16 +39,57 @@ def _bag_root(path: Path) -> Path:
 
 @dataclass(frozen=True)
 class BagPairs:
-    """The pairing of one bag: per frame, the left and right message stamps (ns)."""
+    """The pairing of one bag: per frame, the left and right message stamps (ns).
+
+    ``all_left_ns`` and ``all_right_ns`` are every stamp of each topic (sorted), so the
+    images that found no partner within ``max_dt_s`` can be reported
+    (:meth:`pairing_report`).
+    """
 
     path: Path
     left_topic: str
     right_topic: str
     left_ns: np.ndarray
     right_ns: np.ndarray
+    all_left_ns: np.ndarray
+    all_right_ns: np.ndarray
+    max_dt_s: float
 
     def __len__(self) -> int:
         return len(self.left_ns)
+
+    @property
+    def unpaired(self) -> tuple[int, int]:
+        """Left and right images without a partner."""
+        return len(self.all_left_ns) - len(self), len(self.all_right_ns) - len(self)
+
+    def suggested_max_dt_s(self) -> float:
+        """Half the left camera's median frame period: the largest tolerance that still
+        cannot pair an image with its neighbour's partner (free-running cameras at one
+        rate are at most half a period apart)."""
+        if len(self.all_left_ns) < 2:
+            return self.max_dt_s
+        return 0.5 * float(np.median(np.diff(self.all_left_ns))) * 1e-9
+
+    def pairing_report(self) -> str | None:
+        """One line when images were left unpaired (None when every image has a
+        partner): how many of each camera, the stamp differences seen, the fix."""
+        n_l, n_r = self.unpaired
+        if n_l == 0 and n_r == 0:
+            return None
+        paired_ms = np.abs(self.right_ns - self.left_ns) * 1e-6
+        j = np.clip(np.searchsorted(self.all_right_ns, self.all_left_ns), 1,
+                    max(len(self.all_right_ns) - 1, 1))
+        near = np.minimum(np.abs(self.all_right_ns[j] - self.all_left_ns),
+                          np.abs(self.all_right_ns[j - 1] - self.all_left_ns)) * 1e-6
+        suggest = self.suggested_max_dt_s()
+        fix = (f"; for free-running cameras try `max_dt_s` {suggest:.3g} (half the frame "
+               "period)" if suggest > self.max_dt_s else "")
+        return (f"{self.path}: {n_l} of {len(self.all_left_ns)} left and {n_r} of "
+                f"{len(self.all_right_ns)} right images found no partner within `max_dt_s` "
+                f"{self.max_dt_s:g} s (paired: {np.median(paired_ms):.3g} ms apart median, "
+                f"{paired_ms.max():.3g} ms max; nearest partner of every left image: up to "
+                f"{near.max():.3g} ms){fix}")
 
 
 def _stamp_ns(msg: object, log_ns: int) -> int:
@@ -79,36 +120,46 @@ def _open(path: Path):  # returns rosbags' AnyReader, opened
 def pair_bag(path: str | Path, left_topic: str, right_topic: str, max_dt_s: float) -> BagPairs:
     """Read the stamps of both topics and pair them (first pass, no image decoding)."""
     if not max_dt_s > 0:
-        raise SlitcliError(f"--max-dt {max_dt_s} must be positive (seconds)")
+        raise SlitcliError(f"`max_dt_s` {max_dt_s} must be positive (seconds)", param="max_dt_s")
     p = Path(path)
     reader = _open(p)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         images = sorted(t for t, ty in topics.items() if ty in IMAGE_TYPES)
-        for opt, topic in (("--left-topic", left_topic), ("--right-topic", right_topic)):
+        for opt, topic in (("left_topic", left_topic), ("right_topic", right_topic)):
             if topic not in topics:
-                raise SlitcliError(f"{p}: no topic {topic!r} ({opt}); image topics in this bag: "
-                                   f"{', '.join(images) or 'none'}")
+                raise SlitcliError(f"{p}: no topic {topic!r} (`{opt}`); image topics in this bag: "
+                                   f"{', '.join(images) or 'none'}", param=opt)
             if topics[topic] not in IMAGE_TYPES:
-                raise SlitcliError(f"{p}: topic {topic!r} ({opt}) carries {topics[topic]}, not "
-                                   "images; choose one of " + (", ".join(images) or "none"))
+                raise SlitcliError(f"{p}: topic {topic!r} (`{opt}`) carries {topics[topic]}, not "
+                                   "images; choose one of " + (", ".join(images) or "none"),
+                                   param=opt)
         stamps: dict[str, list[int]] = {left_topic: [], right_topic: []}
         conns = [c for c in reader.connections if c.topic in stamps]
         for conn, log_ns, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg = _deserialize(reader, raw, conn, p)
             stamps[conn.topic].append(_stamp_ns(msg, log_ns))
     finally:
         reader.close()
     left = np.sort(np.array(stamps[left_topic], dtype=np.int64))
     right = np.sort(np.array(stamps[right_topic], dtype=np.int64))
+    for topic, t in ((left_topic, left), (right_topic, right)):
+        repeated = int((np.diff(t) == 0).sum())
+        if repeated:
+            # frames are told apart by their stamps: two images with one stamp cannot both
+            # be paired, and dropping one silently would lose data
+            raise SlitcliError(f"{p}: topic {topic!r} has {repeated} image(s) whose header "
+                               "stamp repeats an earlier one; fix the driver's stamps (or "
+                               "re-stamp the bag with the recording time)")
     if len(left) == 0 or len(right) == 0:
         empty = left_topic if len(left) == 0 else right_topic
         raise SlitcliError(f"{p}: topic {empty!r} has no messages; the sequence is empty")
     li, ri = _pair(left, right, round(max_dt_s * 1e9))
     if len(li) == 0:
-        raise SlitcliError(f"{p}: no left/right pairs within --max-dt {max_dt_s:g} s; "
-                           + _why_unpaired(left, right, max_dt_s))
-    return BagPairs(p, left_topic, right_topic, left[li], right[ri])
+        raise SlitcliError(f"{p}: no left/right pairs within `max_dt_s` {max_dt_s:g} s; "
+                           + _why_unpaired(left, right, max_dt_s), param="max_dt_s")
+    return BagPairs(p, left_topic, right_topic, left[li], right[ri], left, right,
+                    float(max_dt_s))
 
 
 def _pair(left: np.ndarray, right: np.ndarray, max_dt_ns: int) -> tuple[np.ndarray, np.ndarray]:
@@ -142,9 +193,65 @@ def _why_unpaired(left: np.ndarray, right: np.ndarray, max_dt_s: float) -> str:
                         "stamps or driver")
     hint = ""
     if gap_s > max_dt_s:
-        hint = (f"; if the cameras are not synchronised, try --max-dt {gap_s * 1.5:.3g} "
+        hint = (f"; if the cameras are not synchronised, try `max_dt_s` {gap_s * 1.5:.3g} "
                 "(seconds, not milliseconds)")
     return f"the nearest left/right stamps are {gap_s:.3g} s apart (median){hint}"
+
+
+_BYTES_PER_PIXEL = {"bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4, "mono8": 1,
+                    "bayer_rggb8": 1, "bayer_bggr8": 1, "bayer_gbrg8": 1, "bayer_grbg8": 1,
+                    "8UC1": 1, "8UC3": 3, "8UC4": 4}
+
+
+def _deserialize(reader, raw: bytes, conn, path: Path) -> object:  # rosbags types
+    try:
+        return reader.deserialize(raw, conn.msgtype)
+    except Exception as e:  # rosbags raises several types for a corrupt message
+        raise SlitcliError(f"{path}: a message on topic {conn.topic!r} cannot be decoded "
+                           f"({e.__class__.__name__}); the bag is corrupt there: cut it before "
+                           "that message or record it again") from None
+
+
+def decode_image(msg: object, msgtype: str, where: str) -> np.ndarray:
+    """One ``sensor_msgs/Image`` or ``CompressedImage`` as a BGR uint8 array (H, W, 3).
+
+    The message is checked before its bytes are trusted: an 8-bit encoding, ``step`` at
+    least ``width x bytes per pixel`` (rows padded beyond that are cropped, as drivers
+    that align rows write them), data at least ``height x step`` bytes; grey images become
+    three equal channels. ``where`` names the bag, topic and frame in errors.
+    """
+    import cv2
+
+    if msgtype.endswith("CompressedImage"):
+        data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+        img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        if img is None:
+            raise SlitcliError(f"{where}: the compressed image ({msg.format!r}) cannot be "
+                               "decoded; the message is corrupt")
+        return np.ascontiguousarray(img)
+    enc = str(msg.encoding)
+    bpp = _BYTES_PER_PIXEL.get(enc)
+    if bpp is None:
+        raise SlitcliError(f"{where}: image encoding {enc!r} is not an 8-bit colour or grey "
+                           "image (bgr8, rgb8, mono8, bayer_*8...); convert the topic to bgr8")
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+    if h <= 0 or w <= 0 or step < w * bpp or data.size < h * step:
+        raise SlitcliError(f"{where}: image header says {w}x{h} {enc} with step {step} but "
+                           f"carries {data.size} bytes (needs step >= {w * bpp} and "
+                           f"{h} x step bytes); the message is corrupt")
+    px = data[: h * step].reshape(h, step)[:, : w * bpp].reshape(h, w, bpp)
+    if enc in ("mono8", "8UC1"):
+        return np.ascontiguousarray(np.repeat(px, 3, axis=2))
+    if enc.startswith("bayer_"):
+        # OpenCV names a Bayer pattern by its second row's second and third pixels, so
+        # ROS' (and cv_bridge's) bayer_rggb8 is OpenCV's BayerBG
+        code = {"bayer_rggb8": cv2.COLOR_BayerBG2BGR, "bayer_bggr8": cv2.COLOR_BayerRG2BGR,
+                "bayer_gbrg8": cv2.COLOR_BayerGR2BGR, "bayer_grbg8": cv2.COLOR_BayerGB2BGR}[enc]
+        return np.ascontiguousarray(cv2.cvtColor(np.ascontiguousarray(px[..., 0]), code))
+    if enc in ("rgb8", "rgba8"):
+        px = px[..., 2::-1] if enc == "rgb8" else px[..., [2, 1, 0]]
+    return np.ascontiguousarray(px[..., :3])
 
 
 def bag_frames(pairs: BagPairs, *, skip: set[int] | frozenset[int] = frozenset()
@@ -154,8 +261,6 @@ def bag_frames(pairs: BagPairs, *, skip: set[int] | frozenset[int] = frozenset()
     Frames whose index is in ``skip`` are not decoded: their index is yielded instead
     (a resumed batch does not pay for finished frames).
     """
-    from rosbags.image import message_to_cvimage
-
     left_idx = {int(t): i for i, t in enumerate(pairs.left_ns)}
     right_idx = {int(t): i for i, t in enumerate(pairs.right_ns)}
     reader = _open(pairs.path)
@@ -166,7 +271,7 @@ def bag_frames(pairs: BagPairs, *, skip: set[int] | frozenset[int] = frozenset()
         conns = [c for c in reader.connections if c.topic in (pairs.left_topic,
                                                                  pairs.right_topic)]
         for conn, log_ns, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg = _deserialize(reader, raw, conn, pairs.path)
             stamp = _stamp_ns(msg, log_ns)
             side = "left" if conn.topic == pairs.left_topic else "right"
             idx = (left_idx if side == "left" else right_idx).get(stamp)
@@ -175,8 +280,9 @@ def bag_frames(pairs: BagPairs, *, skip: set[int] | frozenset[int] = frozenset()
             if idx in skip:
                 pending.setdefault(idx, {})[side] = np.empty(0)
             else:
-                img = message_to_cvimage(msg, "bgr8")
-                pending.setdefault(idx, {})[side] = np.ascontiguousarray(img)
+                img = decode_image(msg, conn.msgtype, f"{pairs.path}: topic {conn.topic!r}, "
+                                   f"frame {idx}")
+                pending.setdefault(idx, {})[side] = img
             slot = pending[idx]
             if len(slot) == 2:
                 del pending[idx]

@@ -1,22 +1,23 @@
 """Stereo sequences on disk (DESIGN §12): ``left/`` and ``right/`` with the same file names.
 
 A sequence folder holds ``left/`` and ``right/`` (PNG or JPEG, same names, frames in
-name order), an optional ``times.csv`` (``frame,time_s``) and an optional
-``rig.yaml``. Frames are numbered 0, 1, ... in name order; that index is the
-``frame`` column of every table.
+natural name order: ``frame_2`` before ``frame_10``), an optional ``times.csv``
+(``frame,time_s``) and an optional ``rig.yaml``. Frames are numbered 0, 1, ... in
+that order; that index is the ``frame`` column of every table.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pandas as pd
 
 from slitcli.errors import SlitcliError
+from slitcli.io.yamlfile import brief
 from slitcli.rig import Rig, load_rig, paper_rig
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -65,6 +66,8 @@ class StereoSequence:
                                    "holding images with the same file names")
         lefts = _images(left_dir)
         rights = _images(right_dir)
+        for found in (lefts, rights):
+            _refuse_same_stem(found)
         if not lefts:
             raise SlitcliError(f"{left_dir}: no images (.png, .jpg) found; the sequence is empty")
         right_by_stem = {p.stem: p for p in rights}
@@ -119,45 +122,78 @@ def read_frame(ref: FrameRef, rig: Rig | None = None) -> StereoFrame:
             which = "raw.image_size_px" if rig.raw is not None else "image_size_px"
             raise SlitcliError(f"{ref.left_path}: size {left.shape[1]}x{left.shape[0]} does "
                                f"not match the rig's {which} {want[0]}x{want[1]}; use the rig "
-                               "these images were taken with (--rig)")
+                               "these images were taken with (`rig`)", param="rig")
     return StereoFrame(ref.index, ref.name, ref.time_s, left, right)
 
 
 def read_image(path: Path) -> np.ndarray:
-    """Read a colour image as BGR uint8 (grey images are replicated to 3 channels)."""
-    if not path.exists():
-        raise SlitcliError(f"{path}: image not found; check the sequence folder")
-    data = np.fromfile(path, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
-        raise SlitcliError(f"{path}: unreadable image (not a valid PNG or JPEG); re-export or "
-                           "remove it")
-    return img
+    """Read a colour image as BGR uint8 (grey images are replicated to 3 channels); the
+    header is checked before decoding (:func:`slitcli.io.images.read_image_bgr`)."""
+    from slitcli.io.images import read_image_bgr
+
+    return read_image_bgr(path)
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key that orders the digit runs of a name by value (``frame_2`` < ``frame_10``;
+    zero-padded names keep their order)."""
+    return tuple((0, int(t), t) if t.isdigit() else (1, 0, t)
+                 for t in re.split(r"(\d+)", name) if t)
 
 
 def _images(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.iterdir()
-                  if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
-                  p.name.startswith("."))
+    return sorted((p for p in folder.iterdir()
+                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not
+                   p.name.startswith(".")), key=lambda p: natural_key(p.name))
+
+
+def _refuse_same_stem(images: list[Path]) -> None:
+    """Two images of one name (``000001.jpg`` beside ``000001.png``) would be two frames
+    paired with one image of the other side, and their outputs (named by the stem) would
+    overwrite each other: refuse, naming both."""
+    seen: dict[str, Path] = {}
+    for p in images:
+        if p.stem in seen:
+            raise SlitcliError(f"{seen[p.stem]} and {p.name}: two images of frame "
+                               f"'{p.stem}'; keep one of them (move the other out of "
+                               f"{p.parent.name}/)")
+        seen[p.stem] = p
 
 
 def _read_times(path: Path, n: int) -> np.ndarray:
     """Frame times from ``times.csv``; NaN for every frame when the file is absent."""
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return np.full(n, np.nan)
+    if not path.is_file():
+        raise SlitcliError(f"{path}: is not a file; times.csv must be a CSV file with columns "
+                           "frame,time_s (or absent)")
     try:
-        t = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
+        t = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, OSError):
         raise SlitcliError(f"{path}: not a CSV with columns frame,time_s; fix or delete it") \
             from None
     if list(t.columns) != ["frame", "time_s"]:
-        raise SlitcliError(f"{path}: columns are {list(t.columns)}, expected frame,time_s; "
-                           "fix the header or delete the file")
+        raise SlitcliError(f"{path}: columns are {brief(list(t.columns))}, expected "
+                           "frame,time_s; fix the header or delete the file")
+    frame_num = pd.to_numeric(t["frame"], errors="coerce").to_numpy(dtype=float)
+    time_num = pd.to_numeric(t["time_s"], errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(frame_num) | (frame_num != np.round(frame_num)) | (frame_num < 0) \
+        | (frame_num >= n)
+    if bad.any():
+        line = int(np.flatnonzero(bad)[0]) + 2
+        raise SlitcliError(f"{path}: line {line}: frame {brief(t['frame'].iloc[line - 2])} is "
+                           f"not a whole number 0..{n - 1} (one per image pair, in name "
+                           "order); fix the file")
+    bad = ~np.isfinite(time_num)
+    if bad.any():
+        line = int(np.flatnonzero(bad)[0]) + 2
+        raise SlitcliError(f"{path}: line {line}: time_s {brief(t['time_s'].iloc[line - 2])} "
+                           "is not a number of seconds; fix the file")
+    frames = frame_num.astype(np.int64)
+    dup = np.flatnonzero(np.bincount(frames, minlength=n) > 1)
+    if dup.size:
+        raise SlitcliError(f"{path}: frame {int(dup[0])} is listed more than once; give each "
+                           "frame one time")
     times = np.full(n, np.nan)
-    frames = t["frame"].to_numpy()
-    if not np.issubdtype(frames.dtype, np.integer) or frames.min(initial=0) < 0 \
-            or frames.max(initial=0) >= n:
-        raise SlitcliError(f"{path}: frame numbers must be whole numbers 0..{n - 1} (one per "
-                           "image pair, in name order); fix the file")
-    times[frames] = t["time_s"].to_numpy(dtype=float)
+    times[frames] = time_num
     return times

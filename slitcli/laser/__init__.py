@@ -3,50 +3,42 @@
 Per-frame API for fusion and the simulator: :func:`detect_laser` (image -> per-column
 stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points ->
 nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
+
+Names are imported on first use (the compiled kernels load numba), so importing
+``slitcli.laser.params`` for the command line's defaults stays cheap.
 """
 
-from slitcli.laser import candidates, choose, evidence, paper, profile
-from slitcli.laser.batch import TABLE_COLUMNS, laser_table, run_laser
-from slitcli.laser.diagnose import StripeAbsence, is_grey, stripe_absence
-from slitcli.laser.extract import StripeColumns, chromaticity, extract_stripe
-from slitcli.laser.frame import (
-    LaserBins,
-    LaserFrame,
-    LaserGeometry,
-    bearing_bin_centres_deg,
-    bin_boundary_points,
-    detect_laser,
-    laser_sight_range_m,
-    nearest_range_per_bin,
-    triangulate_stripe,
-)
-from slitcli.laser.overlay import draw_overlay
-from slitcli.laser.params import LaserParams
+from __future__ import annotations
 
-__all__ = [
-    "TABLE_COLUMNS",
-    "LaserBins",
-    "LaserFrame",
-    "LaserGeometry",
-    "LaserParams",
-    "StripeAbsence",
-    "StripeColumns",
-    "bearing_bin_centres_deg",
-    "bin_boundary_points",
-    "candidates",
-    "choose",
-    "chromaticity",
-    "detect_laser",
-    "draw_overlay",
-    "evidence",
-    "extract_stripe",
-    "is_grey",
-    "laser_sight_range_m",
-    "laser_table",
-    "nearest_range_per_bin",
-    "paper",
-    "profile",
-    "run_laser",
-    "stripe_absence",
-    "triangulate_stripe",
-]
+import importlib
+from typing import Any
+
+_WHERE = {
+    "TABLE_COLUMNS": "batch", "laser_table": "batch", "run_laser": "batch",
+    "StripeColumns": "extract", "chromaticity": "extract", "extract_stripe": "extract",
+    "StripeAbsence": "diagnose", "is_grey": "diagnose", "stripe_absence": "diagnose",
+    "LaserBins": "frame", "LaserFrame": "frame", "LaserGeometry": "frame",
+    "bearing_bin_centres_deg": "frame", "bin_boundary_points": "frame",
+    "detect_laser": "frame", "laser_sight_range_m": "frame",
+    "nearest_range_per_bin": "frame", "triangulate_stripe": "frame",
+    "draw_overlay": "overlay", "LaserParams": "params",
+}
+_SUBMODULES = ("candidates", "choose", "evidence", "paper", "profile")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return importlib.import_module(f"slitcli.laser.{name}")
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module 'slitcli.laser' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"slitcli.laser.{where}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*_WHERE, *_SUBMODULES])
+
+
+__all__ = sorted([*_WHERE, *_SUBMODULES])

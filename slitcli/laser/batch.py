@@ -1,24 +1,36 @@
-"""``slitcli laser SEQ -o OUT``: the laser table of a whole sequence (DESIGN §12)."""
+"""``slitcli laser SRC -o OUT``: the laser table of a whole sequence or bag."""
 
 from __future__ import annotations
 
+import os
 import shutil
+import time
+from dataclasses import asdict, replace
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import pandas as pd
 
 from slitcli.errors import SlitcliError
-from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_png_atomic
-from slitcli.io.progress import progress_bar
-from slitcli.io.sequence import StereoSequence, read_frame
+from slitcli.io.atomic import atomic_directory, write_png_atomic, write_text_atomic
+from slitcli.io.batch import FrameBatch, frame_identity, manifest_value
+from slitcli.io.frames import (
+    DEFAULT_LEFT_TOPIC,
+    DEFAULT_MAX_DT_S,
+    DEFAULT_RIGHT_TOPIC,
+    BadFrame,
+    FolderFrames,
+    open_frames,
+)
+from slitcli.io.progress import Progress, RunSummary, no_laser_note
 from slitcli.laser.frame import LaserFrame, LaserGeometry, detect_laser
-from slitcli.laser.overlay import draw_overlay
 from slitcli.laser.params import LaserParams
+from slitcli.ranges import LASER, csv_rows
 
-TABLE_COLUMNS = ("frame", "u_px", "v_px", "strength", "x_m", "y_m", "range_m", "bearing_deg",
-                 "in_band")
+TABLE_COLUMNS = LASER.columns
 OVERLAY_DIR = "laser_overlay"
+SKIPPED_FILE = "skipped_frames.csv"
 
 
 def laser_table(frame_index: int, frame: LaserFrame) -> pd.DataFrame:
@@ -34,71 +46,110 @@ def laser_table(frame_index: int, frame: LaserFrame) -> pd.DataFrame:
         "range_m": frame.range_m[f],
         "bearing_deg": frame.bearing_deg[f],
         "in_band": frame.in_band[f].astype(np.int64),
-    }, columns=list(TABLE_COLUMNS))
+    }, columns=list(LASER.columns))
 
 
-def run_laser(seq_dir: str | Path, out_dir: str | Path, *, rig_path: str | Path | None = None,
-              params: LaserParams | None = None, overlay: bool = False) -> Path:
-    """Extract and triangulate the stripe in every left image of a sequence.
+def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path | None = None,
+              params: LaserParams | None = None, overlay: bool = False,
+              left_topic: str = DEFAULT_LEFT_TOPIC, right_topic: str = DEFAULT_RIGHT_TOPIC,
+              max_dt_s: float = DEFAULT_MAX_DT_S, on_bad_frame: str = "stop",
+              on_progress: Progress | None = None) -> RunSummary:
+    """Extract and triangulate the stripe in every left image of a sequence or bag.
 
     Writes ``OUT/laser.csv`` (docs/laser.md) and, with ``overlay``, one Fig. 4-style
-    PNG per frame in ``OUT/laser_overlay/``. Outputs appear only once every frame
-    is done (temporary files renamed into place); on bad input nothing is left
-    behind. Progress goes to stderr.
+    PNG per frame in ``OUT/laser_overlay/``. Raw pairs (a rig with a ``raw`` block) are
+    rectified first. Each frame's stripe depends on its own image only
+    (:mod:`slitcli.io.frames`: the previous-frame rule). The run is resumable like
+    ``detect`` (:class:`slitcli.io.batch.FrameBatch` in ``OUT/.slitcli/laser/``): a re-run
+    after an interruption computes only the frames not finished, and gives the same
+    bytes; a re-run with other settings replaces the results. ``laser.csv`` and
+    ``laser_overlay/`` appear only once every frame is done. Progress:
+    ``on_progress(done, total)``. A frame that cannot be read stops the run
+    (``on_bad_frame="stop"``, the error names the file; finished frames are kept for the
+    resume) or is skipped (``"skip"``: no rows; listed in ``OUT/skipped_frames.csv`` and
+    the summary).
 
     Raises
     ------
     SlitcliError
-        Missing or unreadable sequence, images or rig; images that do not match the rig.
+        Missing or unreadable sequence, images or rig; images that do not match the rig;
+        another run in ``OUT``.
     """
+    t0 = time.perf_counter()
     params = LaserParams() if params is None else params
-    seq = StereoSequence(seq_dir)
-    rig = seq.rig(rig_path)
-    if rig.raw is not None:
-        raise SlitcliError(f"{rig_path or Path(seq_dir) / 'rig.yaml'}: the rig has a raw "
-                           "(unrectified) calibration; `laser` reads rectified images, give "
-                           "the rectified rig (raw: null)")
+    src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
+                      max_dt_s=max_dt_s)
+    rig = src.rig(rig_path)
+    if isinstance(src, FolderFrames) and on_bad_frame == "stop":
+        src.check_sizes(rig)  # before anything is written
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SlitcliError(f"{out}: exists and is not a folder; choose another output path")
-    created = not out.exists()
-    try:
-        return _run(seq, rig, out, params, overlay)
-    except BaseException:
-        if created and out.is_dir() and not any(out.iterdir()):
-            shutil.rmtree(out, ignore_errors=True)
-        raise
-
-
-def _run(seq: StereoSequence, rig, out: Path, params: LaserParams, overlay: bool) -> Path:
-    geometry = LaserGeometry.from_rig(rig, params)
-    tables: list[pd.DataFrame] = []
-    previous: LaserFrame | None = None
-    with progress_bar(len(seq), "laser") as bar:
+    rect = replace(rig, raw=None)
+    geometry = LaserGeometry.from_rig(rect, params)  # checks the parameters
+    manifest = {"command": "laser", "format": 1, "input": src.manifest(), "rig": rig.to_dict(),
+                "params": manifest_value(asdict(params)), "overlay": overlay}
+    # laser writes only its own named outputs, so OUT may hold others; a re-run with
+    # other settings replaces its results (as it always did)
+    batch = FrameBatch(out, "laser", manifest, overwrite=True, shared=True)
+    n = len(src)
+    staged = batch.dir / OVERLAY_DIR
+    if overlay:
+        staged.mkdir(exist_ok=True)
+    done = batch.resume([frame_identity(src, i) for i in range(n)], ("laser",))
+    if overlay:
+        done = frozenset(i for i in done if (staged / f"{src.info[i].name}.png").exists())
+    if on_progress is not None:
+        on_progress(len(done), n)
+    k = len(done)
+    for frame in src.frames(rig, rectify=True, skip=done, on_bad=on_bad_frame):
+        if isinstance(frame, BadFrame):
+            batch.mark_skipped(frame.index, frame.name, frame.reason, ("laser",))
+            continue
+        batch.clear_skipped(frame.index)
+        stripe = detect_laser(frame.left_bgr, rect, params, geometry=geometry)
         if overlay:
-            with atomic_directory(out / OVERLAY_DIR, overwrite=True) as tmp:
-                for ref in seq.refs:
-                    frame = read_frame(ref, rig)
-                    previous = detect_laser(frame.left_bgr, rig, params, previous=previous,
-                                            geometry=geometry)
-                    tables.append(laser_table(ref.index, previous))
-                    img = draw_overlay(frame.left_bgr, previous, max_jump_px=params.max_jump_px,
-                                       title=f"frame {ref.index} ({ref.name})")
-                    write_png_atomic(tmp / f"{ref.name}.png", img)
-                    bar.update(1)
-                _write_table(out, tables)
-        else:
-            for ref in seq.refs:
-                frame = read_frame(ref, rig)
-                previous = detect_laser(frame.left_bgr, rig, params, previous=previous,
-                                        geometry=geometry)
-                tables.append(laser_table(ref.index, previous))
-                bar.update(1)
-            _write_table(out, tables)
-    return out / "laser.csv"
+            from slitcli.laser.overlay import draw_overlay
+
+            img = draw_overlay(frame.left_bgr, stripe, max_jump_px=params.max_jump_px,
+                               title=f"frame {frame.index} ({frame.name})")
+            write_png_atomic(staged / f"{frame.name}.png", img)
+        # the rows part goes last: its presence marks the frame as finished
+        write_text_atomic(batch.part_path(frame.index, "laser"),
+                          csv_rows(laser_table(frame.index, stripe)))
+        k += 1
+        if on_progress is not None:
+            on_progress(k, n)
+    if overlay:
+        _publish_overlays(out / OVERLAY_DIR, staged,
+                          [src.info[i].name for i in range(n) if not batch.is_skipped(i)])
+    path = out / LASER.file
+    batch.assemble(n, "laser", path, LASER.header)
+    bad = batch.write_skipped(n, out / SKIPPED_FILE)
+    table = pd.read_csv(path, usecols=["frame"])
+    outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
+    read = n - bad
+    notes = src.notes() + no_laser_note(read - table["frame"].nunique(), read)
+    if bad:
+        outputs += (out / SKIPPED_FILE,)
+        notes += (f"{bad} frame(s) could not be read and were skipped (no rows): "
+                  f"{out / SKIPPED_FILE}",)
+    return RunSummary("laser", n, len(done), time.perf_counter() - t0, outputs,
+                      MappingProxyType({"stripe_columns": len(table),
+                                        "skipped_frames": bad}), notes)
 
 
-def _write_table(out: Path, tables: list[pd.DataFrame]) -> None:
-    table = pd.concat(tables, ignore_index=True) if tables else \
-        pd.DataFrame(columns=list(TABLE_COLUMNS))
-    write_csv_atomic(out / "laser.csv", table, float_format="%.6g")
+def _publish_overlays(target: Path, staged: Path, names: list[str]) -> None:
+    """Make ``target`` hold exactly the staged overlays of ``names``, in one rename.
+
+    The staged files stay (hard links share their bytes, so this costs no space), so a
+    finished run re-run with the same settings computes nothing.
+    """
+    with atomic_directory(target, overwrite=True) as tmp:
+        for name in names:
+            src, dst = staged / f"{name}.png", tmp / f"{name}.png"
+            try:
+                os.link(src, dst)
+            except OSError:  # a file system without hard links
+                shutil.copyfile(src, dst)
+

@@ -16,6 +16,7 @@ from numba import njit
 from slitcli.laser.diagnose import is_grey
 from slitcli.laser.extract import extract_stripe
 from slitcli.laser.params import LaserParams
+from slitcli.ranges import BearingBins, absolute_bin, bin_count, bin_min, boundary_deg
 from slitcli.rig import Rig
 
 
@@ -231,9 +232,9 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
 
 
 def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:
-    """Bearing bin centres of the range tables (:meth:`slitcli.rig.Rig.bearing_bins`),
+    """Bearing bin centres of the range tables (:class:`slitcli.ranges.BearingBins`),
     ascending (right to left), degrees."""
-    return rig.bearing_bins(bin_deg)[0]
+    return BearingBins.for_rig(rig, bin_deg).centres_deg
 
 
 def laser_sight_range_m(rig: Rig, bearing_deg: np.ndarray, *, margin_px: float = 2.0,
@@ -506,27 +507,24 @@ def nearest_range_per_bin(frame: LaserFrame, rig: Rig, *, bin_deg: float = 1.0,
     -------
     LaserBins
     """
-    centres = bearing_bin_centres_deg(rig, bin_deg)
+    bins = BearingBins.for_rig(rig, bin_deg)
     use = np.isfinite(frame.range_m) & np.isfinite(frame.bearing_deg)
     if in_band_only:
         use &= frame.in_band
-    k0 = round(float(centres[0]) / bin_deg)
-    idx = np.floor(frame.bearing_deg[use] / bin_deg + 0.5).astype(np.int64) - k0
-    ok = (idx >= 0) & (idx < centres.size)
-    nearest = np.full(centres.size, np.inf)
-    np.minimum.at(nearest, idx[ok], frame.range_m[use][ok])
-    count = np.bincount(idx[ok], minlength=centres.size)
+    idx = bins.index(frame.bearing_deg[use])
+    rng_parts, idx_parts = [frame.range_m[use]], [idx]
+    count = bin_count(idx, len(bins))
     if boundary_jump_m is not None:
         b_rng, b_lo, _ = bin_boundary_points(frame.range_m, frame.bearing_deg, use, bin_deg,
                                              boundary_jump_m)
-        for side in (b_lo - k0, b_lo - k0 + 1):
-            b_ok = (side >= 0) & (side < centres.size)
-            np.minimum.at(nearest, side[b_ok], b_rng[b_ok])
+        # a boundary point counts in the bins on both of its sides
+        rng_parts += [b_rng, b_rng]
+        idx_parts += [bins.table_bin(b_lo), bins.table_bin(b_lo + 1)]
     if edges is not None and edges.range_m.size:
-        e_idx = np.floor(edges.bearing_deg / bin_deg + 0.5).astype(np.int64) - k0
-        e_ok = (e_idx >= 0) & (e_idx < centres.size) & np.isfinite(edges.range_m)
-        np.minimum.at(nearest, e_idx[e_ok], edges.range_m[e_ok])
-    rng = np.where(np.isfinite(nearest), nearest, np.nan)
+        rng_parts.append(edges.range_m)
+        idx_parts.append(bins.index(edges.bearing_deg))
+    rng = bin_min(np.concatenate(idx_parts), np.concatenate(rng_parts), len(bins))
+    centres = bins.centres_deg
     with np.errstate(invalid="ignore"):
         band = (rng >= rig.laser.min_range_m) & (rng <= rig.laser.max_range_m)
     return LaserBins(bearing_deg=centres, range_m=rng, in_band=band, count=count)
@@ -566,12 +564,12 @@ def bin_boundary_points(range_m: np.ndarray, bearing_deg: np.ndarray, use: np.nd
     if adjacent is not None:
         pair &= adjacent
     i = np.flatnonzero(pair)
-    k_a = np.floor(b[i] / bin_deg + 0.5).astype(np.int64)
-    k_b = np.floor(b[i + 1] / bin_deg + 0.5).astype(np.int64)
+    k_a = absolute_bin(b[i], bin_deg)
+    k_b = absolute_bin(b[i + 1], bin_deg)
     lo = np.minimum(k_a, k_b)
     n = np.abs(k_b - k_a)  # boundaries crossed: more than one when bins are narrower
     pair_of = np.repeat(np.arange(i.size), n)
     k = lo[pair_of] + (np.arange(pair_of.size) - np.repeat(np.cumsum(n) - n, n))
     j = i[pair_of]
-    t = ((k + 0.5) * bin_deg - b[j]) / (b[j + 1] - b[j])
+    t = (boundary_deg(k, bin_deg) - b[j]) / (b[j + 1] - b[j])
     return r[j] + t * (r[j + 1] - r[j]), k, j

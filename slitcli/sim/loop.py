@@ -27,46 +27,47 @@ import yaml
 
 from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
-from slitcli.io.atomic import atomic_directory, write_csv_atomic, write_text_atomic
+from slitcli.io.atomic import (
+    atomic_directory,
+    check_output_folder,
+    write_csv_atomic,
+    write_text_atomic,
+)
 from slitcli.io.progress import progress_bar
-from slitcli.local_map import PointMemory, scan_points, to_robot, to_world, unicycle
+from slitcli.local_map import to_robot, unicycle
+from slitcli.prediction import MovingDiscs
+from slitcli.ranges import RANGES, SIM_METRICS, SIM_TRAJECTORY
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import Pose2D, Scene
+from slitcli.sim.sensing import RangeScan
 from slitcli.sim.truth import Footprints, footprints, sensor_origin_xy, wedge_min_range
 from slitcli.sim.worlds import (
     PAPER_SENSING_RANGES_M,
     World,
+    dynamic_cases,
+    hard_worlds,
     load_world,
     paper_world,
     random_world,
 )
+from slitcli.world_model import MEMORY_MODES, WorldModel, WorldModelParams, moving_to_robot
 
-TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "heading_deg", "v_mps", "w_dps", "nearest_obstacle_m")
-RANGES_COLUMNS = ("frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
-                  "stereo_has_features", "fused_range_m", "fused_source")
-METRICS_COLUMNS = ("case", "initial_distance_m", "sensing_range_m", "reached_goal", "collided",
-                   "min_clearance_m", "time_to_goal_s", "path_length_m", "outcome")
-
-
-@dataclass(frozen=True)
-class RangeScan:
-    """One sensed frame: a per-bearing range table (DESIGN §6) in the sensor frame.
-
-    ``bearing_deg`` (B,) bin centres, positive left; ``range_m`` (B,) horizontal range
-    from the sensor origin, NaN = no return; the sensor origin is ``forward_m`` ahead
-    of the robot's rotation centre.
-    """
-
-    bearing_deg: np.ndarray
-    range_m: np.ndarray
-    forward_m: float
+TRAJECTORY_COLUMNS = SIM_TRAJECTORY.columns
+RANGES_COLUMNS = RANGES.columns
+METRICS_COLUMNS = SIM_METRICS.columns
+MAX_STEPS = 100_000
+"""Most control steps of one run (the paper's 300 s at 0.2 s: 1500)."""
+MAX_WORLDS = 10_000
+"""Most random worlds of one call."""
+HARD_SENSING_RANGES_M = (1.0, 2.0, 3.0)
 
 
 class Sensor(Protocol):
-    """What the closed loop senses with: the range table seen from ``pose`` at ``step``."""
+    """What the closed loop senses with: the range table seen from ``pose`` at ``step``,
+    time ``t_s`` (moving objects are where they are then)."""
 
-    def __call__(self, pose: Pose2D, step: int) -> RangeScan: ...
+    def __call__(self, pose: Pose2D, step: int, t_s: float = 0.0) -> RangeScan: ...
 
 
 class SensorFactory(Protocol):
@@ -91,12 +92,18 @@ class PerfectSensor:
     bin_hi_deg: np.ndarray
     forward_m: float
     sensing_range_m: float
+    scene: Scene
 
-    def __call__(self, pose: Pose2D, step: int) -> RangeScan:
-        r = wedge_min_range(self.outlines, sensor_origin_xy(pose, self.forward_m), pose.yaw_rad,
+    def __call__(self, pose: Pose2D, step: int, t_s: float = 0.0) -> RangeScan:
+        outlines = self.outlines
+        if self.scene.is_dynamic:
+            outlines = footprints(self.scene.at_time(t_s), z_low_m=0.02,
+                                  z_high_m=self.scene.robot.height_m)
+        r = wedge_min_range(outlines, sensor_origin_xy(pose, self.forward_m), pose.yaw_rad,
                             self.bin_lo_deg, self.bin_hi_deg)
+        # exact sensing: no return means nothing within the sensing range
         return RangeScan(self.bearing_deg, np.where(r <= self.sensing_range_m, r, np.nan),
-                         self.forward_m)
+                         self.forward_m, self.sensing_range_m)
 
 
 def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
@@ -106,7 +113,8 @@ def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
         raise SlitcliError(f"--sensing-range {sensing_range_m:g} must be > 0 m")
     centres, lo, hi = rig.bearing_bins(bin_deg)
     outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
-    return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m))
+    return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m),
+                         scene)
 
 
 def vision_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
@@ -132,38 +140,72 @@ class SimParams:
     ----------
     safety_margin_m : float
         Added to the robot radius to give the planner's footprint radius.
+    memory : str
+        Obstacle memory (:mod:`slitcli.world_model`): ``clearing`` (cleared by the rays
+        of each frame, moving obstacles tracked and predicted), ``expiry`` (points kept
+        ``memory_s`` seconds, the former rule) or ``off``.
     memory_s : float
-        How long sensed points are remembered (world frame); 0 = no memory.
+        How long sensed points are remembered with ``memory = expiry``.
     memory_cell_m : float
         One remembered point per grid cell of this size.
+    predict : bool
+        Track moving obstacles and plan against their predicted positions.
     substeps : int
         Collision checks per control period (0.2 m/s x 0.2 s / 10 = 4 mm apart).
     max_time_s : float
         Give up (outcome ``timeout``) after this simulated time.
-    stuck_timeout_s, stuck_progress_m : float
-        Outcome ``stuck`` when the best distance to the goal so far has not improved by
-        ``stuck_progress_m`` within ``stuck_timeout_s``.
+    stuck_timeout_s, stuck_progress_m, stuck_new_ground_m : float
+        Outcome ``stuck`` when, over the last ``stuck_timeout_s``, the best distance to
+        the goal has not improved by ``stuck_progress_m`` AND the robot has not reached
+        new ground: no position of that window lies farther than ``stuck_new_ground_m``
+        from every position before it. A long detour explores new ground and is not
+        stuck; circling in a trap or turning on the spot is.
+    recovery_after_s, recovery_back_m, recovery_speed_mps : float
+        Recovery: a robot that has not moved ``stuck_progress_m`` for
+        ``recovery_after_s`` (outside the goal) backs up ``recovery_back_m`` at
+        ``recovery_speed_mps`` along the way it came, if its remembered obstacles leave
+        room, and planning resumes (0 s = no recovery).
     """
 
-    safety_margin_m: float = 0.05
+    safety_margin_m: float = 0.07
+    memory: str = "clearing"
     memory_s: float = 10.0
     memory_cell_m: float = 0.05
+    predict: bool = True
     substeps: int = 10
     max_time_s: float = 300.0
-    stuck_timeout_s: float = 30.0
+    stuck_timeout_s: float = 60.0
     stuck_progress_m: float = 0.05
+    stuck_new_ground_m: float = 0.5
+    recovery_after_s: float = 20.0
+    recovery_back_m: float = 0.3
+    recovery_speed_mps: float = 0.1
 
     def __post_init__(self) -> None:
         checks = {"safety_margin_m": self.safety_margin_m >= 0, "memory_s": self.memory_s >= 0,
-                  "memory_cell_m": self.memory_cell_m > 0, "substeps": self.substeps >= 1,
-                  "max_time_s": self.max_time_s > 0, "stuck_timeout_s": self.stuck_timeout_s > 0,
-                  "stuck_progress_m": self.stuck_progress_m > 0}
+                  "memory_cell_m": self.memory_cell_m > 0,
+                  "substeps": 1 <= self.substeps <= 1000,
+                  "max_time_s": 0 < self.max_time_s <= 86400.0,
+                  "stuck_timeout_s": self.stuck_timeout_s > 0,
+                  "stuck_progress_m": self.stuck_progress_m > 0,
+                  "stuck_new_ground_m": self.stuck_new_ground_m > 0,
+                  "recovery_after_s": self.recovery_after_s >= 0,
+                  "recovery_back_m": self.recovery_back_m >= 0,
+                  "recovery_speed_mps": self.recovery_speed_mps > 0}
         for name, ok in checks.items():
             value = getattr(self, name)
             if not ok or isinstance(value, bool) or not math.isfinite(value):
                 raise SlitcliError(f"simulation parameter {name} (--{name.replace('_', '-')}) "
                                    f"= {value!r} is out of range; see slitcli simulate-dwa "
                                    "--help")
+        if self.memory not in MEMORY_MODES:
+            raise SlitcliError(f"simulation parameter memory (--memory) = {self.memory!r} is "
+                               f"unknown; use one of {', '.join(MEMORY_MODES)}")
+
+    def world_model(self) -> WorldModelParams:
+        """The planner's world-model settings."""
+        return WorldModelParams(memory=self.memory, memory_s=self.memory_s,
+                                cell_m=self.memory_cell_m, predict=self.predict)
 
 
 @dataclass(frozen=True)
@@ -181,36 +223,95 @@ class RunResult:
     ranges: pd.DataFrame
 
 
+class _Truth:
+    """True clearance of the robot's disc, with moving objects placed at each instant."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.static = obstacle_geometry(scene)
+
+    def clearance(self, xy: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Signed distance (K,) from centres ``xy`` (K, 2) at times ``t_s`` (K,)."""
+        if not self.scene.is_dynamic:
+            return clearance_m(self.static, xy)
+        return np.array([clearance_m(obstacle_geometry(self.scene.at_time(float(t))),
+                                     xy[i:i + 1])[0] for i, t in enumerate(t_s)])
+
+
+def _stuck(xy: np.ndarray, t: np.ndarray, sim: SimParams) -> bool:
+    """No new ground in the last ``stuck_timeout_s`` (see :class:`SimParams`)."""
+    before = t < t[-1] - sim.stuck_timeout_s
+    if not before.any():
+        return False
+    old, recent = xy[before], xy[~before]
+    d = np.hypot(recent[:, None, 0] - old[None, :, 0], recent[:, None, 1] - old[None, :, 1])
+    return not bool((d.min(axis=1) > sim.stuck_new_ground_m).any())
+
+
+def _backup(pose: tuple[float, float, float], static_world: np.ndarray, sim: SimParams,
+            footprint_m: float) -> float:
+    """Speed (<= 0) of a back-up move: 0 if a remembered point lies in the way behind."""
+    pts = to_robot(pose, static_world)
+    behind = (pts[:, 0] < 0) & (pts[:, 0] > -(sim.recovery_back_m + footprint_m)) & \
+        (np.abs(pts[:, 1]) < footprint_m)
+    return 0.0 if behind.any() else -sim.recovery_speed_mps
+
+
+def _end(here: float, dist: float, v: float, last: bool, may_be_stuck: bool,
+         rows: list[tuple[float, ...]], dwa: DwaParams, sim: SimParams) -> str:
+    """Why the run ends at this step ('' = it goes on)."""
+    if here <= 0:
+        return "collided"
+    if dist <= dwa.goal_close_m and abs(v) <= 1e-12:
+        return "reached"
+    if may_be_stuck and _stuck(np.array([r[1:3] for r in rows]),
+                               np.array([r[0] for r in rows]), sim):
+        return "stuck"
+    return "timeout" if last else ""
+
+
+def _plan(pose: tuple[float, float, float], v: float, w: float, goal: np.ndarray,
+          static_w: np.ndarray, moving_w: MovingDiscs, dwa: DwaParams
+          ) -> tuple[float, float, str]:
+    """One planning step from the world model (world frame) at ``pose``."""
+    cmd = plan_step(max(v, 0.0), w, to_robot(pose, goal[None])[0], to_robot(pose, static_w),
+                    dwa, moving_to_robot(pose, moving_w))
+    return cmd.v_mps, cmd.w_rps, cmd.status
+
+
 def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> RunResult:
     """Drive the robot from the world's start towards its goal (one closed-loop run).
 
     The run ends when the robot stands inside the goal radius, collides, gets stuck
-    or runs out of time.
+    (:class:`SimParams`) or runs out of time.
 
     The planner's footprint radius is the robot radius plus ``sim.safety_margin_m``
     (``dwa.footprint_radius_m`` is replaced). Each trajectory row holds the pose at
     ``t_s``, the command chosen there and held until the next row, and the true
-    clearance between the robot's disc and the nearest obstacle.
+    clearance between the robot's disc and the nearest obstacle (moving objects where
+    they are at that instant; checked at ``substeps`` instants per period).
     """
     scene = world.scene
     radius = scene.robot.radius_m
     dwa = replace(dwa, footprint_radius_m=radius + sim.safety_margin_m)
-    geom = obstacle_geometry(scene)
+    truth = _Truth(scene)
+    model = WorldModel(sim.world_model())
     goal = np.asarray(scene.goal_xy_m, dtype=float)
     s0 = scene.robot.start
     pose = (s0.x_m, s0.y_m, s0.yaw_rad)
     v = w = 0.0
-    memory = PointMemory.empty()
     steps = math.ceil(sim.max_time_s / dwa.dt_s)
     sub_t = np.arange(1, sim.substeps + 1) * (dwa.dt_s / sim.substeps)
     rows: list[tuple[float, ...]] = []
     statuses: list[str] = []
     scans: list[RangeScan] = []
-    here = float(clearance_m(geom, np.array([pose[:2]]))[0] - radius)
+    here = float(truth.clearance(np.array([pose[:2]]), np.zeros(1))[0] - radius)
     min_clear = initial = here
     path = 0.0
     best_goal = math.inf
-    best_t = 0.0
+    best_t = still_t = 0.0
+    still_xy = np.array(pose[:2])
+    backing = 0
     t_goal = math.nan
     outcome = "timeout"
     for k in range(steps + 1):
@@ -218,46 +319,41 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
         dist = float(math.hypot(*(goal - pose[:2])))
         if dist <= dwa.goal_close_m and math.isnan(t_goal):
             t_goal = t
-        if here <= 0:
-            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
-            statuses.append("collided")
-            outcome = "collided"
-            break
-        if dist <= dwa.goal_close_m and v <= 1e-12:
-            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
-            statuses.append("goal")
-            outcome = "reached"
-            break
         if dist < best_goal - sim.stuck_progress_m:
             best_goal, best_t = dist, t
-        if t - best_t > sim.stuck_timeout_s:
+        end = _end(here, dist, v, k == steps, t - best_t > sim.stuck_timeout_s and k % 5 == 0,
+                   rows, dwa, sim)
+        if end:
             rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
-            statuses.append("stuck")
-            outcome = "stuck"
+            statuses.append("goal" if end == "reached" else end)
+            outcome = end
             break
-        if k == steps:
-            rows.append((t, *pose[:2], math.degrees(pose[2]), 0.0, 0.0, here))
-            statuses.append("timeout")
-            break
-        p2 = Pose2D(*pose)
-        scan = sensor(p2, k)
+        scan = sensor(Pose2D(*pose), k, t)
         scans.append(scan)
-        seen = to_world(pose, scan_points(scan.bearing_deg, scan.range_m, scan.forward_m))
-        memory = memory.update(seen, t, keep_s=sim.memory_s, cell_m=sim.memory_cell_m)
-        cmd = plan_step(v, w, to_robot(pose, goal[None])[0], to_robot(pose, memory.points_xy),
-                        dwa)
-        rows.append((t, *pose[:2], math.degrees(pose[2]), cmd.v_mps, cmd.w_dps, here))
-        statuses.append(cmd.status)
-        along = unicycle(pose, cmd.v_mps, cmd.w_rps, sub_t)
-        clear = clearance_m(geom, along[:, :2]) - radius
+        static_w, moving_w = model.update(pose, scan.bearing_deg, scan.range_m, scan.forward_m,
+                                          scan.free_m, t)
+        if np.hypot(*(np.array(pose[:2]) - still_xy)) > sim.stuck_progress_m:
+            still_xy, still_t = np.array(pose[:2]), t
+        if (sim.recovery_after_s > 0 and t - still_t > sim.recovery_after_s
+                and dist > dwa.goal_close_m and backing == 0):
+            backing = math.ceil(sim.recovery_back_m / (sim.recovery_speed_mps * dwa.dt_s))
+            still_t = t
+        v_back = _backup(pose, static_w, sim, dwa.footprint_radius_m) if backing else 0.0
+        backing = backing - 1 if v_back < 0 else 0
+        cmd_v, cmd_w, status = (v_back, 0.0, "recover") if v_back < 0 else \
+            _plan(pose, v, w, goal, static_w, moving_w, dwa)
+        rows.append((t, *pose[:2], math.degrees(pose[2]), cmd_v, math.degrees(cmd_w), here))
+        statuses.append(status)
+        along = unicycle(pose, cmd_v, cmd_w, sub_t)
+        clear = truth.clearance(along[:, :2], t + sub_t) - radius
         min_clear = min(min_clear, float(clear.min()))
         hit = np.flatnonzero(clear <= 0)
         if len(hit):  # stop at the first contact
             along, clear = along[: hit[0] + 1], clear[: hit[0] + 1]
         here = float(clear[-1])
-        path += cmd.v_mps * (len(along) * dwa.dt_s / sim.substeps)
+        path += abs(cmd_v) * (len(along) * dwa.dt_s / sim.substeps)
         pose = tuple(float(x) for x in along[-1])
-        v, w = cmd.v_mps, cmd.w_rps
+        v, w = cmd_v, cmd_w
     traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
     traj["status"] = statuses
     ranges = _range_table(scans, dwa.dt_s)
@@ -351,8 +447,8 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
         w = paper_world()
         return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
     if scenario == "random":
-        if worlds < 1:
-            raise SlitcliError(f"--worlds {worlds} must be at least 1")
+        if not 1 <= worlds <= MAX_WORLDS:
+            raise SlitcliError(f"--worlds {worlds} must be 1 to {MAX_WORLDS}")
         ranges = ranges or [3.0]
         out = []
         for s in range(seed, seed + worlds):
@@ -360,8 +456,20 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
             out.extend(Case(w.name if len(ranges) == 1 else f"{w.name}_{tag(r)}", w, r)
                        for r in ranges)
         return out
+    if scenario == "hard":
+        rs = ranges or list(HARD_SENSING_RANGES_M)
+        return [Case(f"{w.name}_{tag(r)}", w, r) for w in hard_worlds() for r in rs]
+    if scenario == "dynamic":
+        rs = ranges or [3.0]
+        out = []
+        for dc in dynamic_cases():
+            for w in (dc.world, dc.empty):
+                out.extend(Case(w.name if len(rs) == 1 else f"{w.name}_{tag(r)}", w, r)
+                           for r in rs)
+        return out
     if scenario is not None:
-        raise SlitcliError(f"--scenario {scenario!r} is unknown; use paper or random")
+        raise SlitcliError(f"--scenario {scenario!r} is unknown; use paper, random, hard or "
+                           "dynamic")
     w = load_world(world_path, start=start, goal_xy_m=goal_xy_m)
     return [Case(tag(r), w, r) for r in (ranges or [3.0])]
 
@@ -372,20 +480,32 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                  sensing_ranges_m: Sequence[float] | None = None, worlds: int = 100,
                  seed: int = 0, start: tuple[float, float, float] | None = None,
                  goal_xy_m: tuple[float, float] | None = None, bin_deg: float = 1.0,
-                 overwrite: bool = False, save_ranges: bool = False) -> pd.DataFrame:
-    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`."""
-    if not (0 < bin_deg <= 10):
-        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in (0, 10] degrees")
+                 overwrite: bool = False, save_ranges: bool = False,
+                 inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
+    """``slitcli simulate-dwa``: :func:`build_cases` then :func:`simulate_to_folder`.
+
+    ``inputs`` (the world and rig files) are never replaced by ``overwrite``.
+    """
+    check_output_folder(out_dir, overwrite=overwrite, inputs=[world_path, *inputs])
+    if not (0.05 <= bin_deg <= 10):
+        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in [0.05, 10] degrees")
+    steps = sim.max_time_s / dwa.dt_s
+    if steps > MAX_STEPS:
+        raise SlitcliError(f"--max-time-s {sim.max_time_s:g} / --dt-s {dwa.dt_s:g} = {steps:.3g} "
+                           f"control steps per run, more than {MAX_STEPS}; raise --dt-s or "
+                           "lower --max-time-s")
     cases = build_cases(world_path=world_path, scenario=scenario,
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)
     return simulate_to_folder(cases, out_dir, rig, dwa, sim, sensing=sensing,
-                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges)
+                              overwrite=overwrite, bin_deg=bin_deg, save_ranges=save_ranges,
+                              inputs=[world_path, *inputs])
 
 
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
                        sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
-                       bin_deg: float = 1.0, save_ranges: bool = False) -> pd.DataFrame:
+                       bin_deg: float = 1.0, save_ranges: bool = False,
+                       inputs: Sequence[str | Path] = ()) -> pd.DataFrame:
     """Run the cases and write OUT/ atomically (docs/dwa.md).
 
     Files: ``trajectory_<case>.csv``, ``metrics.csv``, the world(s) (``world.yaml``, or
@@ -398,7 +518,7 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     _sensor_factory(sensing)
     metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}
-    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+    with atomic_directory(out_dir, overwrite=overwrite, inputs=inputs) as tmp:
         for name, res in trajs.items():
             write_csv_atomic(tmp / f"trajectory_{name}.csv",
                              res.trajectory[list(TRAJECTORY_COLUMNS)])

@@ -4,7 +4,8 @@ Both cameras of any rig are rendered by analytic ray casting (:mod:`slitcli.sim.
 ``supersample`` x ``supersample`` rays per pixel averaged (a box filter, so a symmetric
 stripe keeps its centre), Lambertian shading with ambient light, seeded value-noise
 textures, white highlights, the laser sheet as a Gaussian across the plane whose peak
-falls with range, then sensor noise and 8-bit quantisation with saturation.
+falls with range, then sensor noise and 8-bit quantisation with saturation, or, if the
+scene asks for one, a physical camera model (:mod:`slitcli.sim.camera`).
 
 Ground truth is computed from the geometry, never from the images: depth and disparity
 at pixel centres, the obstacle mask, the subpixel stripe row per column (bisection on
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slitcli.rig import Rig
+from slitcli.sim.camera import apply_camera
 from slitcli.sim.raycast import (
     FLOOR_ID,
     Hits,
@@ -258,6 +260,7 @@ def _laser_peak(scene: Scene, rig: Rig, pose: Pose2D, points: np.ndarray, obj: n
 
 def _add_laser(scene: Scene, rig: Rig, pose: Pose2D, hits: Hits, points: np.ndarray,
                rgb: np.ndarray) -> np.ndarray:
+    """``rgb`` (N, 3) plus the laser's light at each hit (a new array; DN)."""
     if not scene.laser.enabled:
         return rgb
     n_w, d_w, _ = laser_plane_world(rig, pose)
@@ -274,14 +277,47 @@ def _add_laser(scene: Scene, rig: Rig, pose: Pose2D, hits: Hits, points: np.ndar
     return out
 
 
-def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
-                   rng: np.random.Generator) -> np.ndarray:
-    ss = scene.image.supersample
-    w, h = rig.image_size_px
-    hits, dirs = _cast_grid(scene, rig, cam, ss)
+def _cast_and_shade(scene: Scene, rig: Rig, cam: CameraPose
+                    ) -> tuple[Hits, np.ndarray, np.ndarray]:
+    hits, dirs = _cast_grid(scene, rig, cam, scene.image.supersample)
     t = np.where(np.isfinite(hits.t), hits.t, 0.0)
     points = cam.origin_xyz + t[:, None] * dirs
-    rgb = _shade(scene, hits, points)
+    return hits, points, _shade(scene, hits, points)
+
+
+def linear_radiance(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The light reaching one camera, before any camera model: the scene's and the laser's.
+
+    Returns
+    -------
+    scene_rgb_dn, laser_rgb_dn : (H, W, 3) float
+        Linear radiance per pixel (box filter of the supersampled rays), RGB, DN (255 =
+        white level), without and of the laser sheet. ``apply_camera`` turns the pair
+        into an image (:mod:`slitcli.sim.camera`).
+    """
+    ss = scene.image.supersample
+    w, h = rig.image_size_px
+    hits, points, rgb = _cast_and_shade(scene, rig, cam)
+    laser = _add_laser(scene, rig, pose, hits, points, np.zeros_like(rgb))
+    return (rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)),
+            laser.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)))
+
+
+def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
+                   rng: np.random.Generator) -> np.ndarray:
+    if scene.image.camera is not None:
+        # the camera model needs the laser's light apart (speckle is on it alone)
+        scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, cam)
+        # speckle is fixed by the geometry: the same view gives the same pattern
+        view = np.r_[cam.origin_xyz, cam.R_world_from_cam.ravel()].round(9) + 0.0
+        speckle_rng = np.random.default_rng([scene.seed, *np.frombuffer(view.tobytes(),
+                                                                         np.uint32)])
+        return apply_camera(scene_rgb, scene.image.camera, rng, laser_rgb_dn=laser_rgb,
+                            speckle_rng=speckle_rng)
+    ss = scene.image.supersample
+    w, h = rig.image_size_px
+    hits, points, rgb = _cast_and_shade(scene, rig, cam)
     rgb = _add_laser(scene, rig, pose, hits, points, rgb)
     img = rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3))
     if scene.image.noise_sigma_dn > 0:

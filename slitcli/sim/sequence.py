@@ -10,17 +10,28 @@ Layout written by :func:`render_sequence` (docs/sequence.md, docs/ground-truth.m
     OUT/gt/distance/000000.png    16-bit, depth along the optical axis in mm, 0 = none
     OUT/gt/mask/000000.png        8-bit, 255 = obstacle pixel
     OUT/gt/laser.csv     laser-table columns for the true stripe points
+    OUT/gt/laser_ranges.csv   frame,time_s,bearing_deg,laser_true_m (nearest lit point)
     OUT/gt/ranges.csv    frame,time_s,bearing_deg,range_m (true nearest obstacle)
     OUT/gt/poses.csv     frame,time_s,x_m,y_m,yaw_deg (robot rotation centre, world)
     OUT/gt/frame_000000.npz   lossless float truth (every FrameTruth array)
 
-The folder is rendered into a temporary sibling and renamed into place at the end.
+The folder is rendered into a hidden sibling (:func:`staging_folder`), one frame at a time
+with a manifest, and renamed into place at the end: an interrupted render (Ctrl-C,
+SIGTERM, ``kill -9``) continues where it stopped when run again with the same scene,
+rig and frames, and gives the same bytes as an uninterrupted one; another render into
+the same OUT meanwhile is refused.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import io
 import math
-from collections.abc import Callable
+import os
+import shutil
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -28,24 +39,24 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from slitcli.io.atomic import atomic_directory, write_png_atomic
+from slitcli.errors import SlitcliError
+from slitcli.io import atomic
+from slitcli.io.atomic import (
+    atomic_directory,
+    check_output_folder,
+    write_png_atomic,
+    write_text_atomic,
+)
+from slitcli.io.batch import FrameBatch
+from slitcli.io.lock import lock_output
+from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png
 from slitcli.rig import Rig
+from slitcli.sim.camera import camera_to_scene
+from slitcli.sim.laser_truth import lit_wedge_ranges
 from slitcli.sim.render import FrameTruth, render_frame
-from slitcli.sim.scene import Box, Cylinder, Scene, Wall
+from slitcli.sim.scene import MAX_SEED, Box, Cylinder, Pose2D, Scene, Wall
 
 FRAME_NAME = "{:06d}"
-
-
-def encode_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
-    """KITTI convention: uint16 = round(disparity * 256), 0 = invalid."""
-    d = np.where(np.isfinite(disparity_px) & (disparity_px > 0), disparity_px, 0.0)
-    return np.clip(np.rint(d * 256.0), 0, 65535).astype(np.uint16)
-
-
-def encode_depth_png(depth_m: np.ndarray) -> np.ndarray:
-    """ROS 16UC1 convention: uint16 millimetres, 0 = invalid (beyond 65.535 m too)."""
-    mm = np.where(np.isfinite(depth_m) & (depth_m > 0), np.rint(depth_m * 1000.0), 0.0)
-    return np.where(mm <= 65535, mm, 0).astype(np.uint16)
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -70,6 +81,8 @@ def scene_to_dict(scene: Scene) -> dict:
             o = {"type": "wall", "from_xy_m": list(ob.from_xy_m), "to_xy_m": list(ob.to_xy_m),
                  "height_m": ob.height_m}
         o["z_min_m"] = ob.z_min_m
+        if not isinstance(ob, Wall) and ob.motion:
+            o["motion"] = {"waypoints": [{"t_s": t, "xy_m": [x, y]} for t, x, y in ob.motion]}
         o["surface"] = surf(ob.surface)
         objects.append(o)
     r = scene.robot
@@ -88,11 +101,20 @@ def scene_to_dict(scene: Scene) -> dict:
         "highlights": [{"position_xyz_m": list(h.position_xyz_m), "radius_m": h.radius_m,
                         "brightness": h.brightness} for h in scene.highlights],
         "laser": asdict(scene.laser),
-        "image": {**asdict(scene.image), "light_dir_xyz": list(scene.image.light_dir_xyz)},
+        "image": _image_dict(scene),
         "robot": robot, "max_range_m": scene.max_range_m,
     }
     if scene.goal_xy_m is not None:
         out["goal_xy_m"] = list(scene.goal_xy_m)
+    return out
+
+
+def _image_dict(scene: Scene) -> dict:
+    """``image:`` keys as plain YAML; ``camera`` only when the scene has one."""
+    out = {**asdict(scene.image), "light_dir_xyz": list(scene.image.light_dir_xyz)}
+    del out["camera"]
+    if scene.image.camera is not None:
+        out["camera"] = camera_to_scene(scene.image.camera)
     return out
 
 
@@ -109,21 +131,116 @@ def truth_laser_rows(frame: int, truth: FrameTruth) -> pd.DataFrame:
 
 
 def write_truth_npz(path: Path, truth: FrameTruth) -> None:
-    """All truth arrays of a frame, lossless."""
+    """All truth arrays of a frame, lossless, written atomically.
+
+    The archive is deflated ``.npy`` members with a fixed date, so one frame always
+    gives the same bytes (``numpy.savez_compressed`` stamps the current time).
+    """
     p = truth.pose
-    np.savez_compressed(
-        path, depth_m=truth.depth_m, disparity_px=truth.disparity_px,
-        obstacle_mask=truth.obstacle_mask, textured=truth.textured,
-        object_id=truth.object_id.astype(np.int16), stripe_v_px=truth.stripe_v_px,
-        stripe_peak_dn=truth.stripe_peak_dn, stripe_sensor_xyz=truth.stripe_sensor_xyz,
-        bearing_deg=truth.bearing_deg, range_m=truth.range_m,
-        pose_xy_yaw=np.array([p.x_m, p.y_m, p.yaw_rad]),
-    )
+    arrays = {
+        "depth_m": truth.depth_m, "disparity_px": truth.disparity_px,
+        "obstacle_mask": truth.obstacle_mask, "textured": truth.textured,
+        "object_id": truth.object_id.astype(np.int16), "stripe_v_px": truth.stripe_v_px,
+        "stripe_peak_dn": truth.stripe_peak_dn, "stripe_sensor_xyz": truth.stripe_sensor_xyz,
+        "bearing_deg": truth.bearing_deg, "range_m": truth.range_m,
+        "pose_xy_yaw": np.array([p.x_m, p.y_m, p.yaw_rad]),
+    }
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        for key, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asanyarray(arr), allow_pickle=False)
+            zf.writestr(info, member.getvalue())
+    atomic.write_bytes_atomic(path, buf.getvalue())
+
+
+@contextlib.contextmanager
+def _named_at(stage: Path, out: Path) -> Iterator[None]:
+    """Report an OSError on a staged path (disk full...) at the output path the user gave."""
+    try:
+        yield
+    except OSError as e:
+        name = e.filename
+        if isinstance(name, str) and name.startswith(str(stage)):
+            raise OSError(e.errno, e.strerror, str(out) + name[len(str(stage)):]) from None
+        raise
+
+
+def staging_folder(out: str | Path) -> Path:
+    """Where :func:`render_sequence` builds ``out``: a hidden sibling named by a digest
+    of ``out``'s absolute path (short whatever the name). It survives an interruption,
+    so the next render into ``out`` continues it."""
+    where = Path(os.path.abspath(Path(out).expanduser()))
+    key = hashlib.sha256(str(where).encode("utf-8", "surrogateescape")).hexdigest()[:16]
+    return where.parent / f".slitcli-render-{key}"
+
+
+_TABLES = {  # part kind -> (file in OUT, columns)
+    "laser": ("gt/laser.csv", ("frame", "u_px", "v_px", "strength", "x_m", "y_m", "range_m",
+                               "bearing_deg")),
+    "lit": ("gt/laser_ranges.csv", ("frame", "time_s", "bearing_deg", "laser_true_m")),
+    "ranges": ("gt/ranges.csv", ("frame", "time_s", "bearing_deg", "range_m")),
+    "poses": ("gt/poses.csv", ("frame", "time_s", "x_m", "y_m", "yaw_deg")),
+}
+_IMAGE_DIRS = ("left", "right", "gt/disparity", "gt/distance", "gt/mask")
+_FMT = "%.9g"
+
+
+def _rows(table: pd.DataFrame) -> str:
+    return table.to_csv(header=False, index=False, float_format=_FMT, lineterminator="\n",
+                        na_rep="")
+
+
+def _render_one(scene: Scene, rig: Rig, stage: Path, batch: FrameBatch, i: int, pose: Pose2D,
+                time_s: float, bins: tuple[np.ndarray, np.ndarray]) -> None:
+    """Render frame ``i`` into ``stage``: its images and truth, then its table parts (the
+    ``poses`` part last: it marks the frame as finished)."""
+    # moving objects are where they are at the frame's time (the truth follows)
+    scene = scene.at_time(time_s)
+    fr = render_frame(scene, rig, pose, frame_index=i)
+    name = FRAME_NAME.format(i) + ".png"
+    t = fr.truth
+    write_png_atomic(stage / "left" / name, fr.left_bgr)
+    write_png_atomic(stage / "right" / name, fr.right_bgr)
+    write_png_atomic(stage / "gt/disparity" / name, encode_disparity_png(t.disparity_px))
+    write_png_atomic(stage / "gt/distance" / name, encode_depth_png(t.depth_m))
+    write_png_atomic(stage / "gt/mask" / name, encode_mask_png(t.obstacle_mask))
+    write_truth_npz(stage / "gt" / f"frame_{FRAME_NAME.format(i)}.npz", t)
+    parts = {
+        "laser": truth_laser_rows(i, t),
+        "lit": pd.DataFrame({"frame": i, "time_s": time_s, "bearing_deg": t.bearing_deg,
+                             "laser_true_m": lit_wedge_ranges(scene, rig, pose, *bins)}),
+        "ranges": pd.DataFrame({"frame": i, "time_s": time_s, "bearing_deg": t.bearing_deg,
+                                "range_m": t.range_m}),
+        "poses": pd.DataFrame([(i, time_s, pose.x_m, pose.y_m, math.degrees(pose.yaw_rad))],
+                              columns=list(_TABLES["poses"][1])),
+    }
+    for kind, table in parts.items():
+        write_text_atomic(batch.part_path(i, kind), _rows(table))
+
+
+def _publish(stage: Path, tmp: Path) -> None:
+    """Hard-link the staged outputs (everything but the ``.slitcli`` state) into ``tmp``."""
+    for folder, dirs, files in os.walk(stage):
+        rel = Path(folder).relative_to(stage)
+        if rel.parts[:1] == (".slitcli",):
+            continue
+        dirs[:] = [d for d in dirs if rel != Path(".") or d != ".slitcli"]
+        for d in dirs:
+            (tmp / rel / d).mkdir(exist_ok=True)
+        for f in files:
+            try:
+                os.link(Path(folder) / f, tmp / rel / f)
+            except OSError:  # a file system without hard links
+                shutil.copyfile(Path(folder) / f, tmp / rel / f)
 
 
 def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | None = None,
                     seed: int | None = None, overwrite: bool = False,
-                    on_frame: Callable[[int, int], None] | None = None) -> dict:
+                    on_frame: Callable[[int, int], None] | None = None,
+                    inputs: Sequence[str | Path] = ()) -> dict:
     """Render every frame of a scene into a sequence folder with ground truth.
 
     Parameters
@@ -137,49 +254,53 @@ def render_sequence(scene: Scene, rig: Rig, out: str | Path, *, frames: int | No
         Replaces the scene's seed (textures and noise).
     on_frame : callable(done, total), optional
         Progress callback.
+    inputs : paths
+        The files the scene and rig were read from: ``overwrite`` never replaces them.
 
     Returns
     -------
     dict with ``frames``, ``obstacle_bins`` and ``stripe_columns`` summaries.
     """
     if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise SlitcliError(f"seed = {seed!r} is out of range; give a whole number from 0 "
+                               f"to {MAX_SEED}")
         scene = replace(scene, seed=seed)
     poses = scene.poses(frames)
     times = scene.times_s(frames)
-    laser_tables, range_tables, pose_rows = [], [], []
-    stripe_cols = 0
-    with atomic_directory(out, overwrite=overwrite) as tmp:
-        for sub in ("left", "right", "gt/disparity", "gt/distance", "gt/mask"):
-            (tmp / sub).mkdir(parents=True)
+    _, bin_lo, bin_hi = rig.bearing_bins(1.0)
+    check_output_folder(out, overwrite=overwrite, inputs=inputs)  # before any rendering
+    stage = staging_folder(out)
+    n = len(poses)
+    manifest = {"command": "render", "format": 1, "scene": scene_to_dict(scene),
+                "rig": rig.to_dict(), "frames": n}
+    lock = lock_output(stage, shown=out)  # one render into OUT at a time
+    batch = FrameBatch(stage, "render", manifest, overwrite=True, shared=True,
+                       subfolders=(*_IMAGE_DIRS, "gt"))
+    with lock, batch, _named_at(stage, Path(out)):
+        if batch.fresh:  # another scene, rig or frame count: none of the staged frames
+            for entry in stage.iterdir():
+                if entry.name != ".slitcli":
+                    shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+        for sub in _IMAGE_DIRS:
+            (stage / sub).mkdir(parents=True, exist_ok=True)
         for i, pose in enumerate(poses):
-            fr = render_frame(scene, rig, pose, frame_index=i)
-            name = FRAME_NAME.format(i) + ".png"
-            write_png_atomic(tmp / "left" / name, fr.left_bgr)
-            write_png_atomic(tmp / "right" / name, fr.right_bgr)
-            t = fr.truth
-            write_png_atomic(tmp / "gt/disparity" / name, encode_disparity_png(t.disparity_px))
-            write_png_atomic(tmp / "gt/distance" / name, encode_depth_png(t.depth_m))
-            write_png_atomic(tmp / "gt/mask" / name, (t.obstacle_mask * 255).astype(np.uint8))
-            write_truth_npz(tmp / "gt" / f"frame_{FRAME_NAME.format(i)}.npz", t)
-            laser_tables.append(truth_laser_rows(i, t))
-            stripe_cols += int(np.isfinite(t.stripe_v_px).sum())
-            range_tables.append(pd.DataFrame({"frame": i, "time_s": times[i],
-                                              "bearing_deg": t.bearing_deg,
-                                              "range_m": t.range_m}))
-            pose_rows.append((i, times[i], pose.x_m, pose.y_m, math.degrees(pose.yaw_rad)))
+            if not batch.is_done(i, ("poses",)):
+                _render_one(scene, rig, stage, batch, i, pose, float(times[i]), (bin_lo, bin_hi))
             if on_frame is not None:
-                on_frame(i + 1, len(poses))
-        fmt = "%.9g"
-        pd.DataFrame({"frame": np.arange(len(poses)), "time_s": times}).to_csv(
-            tmp / "times.csv", index=False, float_format=fmt, lineterminator="\n")
-        pd.concat(laser_tables).to_csv(tmp / "gt/laser.csv", index=False, float_format=fmt,
-                                       lineterminator="\n")
-        ranges = pd.concat(range_tables)
-        ranges.to_csv(tmp / "gt/ranges.csv", index=False, float_format=fmt,
-                      lineterminator="\n", na_rep="")
-        pd.DataFrame(pose_rows, columns=["frame", "time_s", "x_m", "y_m", "yaw_deg"]).to_csv(
-            tmp / "gt/poses.csv", index=False, float_format=fmt, lineterminator="\n")
-        (tmp / "rig.yaml").write_text(rig.to_yaml())
-        (tmp / "scene.yaml").write_text(yaml.safe_dump(scene_to_dict(scene), sort_keys=False))
-    return {"frames": len(poses), "stripe_columns": stripe_cols,
+                on_frame(i + 1, n)
+        with atomic_directory(out, overwrite=overwrite, inputs=inputs) as tmp:
+            _publish(stage, tmp)
+            for kind, (file, columns) in _TABLES.items():
+                batch.assemble(n, kind, tmp / file, ",".join(columns))
+            pd.DataFrame({"frame": np.arange(n), "time_s": times}).to_csv(
+                tmp / "times.csv", index=False, float_format=_FMT, lineterminator="\n")
+            (tmp / "rig.yaml").write_text(rig.to_yaml())
+            (tmp / "scene.yaml").write_text(yaml.safe_dump(scene_to_dict(scene),
+                                                           sort_keys=False))
+            # the staged files are linked into tmp: the state can go before the rename
+            shutil.rmtree(stage, ignore_errors=True)
+    ranges = pd.read_csv(Path(out) / "gt/ranges.csv", usecols=["range_m"])
+    laser = pd.read_csv(Path(out) / "gt/laser.csv", usecols=["frame"])
+    return {"frames": n, "stripe_columns": len(laser),
             "obstacle_bins": int(np.isfinite(ranges["range_m"]).sum())}

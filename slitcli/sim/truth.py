@@ -98,8 +98,24 @@ def _ray_segment_t(angle: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> tuple[n
     return np.where(ok, s, np.nan), np.where(ok, t, np.nan)
 
 
-def _segments_in_wedges(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(B, M) nearest distance of each segment portion inside each wedge (inf if none)."""
+def segment_wedge_interval(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The part of each segment inside each wedge, as an interval of its parameter.
+
+    Parameters
+    ----------
+    seg : ndarray, shape (M, 2, 2)
+        Segments (start, end), relative to the wedges' apex, metres.
+    lo, hi : ndarray, shape (B,)
+        Wedge limits, radians (world directions).
+
+    Returns
+    -------
+    s_min, s_max : ndarray, shape (B, M)
+        The interval ``[s_min, s_max]`` of ``p0 + s (p1 - p0)`` inside the wedge.
+    hit : ndarray of bool, shape (B, M)
+        The segment enters the wedge.
+    """
     p0 = seg[None, :, 0, :]
     p1 = seg[None, :, 1, :]
     lo_c, hi_c = lo[:, None], hi[:, None]
@@ -121,12 +137,23 @@ def _segments_in_wedges(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.n
     s_min = np.nanmin(np.where(np.isnan(cands), np.inf, cands), axis=0)
     s_max = np.nanmax(np.where(np.isnan(cands), -np.inf, cands), axis=0)
     hit = np.isfinite(s_min) & (s_max >= s_min)
-    s_min = np.where(hit, s_min, 0.0)
-    s_max = np.where(hit, s_max, 0.0)
-    e = p1 - p0
+    return np.where(hit, s_min, 0.0), np.where(hit, s_max, 0.0), hit
+
+
+def nearest_on_segments(seg: np.ndarray, s_min: np.ndarray, s_max: np.ndarray) -> np.ndarray:
+    """Parameter of the point nearest the origin within ``[s_min, s_max]`` of each
+    segment (``seg`` (M, 2, 2) relative to the origin; intervals (B, M))."""
+    p0 = seg[None, :, 0, :]
+    e = seg[None, :, 1, :] - p0
     ee = np.maximum((e * e).sum(-1), 1e-300)
-    s_star = np.clip(-(p0 * e).sum(-1) / ee, s_min, s_max)
-    pt = p0 + s_star[..., None] * e
+    return np.clip(-(p0 * e).sum(-1) / ee, s_min, s_max)
+
+
+def _segments_in_wedges(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(B, M) nearest distance of each segment portion inside each wedge (inf if none)."""
+    s_min, s_max, hit = segment_wedge_interval(seg, lo, hi)
+    s_star = nearest_on_segments(seg, s_min, s_max)
+    pt = seg[None, :, 0, :] + s_star[..., None] * (seg[None, :, 1, :] - seg[None, :, 0, :])
     dist = np.hypot(pt[..., 0], pt[..., 1])
     return np.where(hit, dist, np.inf)
 

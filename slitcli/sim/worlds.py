@@ -215,3 +215,139 @@ def _has_free_path(scene: Scene, p: RandomWorldParams) -> bool:
 
     a, b = labels[cell(s.x_m, s.y_m)], labels[cell(*goal)]
     return bool(a != 0 and a == b)
+
+
+# ------------------------------------------------------------------ hard static worlds
+def _wall(a: tuple[float, float], b: tuple[float, float]) -> dict[str, Any]:
+    return {"type": "wall", "from_xy_m": [a[0], a[1]], "to_xy_m": [b[0], b[1]], "height_m": 1.0,
+            "surface": {"colour_rgb": [0.75, 0.72, 0.68]}}
+
+
+def _cyl(x: float, y: float, r: float) -> dict[str, Any]:
+    return {"type": "cylinder", "centre_xy_m": [round(x, 3), round(y, 3)], "radius_m": r,
+            "height_m": 0.6, "surface": {"colour_rgb": [0.5, 0.6, 0.7]}}
+
+
+def _box(x: float, y: float, sx: float, sy: float, yaw: float = 0.0) -> dict[str, Any]:
+    return {"type": "box", "centre_xy_m": [x, y], "size_m": [sx, sy, 0.6], "yaw_deg": yaw,
+            "surface": {"colour_rgb": [0.7, 0.55, 0.35]}}
+
+
+def _world(name: str, objects: list[dict[str, Any]], goal: tuple[float, float],
+           start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> World:
+    data = {"slitcli_scene": 1, "name": name, "objects": objects,
+            "robot": {"start": {"x_m": start[0], "y_m": start[1], "yaw_deg": start[2]},
+                      "radius_m": 0.25, "height_m": 0.8},
+            "goal_xy_m": [goal[0], goal[1]], "max_range_m": 5.0}
+    return world_from_dict(data, f"--scenario hard ({name})")
+
+
+def _clutter(seed: int) -> list[dict[str, Any]]:
+    """Cylinders (0.1-0.2 m) on a jittered 0.9 m lattice over x 1.5-6.5, |y| <= 2."""
+    rng = np.random.default_rng(seed)
+    xs, ys = np.meshgrid(np.arange(1.5, 6.6, 0.9), np.arange(-2.0, 2.01, 0.9))
+    jit = rng.uniform(-0.2, 0.2, size=(*xs.shape, 2))
+    rad = rng.uniform(0.1, 0.2, size=xs.shape)
+    return [_cyl(float(x + j[0]), float(y + j[1]), round(float(r), 3))
+            for x, y, j, r in zip(xs.ravel(), ys.ravel(), jit.reshape(-1, 2), rad.ravel(),
+                                  strict=True)]
+
+
+def hard_worlds() -> list[World]:
+    """Eight static worlds that stress a local planner (``--scenario hard``).
+
+    A 0.7 m doorway (robot 0.5 m + 2 x 0.05 m margin), a U trap open towards the robot,
+    dense clutter (cylinders on a jittered 0.9 m lattice, a free path guaranteed), a
+    corridor with side openings, a box just behind a corner, a slalom of half-width
+    boxes, a channel offset from the start-goal line, and a grid of pillars.
+    """
+    pillars = [_cyl(1.5 + i, -2.0 + j + (0.5 if i % 2 else 0.0), 0.15)
+               for i in range(6) for j in range(5)]
+    worlds = [
+        _world("doorway_0.7m", [_wall((3.0, -3.0), (3.0, -0.05)), _wall((3.0, 0.65), (3.0, 3.0))],
+               (6.0, 0.0)),
+        _world("u_trap", [_wall((1.8, 1.0), (3.0, 1.0)), _wall((3.0, 1.0), (3.0, -1.0)),
+                          _wall((3.0, -1.0), (1.8, -1.0))], (6.0, 0.0)),
+        _world("corridor_openings", [_wall((-0.5, 0.8), (3.0, 0.8)), _wall((4.2, 0.8), (6.5, 0.8)),
+                                     _wall((7.5, 0.8), (10.5, 0.8)),
+                                     _wall((-0.5, -0.8), (2.0, -0.8)),
+                                     _wall((3.0, -0.8), (8.0, -0.8)),
+                                     _wall((9.0, -0.8), (10.5, -0.8))], (10.0, 0.0)),
+        _world("box_behind_corner", [_wall((-0.5, -0.8), (4.0, -0.8)),
+                                     _wall((4.0, -0.8), (4.0, 5.0)),
+                                     _wall((-0.5, 0.8), (2.4, 0.8)),
+                                     _wall((2.4, 0.8), (2.4, 5.0)),
+                                     _box(3.55, 2.0, 0.5, 0.5)], (3.2, 4.2)),
+        _world("slalom", [_wall((-0.5, 1.5), (8.5, 1.5)), _wall((-0.5, -1.5), (8.5, -1.5)),
+                          _box(2.0, 0.85, 0.3, 1.3), _box(4.0, -0.85, 0.3, 1.3),
+                          _box(6.0, 0.85, 0.3, 1.3)], (8.0, 0.0)),
+        _world("offset_channel", [_wall((2.5, 0.2), (2.5, -3.0)), _wall((2.5, 1.2), (2.5, 4.0)),
+                                  _wall((2.5, 0.2), (5.5, 0.2)), _wall((2.5, 1.2), (5.5, 1.2))],
+               (8.0, 0.0)),
+        _world("pillar_grid", pillars, (8.0, 0.5)),
+    ]
+    for seed in range(100):
+        w = _world("dense_clutter", _clutter(seed), (8.0, 0.0))
+        if _has_free_path(w.scene, RandomWorldParams()):
+            worlds.insert(2, w)
+            break
+    return worlds
+
+
+# ------------------------------------------------------------------ dynamic cases
+PERSON_RADIUS_M = 0.25
+PERSON_HEIGHT_M = 1.7
+
+
+def _person(waypoints: list[tuple[float, float, float]]) -> dict[str, Any]:
+    """A person-like cylinder (0.25 m radius, 1.7 m tall) moving through waypoints (t, x, y)."""
+    return {"type": "cylinder", "radius_m": PERSON_RADIUS_M, "height_m": PERSON_HEIGHT_M,
+            "surface": {"colour_rgb": [0.35, 0.4, 0.6]},
+            "motion": {"waypoints": [{"t_s": round(t, 3), "xy_m": [round(x, 3), round(y, 3)]}
+                                     for t, x, y in waypoints]}}
+
+
+@dataclass(frozen=True)
+class DynamicCase:
+    """A built-in dynamic case: the world with the person and the same world without."""
+
+    name: str
+    world: World
+    empty: World
+
+
+def dynamic_cases() -> list[DynamicCase]:
+    """The ``--scenario dynamic`` cases (robot from the origin heading +x).
+
+    - ``cross_<u>_d<D>``: a person crosses the robot's lane at x = 4 m at u = 1 or
+      0.5 m/s, timed to reach the lane when the robot (driving straight at 0.2 m/s)
+      would be D = 2.5, 1.5 or 1.0 m before the crossing line (from the right at
+      1 m/s, from the left at 0.5 m/s); goal (8, 0).
+    - ``doorway_leave``: a person stands in a 1.2 m doorway at x = 3 m (blocking it)
+      and walks out of it, ahead and then sideways, from t = 8 s; goal (6, 0).
+    - ``slow_walker``: a person walks ahead of the robot in its lane at 0.1 m/s (half
+      the robot's top speed), from x = 2 m; goal (8, 0).
+    - ``oncoming``: a person walks at the robot at 0.4 m/s along y = 0.45 m (shoulder
+      to shoulder would leave 0.05 m between the two bodies); goal (8, 0).
+    """
+    def make(name: str, extra: list[dict[str, Any]], person: dict[str, Any],
+             goal: tuple[float, float]) -> DynamicCase:
+        return DynamicCase(name, _world(name, [*extra, person], goal),
+                           _world(f"{name}_empty", extra, goal))
+
+    out = []
+    x_c = 4.0
+    for u, side in ((1.0, -1.0), (0.5, 1.0)):
+        for d in (1.5, 1.0, 0.7):
+            t_meet = (x_c - d + 0.1) / 0.2      # 0.1 m lost accelerating from standing
+            y0 = 3.0 * side
+            out.append(make(f"cross_{u:g}mps_d{d:g}m", [],
+                            _person([(t_meet - 3.0 / u, x_c, y0),
+                                     (t_meet + 3.0 / u, x_c, -y0)]), (8.0, 0.0)))
+    door = [_wall((3.0, -3.0), (3.0, -0.6)), _wall((3.0, 0.6), (3.0, 3.0))]
+    out.append(make("doorway_leave", door,
+                    _person([(8.0, 3.0, 0.0), (10.0, 4.0, 0.0), (13.0, 4.0, 3.0)]), (6.0, 0.0)))
+    out.append(make("slow_walker", [], _person([(0.0, 2.0, 0.0), (60.0, 8.0, 0.0),
+                                                (62.0, 8.0, 3.0)]), (8.0, 0.0)))
+    out.append(make("oncoming", [], _person([(0.0, 9.0, 0.45), (30.0, -3.0, 0.45)]), (8.0, 0.0)))
+    return out

@@ -49,10 +49,12 @@ import numba as nb
 import numpy as np
 
 from slitcli.stereo._simd import offset, ptr
+from slitcli.stereo.reasons import Reason
 
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}
-REASON_SUPPORT = 7
-REASON_BOUNDARY = 8
+# the codes this kernel writes (slitcli.stereo.reasons); compile-time constants
+REASON_SUPPORT = int(Reason.SUPPORT)
+REASON_BOUNDARY = int(Reason.BOUNDARY)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")

@@ -26,6 +26,7 @@ import numba as nb
 import numpy as np
 
 from slitcli.stereo._simd import bits, from_bits, offset, ptr
+from slitcli.stereo.reasons import Reason
 
 # An energy-free window (all zeros after prefiltering) makes Eq. 10 0/0; its inverse
 # norm is set to this so every candidate that touches it costs more than any real one.
@@ -34,13 +35,12 @@ BIG_INV = np.float32(1e30)
 SSD_EPS = np.float32(1e-3)
 _INF_BITS = np.int32(0x7F800000)
 
-# invalid_reason codes (docs/stereo.md); speckle (5) is set by slitcli.stereo._kernel,
-# support (7) and depth edge (8) by slitcli.stereo._boundary
-REASON_VALID = 0
-REASON_NO_CANDIDATE = 1
-REASON_TEXTURE = 2
-REASON_UNIQUENESS = 3
-REASON_LEFT_RIGHT = 4
+# the codes this kernel writes (slitcli.stereo.reasons); compile-time constants
+REASON_VALID = int(Reason.VALID)
+REASON_NO_CANDIDATE = int(Reason.NO_CANDIDATE)
+REASON_TEXTURE = int(Reason.TEXTURE)
+REASON_UNIQUENESS = int(Reason.UNIQUENESS)
+REASON_LEFT_RIGHT = int(Reason.LEFT_RIGHT)
 
 _U = nb.uint64
 

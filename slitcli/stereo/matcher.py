@@ -19,7 +19,7 @@ instead drops its ``num_disparities - 1`` leftmost columns).
 After winner-take-all the disparity is refined to subpixel by a parabola through
 the costs at d - 1, d, d + 1 (Eq. 10 is a normalised sum of squares, locally
 quadratic in the shift, so the parabola is its natural model). Validity filters,
-all optional and each measured in docs/stereo.md:
+all optional and each measured in docs/notes/stereo-kernels.md:
 
 - prefilter: ``mean`` (subtract the local mean and clip, as StereoBM's
   normalised-response prefilter), ``xsobel`` (horizontal derivative, clipped) or
@@ -65,50 +65,25 @@ filled in.
 
 from __future__ import annotations
 
-import itertools
 import math
-import os
-import threading
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import KW_ONLY, dataclass
 
 import cv2
-import numba
 import numpy as np
 
 from slitcli.errors import SlitcliError
+from slitcli.stereo.bands import kernel_threads, run_row_bands
+from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
+from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+from slitcli.stereo.reasons import Reason
 
 MATCHERS = ("nssd", "bm", "sgbm")
+AGGREGATIONS = ("none", "sgm")
 PREFILTERS = ("none", "mean", "xsobel", "log")
 SUBPIXEL = ("parabola", "none")
 
-# invalid_reason codes (docs/stereo.md)
-REASON_VALID = 0
-REASON_NO_CANDIDATE = 1
-REASON_TEXTURE = 2
-REASON_UNIQUENESS = 3
-REASON_LEFT_RIGHT = 4
-REASON_SPECKLE = 5
-REASON_OPENCV = 6
-REASON_SUPPORT = 7
-REASON_BOUNDARY = 8
-REASON_NAMES = {
-    REASON_VALID: "valid",
-    REASON_NO_CANDIDATE: "no candidate (disparity range or empty window)",
-    REASON_TEXTURE: "texture",
-    REASON_UNIQUENESS: "uniqueness",
-    REASON_LEFT_RIGHT: "left-right",
-    REASON_SPECKLE: "speckle",
-    REASON_OPENCV: "rejected by the OpenCV matcher",
-    REASON_SUPPORT: "local support",
-    REASON_BOUNDARY: "depth edge (the farther surface explains the pixel better)",
-}
-
-# Prefiltered images are stored as integers in units of 1/_QUANT DN: every window
-# sum of the matcher is then exact in float32, whatever the band split of the rows.
-_QUANT = 4.0
 
 
 @dataclass(frozen=True)
@@ -149,6 +124,10 @@ class MatcherParams:
     subpixel: str = "parabola"
     speckle_window_px: int = 100
     speckle_range_px: float = 2.0
+    aggregation: str = "none"
+    sgm_paths: int = 4
+    sgm_p1: float = 0.05
+    sgm_p2: float = 0.4
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -161,6 +140,21 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if p.prefilter not in PREFILTERS:
         raise SlitcliError(f"--prefilter {p.prefilter!r} is unknown; use one of "
                            f"{', '.join(PREFILTERS)}")
+    if p.aggregation not in AGGREGATIONS:
+        raise SlitcliError(f"aggregation {p.aggregation!r} is unknown; use one of "
+                           f"{', '.join(AGGREGATIONS)}")
+    if p.aggregation == "sgm" and p.matcher != "nssd":
+        raise SlitcliError(f"aggregation 'sgm' aggregates the Eq. 10 cost of matcher "
+                           f"'nssd', not {p.matcher!r}; use matcher 'nssd' or aggregation "
+                           "'none'")
+    if p.aggregation == "sgm" and p.num_disparities < 2:
+        raise SlitcliError(f"num_disparities {p.num_disparities}: aggregation 'sgm' needs at "
+                           "least 2 disparities")
+    if p.sgm_paths not in (4, 8):
+        raise SlitcliError(f"sgm_paths {p.sgm_paths} must be 4 or 8")
+    if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
+        raise SlitcliError(f"sgm_p1 {p.sgm_p1} and sgm_p2 {p.sgm_p2} must satisfy "
+                           "0 <= sgm_p1 <= sgm_p2 <= 8 (Eq. 10 cost units)")
     if p.subpixel not in SUBPIXEL:
         raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
                            f"{', '.join(SUBPIXEL)}")
@@ -214,87 +208,6 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
                                f"{image_width_px} px; use fewer disparities")
 
 
-@dataclass(frozen=True)
-class DisparityResult:
-    """Output of a matcher for one rectified pair.
-
-    Attributes
-    ----------
-    disparity_px : ndarray, float32, shape (H, W)
-        Left-image disparity (left column minus right column) in pixels; NaN = invalid.
-    invalid_reason : ndarray, uint8, shape (H, W)
-        0 for valid pixels, else the first filter that rejected the pixel
-        (``REASON_*`` codes, see :data:`REASON_NAMES`).
-    match_cost : ndarray, float32, shape (H, W) or None
-        Eq. 10 cost of the winning disparity (``nssd`` only; +inf where none).
-    """
-
-    disparity_px: np.ndarray
-    invalid_reason: np.ndarray
-    match_cost: np.ndarray | None = None
-
-    @property
-    def valid(self) -> np.ndarray:
-        """Boolean (H, W) mask of valid pixels."""
-        return self.invalid_reason == REASON_VALID
-
-
-def to_grey(image: np.ndarray) -> np.ndarray:
-    """BGR (H, W, 3) or grey (H, W) uint8 image to grey uint8 (H, W)."""
-    img = np.asarray(image)
-    if img.ndim == 3:
-        return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    if img.ndim == 2:
-        return img
-    raise SlitcliError(f"image of shape {img.shape} is neither grey (H, W) nor BGR (H, W, 3)")
-
-
-def prefilter_image(grey: np.ndarray, params: MatcherParams) -> np.ndarray:
-    """The image the Eq. 10 cost is computed on, float32 (H, W), in units of 1/4 DN.
-
-    ``none`` returns the grey levels; ``mean`` subtracts the ``prefilter_size_px``
-    box mean; ``xsobel`` is the horizontal 3x3 Sobel derivative in DN/px; ``log``
-    is minus the Laplacian of a Gaussian of ``log_sigma_px``. Filtered values are
-    clipped to +-``prefilter_cap_dn`` and rounded to 1/4 DN so every window sum of
-    the matcher is exact.
-    """
-    from slitcli.stereo import _kernel
-
-    g = np.asarray(grey, dtype=np.float32)
-    kind = params.prefilter
-    if kind == "none":
-        return g
-    if kind == "mean":
-        k = params.prefilter_size_px
-        response, smooth, sign = g, cv2.blur(g, (k, k), borderType=cv2.BORDER_REFLECT_101), 1.0
-    elif kind == "xsobel":
-        response = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
-                             borderType=cv2.BORDER_REFLECT_101)
-        smooth, sign = response, 0.0
-    else:
-        blurred = cv2.GaussianBlur(g, (0, 0), params.log_sigma_px,
-                                   borderType=cv2.BORDER_REFLECT_101)
-        response = cv2.Laplacian(blurred, cv2.CV_32F, ksize=1, scale=-1.0,
-                                 borderType=cv2.BORDER_REFLECT_101)
-        smooth, sign = response, 0.0
-    out = np.empty_like(g)
-    _kernel.clip_quantise(response, smooth, np.float32(sign),
-                          np.float32(params.prefilter_cap_dn), np.float32(_QUANT), out)
-    return out
-
-
-def window_std_dn(image_q: np.ndarray, window_w_px: int, window_h_px: int) -> np.ndarray:
-    """Standard deviation of ``image_q`` (1/4 DN units unless unprefiltered) per window.
-
-    Returns float32 (H, W) in DN; windows are clipped at the image border.
-    """
-    f = np.asarray(image_q, dtype=np.float32)
-    k = (int(window_w_px), int(window_h_px))
-    mean = cv2.boxFilter(f, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
-    mean_sq = cv2.boxFilter(f * f, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT_101)
-    return np.sqrt(np.maximum(mean_sq - mean * mean, 0.0))
-
-
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
                params: MatcherParams) -> DisparityResult:
     """The paper's matcher: Eq. 10 cost, winner-take-all, subpixel, validity filters.
@@ -314,7 +227,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     cost = np.empty((h, w), np.float32)
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
-    threads = _kernel_threads()
+    threads = kernel_threads()
     with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
         if pool is not None:
             right_job = pool.submit(prefilter_image, right_grey, params)
@@ -323,23 +236,19 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
         else:
             pl = prefilter_image(left_grey, params)
             pr = prefilter_image(right_grey, params)
-        _match_bands(pl, pr, left_grey, right_grey, params, pool, threads, disp, cost,
-                     reason, rdisp)
-    from slitcli.stereo import _kernel
-
-    # speckle regions as cv2.filterSpeckles finds them on 1/16 px, then NaN = invalid
-    _kernel.speckle_finish(disp, reason, int(params.speckle_window_px),
-                           max(1, math.ceil(params.speckle_range_px * 16.0)), REASON_SPECKLE)
+        _winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
+        run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
+                                           rdisp, pool, threads))
     return DisparityResult(disp, reason, cost)
 
 
-def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
-                 right_grey: np.ndarray, params: MatcherParams,
-                 pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
-                 cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
-    """Kernel, texture, support and depth-edge tests of :func:`match_nssd`, filling
-    the outputs (``rdisp``: the right view's disparities, a scratch output)."""
-    from slitcli.stereo import _boundary, _nssd
+def _winners(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
+             pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
+             cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
+    """Eq. 10 winner-take-all with the window-energy, uniqueness and left-right tests
+    and the subpixel parabola (compiled, in bands of rows), filling the outputs
+    (``rdisp``: the right view's disparities, read by the depth-edge filter)."""
+    from slitcli.stereo import _nssd
 
     h = pl.shape[0]
     m = params.window_w_px // 2
@@ -353,78 +262,6 @@ def _match_bands(pl: np.ndarray, pr: np.ndarray, left_grey: np.ndarray,
             params.subpixel == "parabola", np.float32(energy_min), disp, cost, reason, rdisp)
     run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), h,
                   pool, threads, min_rows=2 * n + 1)
-    if params.texture_min_dn > 0 and params.prefilter == "none":
-        texture_ok = window_std_dn(pl, params.window_w_px,
-                                   params.window_h_px) >= params.texture_min_dn
-        reason[(reason == REASON_VALID) & ~texture_ok] = REASON_TEXTURE
-    smin = float(params.support_min_zncc)
-    if smin == 0 and params.boundary_ratio <= 0:
-        return
-    gl = np.asarray(left_grey, np.float32)
-    gr = np.asarray(right_grey, np.float32)
-    tol = float(params.lr_max_diff_px) if params.lr_max_diff_px >= 0 else 1.0
-    args = (smin, float(params.support_side_min_zncc), float(params.support_cross_min_zncc),
-            float(params.support_strong_zncc), int(params.support_radius_px), int(n),
-            tol, float(params.boundary_ratio), float(params.boundary_step_px),
-            int(params.boundary_radius_px), float(params.boundary_noise_dn) ** 2)
-    run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, disp, rdisp, *args, y0, y1,
-                                                     reason), h, pool, threads)
-
-
-def _kernel_threads() -> int:
-    """Threads for the compiled kernels of one frame.
-
-    At most numba's setting (``NUMBA_NUM_THREADS``, default the number of cores; 1 in
-    the workers of a process pool), and only cores that no other runnable task holds
-    right now (Linux ``/proc/loadavg``; this thread is one of the runnable tasks). A
-    band of rows handed to a core that another process holds waits for that core's
-    time slice, and every kernel of the frame waits for its slowest band: measured on
-    the 2-core development machine under a competing busy loop, a second thread made
-    a frame slower, not faster (docs/stereo.md).
-    """
-    wanted = int(numba.get_num_threads())
-    if wanted <= 1:
-        return 1
-    try:
-        with open("/proc/loadavg", encoding="ascii") as fh:
-            running = int(fh.read().split()[3].split("/")[0])
-    except (OSError, ValueError, IndexError):
-        return wanted
-    free = (os.cpu_count() or wanted) - (running - 1)
-    return max(1, min(wanted, free))
-
-
-def run_row_bands(fn: Callable[[int, int], object], height: int,
-                  pool: ThreadPoolExecutor | None, threads: int, *, min_rows: int = 8) -> None:
-    """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
-
-    The compiled kernels release the GIL, so the threads of ``pool`` run them in
-    parallel with this one. There are twice as many bands as ``threads``, taken one
-    at a time by whichever thread is free (this one included), so a core that is busy
-    with something else does not hold up the whole image; idle threads sleep (no
-    spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's rows
-    above it). Without a pool the whole image is one band, run here.
-    """
-    bands = max(1, min(2 * threads, height // max(1, min_rows)))
-    if pool is None or bands == 1:
-        fn(0, height)
-        return
-    edges = [b * height // bands for b in range(bands + 1)]
-    todo = itertools.pairwise(edges)
-    lock = threading.Lock()
-
-    def work() -> None:
-        while True:
-            with lock:
-                band = next(todo, None)
-            if band is None:
-                return
-            fn(*band)
-
-    helpers = [pool.submit(work) for _ in range(threads - 1)]
-    work()
-    for f in helpers:
-        f.result()
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -460,7 +297,7 @@ def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
     raw = st.compute(np.ascontiguousarray(left_grey), np.ascontiguousarray(right_grey))
     valid = raw >= params.min_disparity_px * 16
     disp = np.where(valid, raw.astype(np.float32) / 16.0, np.float32(np.nan))
-    reason = np.where(valid, REASON_VALID, REASON_OPENCV).astype(np.uint8)
+    reason = np.where(valid, Reason.VALID, Reason.OPENCV).astype(np.uint8)
     return DisparityResult(disp.astype(np.float32), reason)
 
 
@@ -490,6 +327,10 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.window_h_px > lg.shape[0]:
         raise SlitcliError(f"--window height {p.window_h_px} is taller than the image "
                            f"({lg.shape[0]} px); use a smaller odd window")
+    if p.matcher == "nssd" and p.aggregation == "sgm":
+        from slitcli.stereo.sgm import match_sgm
+
+        return match_sgm(lg, rg, p)
     if p.matcher == "nssd":
         return match_nssd(lg, rg, p)
     return match_opencv(lg, rg, p)

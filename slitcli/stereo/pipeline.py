@@ -10,18 +10,19 @@ from dataclasses import KW_ONLY, dataclass, field
 
 import numpy as np
 
+from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.rig import Rig
+from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.matcher import MatcherParams, compute_disparity, to_grey
 from slitcli.stereo.obstacles import (
+    MaskInputs,
     ObstacleParams,
+    apply_mask_filters,
     bearing_ranges,
     bins_check,
-    floor_check,
     obstacle_points,
-    trim_silhouettes,
 )
-from slitcli.stereo.rectify import rectify_pair
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,8 @@ def check_stereo_params(rig: Rig, params: StereoParams) -> None:
 
 
 def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
-                        params: StereoParams | None = None) -> StereoFrameResult:
+                        params: StereoParams | None = None, *,
+                        geometry: StereoGeometry | None = None) -> StereoFrameResult:
     """Disparity, distance image, obstacle mask and ranges per bearing of one pair.
 
     Parameters
@@ -90,6 +92,11 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
         are rectified first).
     rig : Rig
     params : StereoParams, optional
+    geometry : StereoGeometry, optional
+        ``StereoGeometry.for_rig(rig, params.obstacles.bin_width_deg)``, built once per
+        rig by callers that process many frames (and that check the parameters once
+        with :func:`check_stereo_params`); built, and the parameters checked, here
+        when None.
 
     Returns
     -------
@@ -105,14 +112,18 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
         raise SlitcliError(f"left image {left_bgr.shape[1]}x{left_bgr.shape[0]} and right "
                            f"image {right_bgr.shape[1]}x{right_bgr.shape[0]} differ in size; "
                            "a stereo pair needs two images of the same size")
-    check_stereo_params(rig, p)
-    left, right = rectify_pair(left_bgr, right_bgr, rig)
+    if geometry is None:
+        check_stereo_params(rig, p)
+        geometry = StereoGeometry.for_rig(rig, p.obstacles.bin_width_deg)
+    else:
+        # built once per run by a caller that checked the parameters then
+        geometry.check_for(rig, p.obstacles.bin_width_deg)
+    left, right = rectify_pair(rig, left_bgr, right_bgr, maps=geometry.rectification)
     disp = compute_disparity(left, right, p.matcher)
-    depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, rig, p.obstacles)
-    grey = to_grey(left)
-    obstacle = trim_silhouettes(obstacle, grey, disp.disparity_px, p.obstacles)
-    obstacle = floor_check(obstacle, grey, to_grey(right), disp.disparity_px, rig, p.obstacles)
-    br = bearing_ranges(pts, obstacle, feature, rig, p.obstacles)
+    depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
+    inputs = MaskInputs(to_grey(left), to_grey(right), disp.disparity_px, geometry)
+    obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)
+    br = bearing_ranges(pts, obstacle, feature, geometry, p.obstacles)
     return StereoFrameResult(disp.disparity_px, disp.invalid_reason, depth, pts, obstacle,
                              br.bearing_deg, br.range_m, br.has_features, br.obstacle_px,
                              br.feature_px)

@@ -1,0 +1,143 @@
+"""Semi-global aggregation (Hirschmueller's SGM) over the paper's Eq. 10 cost.
+
+The local matcher (``aggregation = "none"``) takes each pixel's best Eq. 10 window on
+its own; on weak texture the best window is often not unique and the pixel is left
+invalid. SGM (``aggregation = "sgm"``) adds to each pixel's cost curve the cheapest way
+of reaching it along 8 (or 4) straight paths across the image, where the disparity may
+change by 1 px from one pixel to the next for ``sgm_p1`` and by more for ``sgm_p2``
+(both in units of the Eq. 10 cost, whose value for two uncorrelated windows of equal
+energy is 2). A step of 1 px is cheap, so a slanted surface (a floor, a road: about
+one pixel of disparity every seven rows for the paper rig) is followed row by row;
+a larger jump costs ``sgm_p2`` and happens at depth edges only.
+
+The Eq. 10 cost is that of the local matcher on the same prefiltered images (window
+sums with zeros outside the image), quantised to 1/256; the winner then passes the
+same tests (window texture energy, uniqueness and left-right consistency on the
+aggregated costs, the subpixel parabola) and the same post-filter chain
+(:data:`slitcli.stereo.filters.DISPARITY_FILTERS`).
+
+Cost: three volumes of H x W x D uint16 (29 MB at 320 x 240 x 64; 236 MB at 640 x 480
+x 128). The two sweeps (top-down, bottom-up) run on two threads.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from slitcli.stereo.bands import kernel_threads, run_row_bands
+from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+
+if TYPE_CHECKING:
+    from slitcli.stereo.matcher import DisparityResult, MatcherParams
+
+COST_SCALE = 256.0   # quantisation of the Eq. 10 cost (units per 1.0 of cost)
+COST_MAX = 2.0       # costs clip here: two uncorrelated windows of equal energy
+
+
+def _window_sum(a: np.ndarray, m: int, n: int) -> np.ndarray:
+    return cv2.boxFilter(a, cv2.CV_32F, (2 * m + 1, 2 * n + 1), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT)
+
+
+def _reversed_padded(a: np.ndarray, pad: int) -> np.ndarray:
+    h, w = a.shape
+    out = np.zeros((h, w + 2 * pad), np.float32)
+    out[:, pad:pad + w] = a[:, ::-1]
+    return out
+
+
+def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
+                pool: ThreadPoolExecutor | None = None, threads: int = 1
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quantised Eq. 10 costs (H, W, D) uint16 of prefiltered images, with the left
+    window energies and pixel counts (H, W) float32 (for the texture test)."""
+    from slitcli.stereo import _sgm
+
+    h, w = pl.shape
+    m, n = params.window_w_px // 2, params.window_h_px // 2
+    num, dmin = int(params.num_disparities), int(params.min_disparity_px)
+    pl = np.ascontiguousarray(pl, np.float32)
+    pr = np.ascontiguousarray(pr, np.float32)
+    el = _window_sum(pl * pl, m, n)
+    er = _window_sum(pr * pr, m, n)
+    count = _window_sum(np.ones_like(pl), m, n)
+    pad = num + abs(dmin) + 1
+    prr = _reversed_padded(pr, pad)
+    err = _reversed_padded(er, pad)
+    cost = np.empty((h, w, num), np.uint16)
+    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, pad, dmin, num, m, n,
+                                                COST_MAX, COST_SCALE, y0, y1, cost),
+                  h, pool, threads, min_rows=2 * n + 1)
+    return cost, el, count
+
+
+def aggregate(cost: np.ndarray, params: MatcherParams,
+              pool: ThreadPoolExecutor | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The top-down and bottom-up sweeps' path-cost sums, each (H, W, D) uint16."""
+    from slitcli.stereo import _sgm
+
+    p1 = round(params.sgm_p1 * COST_SCALE)
+    p2 = round(params.sgm_p2 * COST_SCALE)
+    eight = params.sgm_paths == 8
+    s_a = np.empty_like(cost)
+    s_b = np.empty_like(cost)
+    if pool is not None:
+        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b)
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
+        job.result()
+    else:
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
+        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b)
+    return s_a, s_b
+
+
+def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
+              params: MatcherParams) -> DisparityResult:
+    """Eq. 10 cost, SGM aggregation, winner-take-all, validity tests, post-filters.
+
+    Parameters
+    ----------
+    left_grey, right_grey : ndarray, uint8, shape (H, W)
+        Rectified grey images (right camera at +baseline along x).
+    params : MatcherParams
+        ``aggregation = "sgm"``; ``sgm_p1``, ``sgm_p2``, ``sgm_paths``.
+
+    Returns
+    -------
+    DisparityResult
+        ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
+    """
+    from slitcli.stereo import _sgm
+    from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
+
+    h, w = left_grey.shape
+    disp = np.empty((h, w), np.float32)
+    mcost = np.empty((h, w), np.float32)
+    reason = np.empty((h, w), np.uint8)
+    rdisp = np.empty((h, w), np.float32)
+    threads = kernel_threads()
+    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+        pl = prefilter_image(left_grey, params)
+        pr = prefilter_image(right_grey, params)
+        cost, el, count = cost_volume(pl, pr, params, pool, threads)
+        s_a, s_b = aggregate(cost, params, pool)
+        energy_min = ((params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none"
+                      else 0.0)
+        top = np.uint16(round(COST_MAX * COST_SCALE))
+        args = (s_a, s_b, cost, el, count, int(params.min_disparity_px),
+                np.float32(params.uniqueness_ratio), float(params.lr_max_diff_px),
+                params.subpixel == "parabola", np.float32(energy_min), top,
+                np.float32(COST_SCALE))
+        run_row_bands(lambda y0, y1: _sgm.winners_rows(*args, y0, y1, disp, mcost, reason,
+                                                       rdisp), h, pool, threads)
+        run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
+                                           rdisp, pool, threads))
+    return DisparityResult(disp, reason, mcost)
+
+
+__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "match_sgm"]
