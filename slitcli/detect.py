@@ -44,8 +44,9 @@ from slitcli.io.frames import (
     open_frames,
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
-from slitcli.io.progress import Progress, RunSummary, no_laser_note
-from slitcli.laser.batch import laser_table
+from slitcli.io.progress import Progress, RunSummary
+from slitcli.laser.batch import grey_frames, laser_table
+from slitcli.laser.diagnose import absence_notes
 from slitcli.laser.frame import (
     EdgeParams,
     LaserFrame,
@@ -398,7 +399,10 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     rows = pd.read_csv(table, usecols=["frame", "laser_range_m", "fused_source"])
     counts = rows["fused_source"].value_counts()
     lit = rows.groupby("frame")["laser_range_m"].count()
-    notes += no_laser_note(int((lit == 0).sum()), len(lit))
+    # most frames without a laser bin: say so, and why where the images tell
+    idx = lit.index.to_numpy()
+    notes += absence_notes(lit.to_numpy(), lambda pos: grey_frames(src, [int(idx[p]) for p in pos]),
+                           search=params.laser.search)
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
                       MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
                                         "stereo_bins": int(counts.get("stereo", 0)),

@@ -19,12 +19,16 @@ from slitcli.rig import paper_rig, save_rig
 RIG = paper_rig()
 
 
-def _sequence(folder: Path, laser_dn: float, seeds: range) -> list[np.ndarray]:
+def _sequence(folder: Path, laser_dn: float | list[float], seeds: range, *,
+              grey: bool = False) -> list[np.ndarray]:
     imgs = []
     for side in ("left", "right"):
         (folder / side).mkdir(parents=True)
+    dn = [laser_dn] * len(seeds) if np.isscalar(laser_dn) else laser_dn
     for i, seed in enumerate(seeds):
-        img = make_frame(RIG, forward_m=0.8, seed=seed, laser_dn=laser_dn).bgr
+        img = make_frame(RIG, forward_m=0.8, seed=seed, laser_dn=dn[i]).bgr
+        if grey:  # a grey stream: the camera's luma in all three channels
+            img = np.repeat(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)[..., None], 3, axis=2)
         for side in ("left", "right"):
             cv2.imwrite(str(folder / side / f"{i:06d}.png"), img)
         imgs.append(img)
@@ -32,17 +36,28 @@ def _sequence(folder: Path, laser_dn: float, seeds: range) -> list[np.ndarray]:
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_a_run_without_any_stripe_says_so(tmp_path, seed):
+@pytest.mark.parametrize("command", ["laser", "detect"])
+def test_a_run_mostly_without_a_stripe_says_so_and_why(tmp_path, seed, command):
+    # two of three frames without laser light: the warning (stderr, exit 0) counts them
+    # and says the laser may be off
     dark = tmp_path / "dark"
-    _sequence(dark, 0.0, range(seed, seed + 2))
-    res = CliRunner().invoke(cli, ["laser", str(dark), "-o", str(tmp_path / "o")])
+    _sequence(dark, [0.0, 110.0, 0.0], range(seed, seed + 3))
+    res = CliRunner().invoke(cli, [command, str(dark), "-o", str(tmp_path / "o")])
     assert res.exit_code == 0, res.stderr
-    assert "found in none of the 2 frames" in res.stderr
+    assert "no laser stripe in 2 of 3 frames" in res.stderr
+    assert "laser may be off" in res.stderr and "grey" not in res.stderr
+    # the same frames as a grey stream: the stripe cannot be there, and it says why
+    grey = tmp_path / "grey"
+    _sequence(grey, 110.0, range(seed, seed + 3), grey=True)
+    res = CliRunner().invoke(cli, [command, str(grey), "-o", str(tmp_path / "o3")])
+    assert res.exit_code == 0, res.stderr
+    assert "no laser stripe in 3 of 3 frames" in res.stderr
+    assert "3 of them are grey images" in res.stderr
+    # the laser in every frame (or in two of three): no warning
     lit = tmp_path / "lit"
-    _sequence(lit, 110.0, range(seed, seed + 2))
-    res = CliRunner().invoke(cli, ["laser", str(lit), "-o", str(tmp_path / "o2")])
-    assert res.exit_code == 0 and "found in none" not in res.stderr
-    assert "stripe columns" in res.output
+    _sequence(lit, [110.0, 0.0, 110.0], range(seed, seed + 3))
+    res = CliRunner().invoke(cli, [command, str(lit), "-o", str(tmp_path / "o2")])
+    assert res.exit_code == 0 and "no laser stripe" not in res.stderr
 
 
 def test_bag_gives_the_folder_table(tmp_path):

@@ -71,16 +71,6 @@ class RunSummary:
                 f"{', '.join(str(p) for p in self.outputs)}")
 
 
-def no_laser_note(frames_without: int, frames: int) -> tuple[str, ...]:
-    """A note when the laser found no stripe in any frame read (a laser that is off, an
-    image read as RGB, a rig whose laser plane is wrong all look like this)."""
-    if frames == 0 or frames_without < frames:
-        return ()
-    return (f"the laser stripe was found in none of the {frames} frames: check that the "
-            "laser is on and in view, that the images are colour (red laser), and the rig's "
-            "laser plane (slitcli calibrate laser)",)
-
-
 def progress_bar(total: int, desc: str, *, unit: str = "frame") -> Any:
     """A tqdm bar on stderr; disabled when stderr is not a terminal (logs, CI, pipes)."""
     from tqdm import tqdm

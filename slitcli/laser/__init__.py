@@ -16,7 +16,8 @@ from typing import Any
 _WHERE = {
     "TABLE_COLUMNS": "batch", "laser_table": "batch", "run_laser": "batch",
     "StripeColumns": "extract", "chromaticity": "extract", "extract_stripe": "extract",
-    "StripeAbsence": "diagnose", "is_grey": "diagnose", "stripe_absence": "diagnose",
+    "StripeAbsence": "diagnose", "absence_notes": "diagnose", "is_grey": "diagnose",
+    "stripe_absence": "diagnose",
     "LaserBins": "frame", "LaserFrame": "frame", "LaserGeometry": "frame",
     "bearing_bin_centres_deg": "frame", "bin_boundary_points": "frame",
     "detect_laser": "frame", "laser_sight_range_m": "frame",

@@ -21,9 +21,11 @@ from slitcli.io.frames import (
     DEFAULT_RIGHT_TOPIC,
     BadFrame,
     FolderFrames,
+    FrameSource,
     open_frames,
 )
-from slitcli.io.progress import Progress, RunSummary, no_laser_note
+from slitcli.io.progress import Progress, RunSummary
+from slitcli.laser.diagnose import absence_notes, is_grey
 from slitcli.laser.frame import LaserFrame, LaserGeometry, detect_laser
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import LASER, csv_rows
@@ -128,8 +130,10 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     bad = batch.write_skipped(n, out / SKIPPED_FILE)
     table = pd.read_csv(path, usecols=["frame"])
     outputs = (path, out / OVERLAY_DIR) if overlay else (path,)
-    read = n - bad
-    notes = src.notes() + no_laser_note(read - table["frame"].nunique(), read)
+    read = [i for i in range(n) if not batch.is_skipped(i)]
+    per_frame = table["frame"].value_counts().reindex(read, fill_value=0).to_numpy()
+    notes = src.notes() + absence_notes(
+        per_frame, lambda pos: grey_frames(src, [read[p] for p in pos]), search=params.search)
     if bad:
         outputs += (out / SKIPPED_FILE,)
         notes += (f"{bad} frame(s) could not be read and were skipped (no rows): "
@@ -137,6 +141,18 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
     return RunSummary("laser", n, len(done), time.perf_counter() - t0, outputs,
                       MappingProxyType({"stripe_columns": len(table),
                                         "skipped_frames": bad}), notes)
+
+
+def grey_frames(src: FrameSource, indices: list[int]) -> list[bool]:
+    """Whether the left images of frames ``indices`` (sorted) of a source are grey
+    (:func:`~slitcli.laser.diagnose.is_grey`); a frame that cannot be read counts as
+    not grey."""
+    want = set(indices)
+    grey = dict.fromkeys(indices, False)
+    for f in src.frames(skip=frozenset(range(len(src))) - want, on_bad="skip"):
+        if not isinstance(f, BadFrame):
+            grey[f.index] = is_grey(f.left_bgr)
+    return [grey[i] for i in indices]
 
 
 def _publish_overlays(target: Path, staged: Path, names: list[str]) -> None:

@@ -9,7 +9,7 @@ light falls outside the searched rows.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +21,9 @@ GREY_DN = 2
 GREY_SHARE = 0.999
 #: every GREY_STEP-th row and column is sampled
 GREY_STEP = 4
+#: frames without a stripe whose images are read again to tell whether they are grey
+#: (evenly spaced over the run)
+GREY_SAMPLE = 12
 
 
 def is_grey(bgr: np.ndarray) -> bool:
@@ -54,7 +57,8 @@ class StripeAbsence:
 
 
 def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
-                   search: str = "rig", min_share: float = 0.5) -> StripeAbsence | None:
+                   search: str = "rig", min_share: float = 0.5,
+                   checked: Sequence[bool] | None = None) -> StripeAbsence | None:
     """Say whether most frames of a run had no stripe, and why where it can tell.
 
     Parameters
@@ -67,6 +71,9 @@ def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
         The rows searched (``LaserParams.search``), for the advice.
     min_share : float
         The warning is given when more than this share of the frames has no stripe.
+    checked : sequence of bool, optional
+        Per frame, whether ``grey`` was looked at (default: every frame); the reason is
+        judged on the frames without a stripe that were checked.
 
     Returns
     -------
@@ -82,10 +89,15 @@ def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
     k = int(none.sum())
     if n == 0 or k <= min_share * n:
         return None
-    k_grey = int((none & g).sum())
+    c = np.ones(n, bool) if checked is None else np.asarray(checked, dtype=bool)
+    if c.shape != g.shape:
+        raise ValueError("checked must have one entry per frame")
+    k_grey = int((none & g & c).sum())
+    k_checked = int((none & c).sum())
     head = f"no laser stripe in {k} of {n} frames"
-    if 2 * k_grey > k:
-        why = (f"{k_grey} of them are grey images (red = green = blue), which cannot carry a "
+    if 2 * k_grey > k_checked:
+        of = "them" if k_checked == k else f"the {k_checked} checked"
+        why = (f"{k_grey} of {of} are grey images (red = green = blue), which cannot carry a "
                "red stripe: give the colour camera's images, not a grey or infrared stream")
     else:
         where = ("the rows where the rig's laser plane lies within max_search_range_m"
@@ -95,3 +107,34 @@ def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
                (" (search full searches every row: a camera whose geometry differs from "
                 "the rig)" if search == "rig" else ""))
     return StripeAbsence(frames=n, without_stripe=k, grey=k_grey, message=f"{head}: {why}")
+
+
+def absence_notes(found_columns: Sequence[int],
+                  grey_of: Callable[[list[int]], Sequence[bool]], *,
+                  search: str = "rig") -> tuple[str, ...]:
+    """The warning of a run (``laser``, ``detect``): :func:`stripe_absence` with the
+    images of up to ``GREY_SAMPLE`` frames without a stripe (evenly spaced) checked for
+    grey; ``()`` when most frames show a stripe.
+
+    Parameters
+    ----------
+    found_columns : sequence of int
+        Per frame read, its stripe columns (or laser bins).
+    grey_of : callable
+        ``grey_of(positions)``: whether the images at those positions of
+        ``found_columns`` are grey (:func:`is_grey`); called only when the warning is
+        given.
+    search : {"rig", "full"}
+    """
+    found = np.asarray(found_columns, dtype=np.int64)
+    none = np.flatnonzero(found == 0)
+    if found.size == 0 or none.size <= 0.5 * found.size:
+        return ()
+    pick = np.unique(none[np.linspace(0, none.size - 1, min(GREY_SAMPLE, none.size))
+                          .round().astype(int)])
+    grey = np.zeros(found.size, bool)
+    checked = np.zeros(found.size, bool)
+    grey[pick] = np.asarray(grey_of([int(i) for i in pick]), dtype=bool)
+    checked[pick] = True
+    r = stripe_absence(found, grey, search=search, checked=checked)
+    return () if r is None else (r.message,)
