@@ -24,7 +24,8 @@ With ``--plain N`` it also renders N scenes of 1-3 textureless boxes and cylinde
 Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
-        [--overhang 0] [--reseed 0] [--plain 0] [--fusion paper] [--details] [--coverage]
+        [--overhang 0] [--reseed 0] [--plain 0] [--fusion paper] [--camera PRESET]
+        [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -243,6 +244,10 @@ def main() -> int:
                     help="also report which sensor ranges near textureless obstacles, over "
                          "this many scenes")
     ap.add_argument("--fusion", default="paper", choices=("paper", "conservative"))
+    ap.add_argument("--camera", default=None,
+                    help="render every scene through this camera model (image.camera: a "
+                         "preset such as webcam or robot, docs/scene.md); its sequences "
+                         "are cached apart")
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
     ap.add_argument("--coverage", action="store_true",
                     help="print how much of each missed bin's wedge the true obstacle fills")
@@ -253,6 +258,9 @@ def main() -> int:
             "fused_range_m", "fused_source"]
     coverage = []
     for group, name, d in sequences(args.random, args.overhang, args.reseed):
+        if args.camera:
+            d = {**d, "image": {**d.get("image", {}), "camera": args.camera}}
+            name = f"{name}-{args.camera}"
         out = Path(args.cache) / name
         if not (out / "gt" / "ranges.csv").exists():
             render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)

@@ -51,6 +51,9 @@ COLOUR_SIGMAS = 3.0
 WIDTH_SPREAD = 2.5
 #: found columns of one segment may be this many columns apart
 MAX_GAP = 2
+#: the choice along the stripe is made again, without the candidates of segments that
+#: did not stay, at most this many times
+CHOICE_ROUNDS = 6
 #: rows are smoothed along a segment over this many columns either side
 SMOOTH_HALF = 4
 #: a second difference of the rows beyond this (and four times its noise) is a corner
@@ -231,34 +234,16 @@ def best_path(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, z_weak: floa
 
 
 @njit(cache=True, nogil=True)
-def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: float,
-                  z_weak: float, continuity_px: float, max_jump_px: float,
-                  min_segment_cols: int, min_z: float, strong_z: float,
-                  min_stripe_cols: int, v_out: np.ndarray, amp_out: np.ndarray,
-                  sat_out: np.ndarray) -> None:  # pragma: no cover
-    """The choice along the stripe (:func:`best_path`), then the segments; writes the
-    rows (NaN none), peaks and clipped flags (W,).
-
-    Chosen columns join into a segment when their rows link (:func:`links`), across a
-    gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
-    column. A segment stays when it has ``min_segment_cols`` columns whose root mean
-    square significance is ``min_z``, or a quarter of that (at least two), each
-    ``strong_z`` significant (a thin object). One laser lights one sheet across the
-    view: a frame whose longest kept segment spans fewer than ``min_stripe_cols``
-    columns shows no stripe (clutter makes short segments, the sheet long ones). Rows
-    are then smoothed along the segment (:func:`smooth_rows`).
-    """
+def _segments(cand: np.ndarray, pick: np.ndarray, v: np.ndarray, wid: np.ndarray,
+              max_jump_px: float, min_segment_cols: int, min_z: float, strong_z: float,
+              keep: np.ndarray, dropped: np.ndarray) -> int:  # pragma: no cover
+    """The chosen columns (``pick`` >= 0) joined into segments (:func:`choose_stripe`);
+    ``keep`` marks the columns of segments that stay, ``dropped`` those of segments
+    that do not; returns the longest kept segment's span in columns."""
     w_cols = cand.shape[0]
-    pick = np.empty(w_cols, np.int64)
-    best_path(cand, ok, prev_v, z_weak, beta, continuity_px, max_jump_px, pick)
-    v = np.full(w_cols, np.nan)
-    wid = np.full(w_cols, np.nan)
-    for u in range(w_cols):
-        if pick[u] >= 0:
-            v[u] = cand[u, pick[u], F_POS]
-            wid[u] = cand[u, pick[u], F_WIDTH]
-    keep = np.zeros(w_cols, np.bool_)
     idx = np.empty(w_cols, np.int64)
+    keep[:] = False
+    dropped[:] = False
     longest = 0
     u = 0
     while u < w_cols:
@@ -286,11 +271,64 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
             z = cand[idx[r], pick[idx[r]], F_Z]
             strong = strong and z >= strong_z
             z2 += z * z
-        if (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong:
-            for r in range(cnt):
-                keep[idx[r]] = True
+        good = (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong
+        for r in range(cnt):
+            keep[idx[r]] = good
+            dropped[idx[r]] = not good
+        if good:
             longest = max(longest, idx[cnt - 1] - idx[0] + 1)
         u = last + 1
+    return longest
+
+
+@njit(cache=True, nogil=True)
+def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: float,
+                  z_weak: float, continuity_px: float, max_jump_px: float,
+                  min_segment_cols: int, min_z: float, strong_z: float,
+                  min_stripe_cols: int, v_out: np.ndarray, amp_out: np.ndarray,
+                  sat_out: np.ndarray) -> None:  # pragma: no cover
+    """The choice along the stripe (:func:`best_path`), then the segments; writes the
+    rows (NaN none), peaks and clipped flags (W,).
+
+    Chosen columns join into a segment when their rows link (:func:`links`), across a
+    gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
+    column. A segment stays when it has ``min_segment_cols`` columns whose root mean
+    square significance is ``min_z``, or a quarter of that (at least two), each
+    ``strong_z`` significant (a thin object). A candidate of a segment that does not
+    stay is not the laser: it is struck out and the choice is made again
+    (up to ``CHOICE_ROUNDS`` times), so that short clutter, more significant column
+    by column, does not take the columns of a weaker but continuous stripe. One laser
+    lights one sheet across the view: a frame whose longest kept segment spans fewer
+    than ``min_stripe_cols`` columns shows no stripe (clutter makes short segments,
+    the sheet long ones). Rows are then smoothed along the segment
+    (:func:`smooth_rows`).
+    """
+    w_cols = cand.shape[0]
+    pick = np.empty(w_cols, np.int64)
+    allowed = ok.copy()
+    v = np.full(w_cols, np.nan)
+    wid = np.full(w_cols, np.nan)
+    keep = np.zeros(w_cols, np.bool_)
+    dropped = np.zeros(w_cols, np.bool_)
+    longest = 0
+    for _ in range(CHOICE_ROUNDS):
+        best_path(cand, allowed, prev_v, z_weak, beta, continuity_px, max_jump_px, pick)
+        for u in range(w_cols):
+            v[u] = np.nan
+            wid[u] = np.nan
+            if pick[u] >= 0:
+                v[u] = cand[u, pick[u], F_POS]
+                wid[u] = cand[u, pick[u], F_WIDTH]
+        longest = _segments(cand, pick, v, wid, max_jump_px, min_segment_cols, min_z,
+                            strong_z, keep, dropped)
+        if not dropped.any():
+            break
+        for u in range(w_cols):
+            if dropped[u]:
+                allowed[u, pick[u]] = False
+    for u in range(w_cols):
+        if not keep[u]:
+            pick[u] = -1
     if longest < min_stripe_cols:
         keep[:] = False
     se = np.full(w_cols, np.nan)
