@@ -225,6 +225,7 @@ ABLATIONS = {
     "no shape test / flat tops (max_chi2 1e9)": {"max_chi2": 1e9},
     "no laser-colour test (colour_error 0.99)": {"colour_error": 0.99},
     "no frame width test (WIDTH_SPREAD inf)": {"WIDTH_SPREAD": float("inf")},
+    "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "paper method": {"method": "paper"},
 }
@@ -237,15 +238,18 @@ def ablation_extractors(search: str = "full") -> dict:
     ex = {}
     for name, over in ABLATIONS.items():
         def run(bgr, over=over):
-            kw = {k: v for k, v in over.items() if k != "WIDTH_SPREAD"}
+            consts = {k: v for k, v in over.items() if k.isupper()}
+            kw = {k: v for k, v in over.items() if not k.isupper()}
             if "max_width_share" in kw:
                 kw["max_width_share"] = 8.0 / bgr.shape[0]
-            keep = choose.WIDTH_SPREAD
-            choose.WIDTH_SPREAD = over.get("WIDTH_SPREAD", keep)
+            keep = {k: getattr(choose, k) for k in consts}
+            for k, v in consts.items():
+                setattr(choose, k, v)
             try:
                 return extract_stripe(bgr, LaserParams(search=search, **kw)).v_px
             finally:
-                choose.WIDTH_SPREAD = keep
+                for k, v in keep.items():
+                    setattr(choose, k, v)
         ex[name] = run
     return ex
 

@@ -285,7 +285,7 @@ def _segments(cand: np.ndarray, pick: np.ndarray, v: np.ndarray, wid: np.ndarray
 def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: float,
                   z_weak: float, continuity_px: float, max_jump_px: float,
                   min_segment_cols: int, min_z: float, strong_z: float,
-                  min_stripe_cols: int, v_out: np.ndarray, amp_out: np.ndarray,
+                  min_stripe_cols: int, rounds: int, v_out: np.ndarray, amp_out: np.ndarray,
                   sat_out: np.ndarray) -> None:  # pragma: no cover
     """The choice along the stripe (:func:`best_path`), then the segments; writes the
     rows (NaN none), peaks and clipped flags (W,).
@@ -295,9 +295,10 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
     column. A segment stays when it has ``min_segment_cols`` columns whose root mean
     square significance is ``min_z``, or a quarter of that (at least two), each
     ``strong_z`` significant (a thin object). A candidate of a segment that does not
-    stay is not the laser: it is struck out and the choice is made again
-    (up to ``CHOICE_ROUNDS`` times), so that short clutter, more significant column
-    by column, does not take the columns of a weaker but continuous stripe. One laser
+    stay is not the laser: it is struck out and the choice is made again (up to
+    ``rounds`` times; ``CHOICE_ROUNDS`` by default), so that short clutter, more
+    significant column by column, does not take the columns of a weaker but continuous
+    stripe. One laser
     lights one sheet across the view: a frame whose longest kept segment spans fewer
     than ``min_stripe_cols`` columns shows no stripe (clutter makes short segments,
     the sheet long ones). Rows are then smoothed along the segment
@@ -311,7 +312,7 @@ def choose_stripe(cand: np.ndarray, ok: np.ndarray, prev_v: np.ndarray, beta: fl
     keep = np.zeros(w_cols, np.bool_)
     dropped = np.zeros(w_cols, np.bool_)
     longest = 0
-    for _ in range(CHOICE_ROUNDS):
+    for _ in range(max(rounds, 1)):
         best_path(cand, allowed, prev_v, z_weak, beta, continuity_px, max_jump_px, pick)
         for u in range(w_cols):
             v[u] = np.nan

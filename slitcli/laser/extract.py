@@ -202,7 +202,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          params.max_jump_px, params.min_segment_cols(w), params.min_z,
                          STRONG_SHARE * params.min_z,
                          round(params.min_stripe_share * int(mask.any(axis=0).sum())),
-                         v, amp, sat)
+                         choose.CHOICE_ROUNDS, v, amp, sat)
     _fill_gaps(v, amp, cand, y_avg, clipped, mask_t, sigma_avg, r0, params, s_max)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)
 
