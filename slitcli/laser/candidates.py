@@ -91,6 +91,27 @@ def _red_excess(img: np.ndarray, bg: np.ndarray, i: int, j: int) -> float:  # pr
 
 
 @njit(cache=True, nogil=True)
+def _red_flanks(img: np.ndarray, bg: np.ndarray, i: int, a: int, b: int,
+                seed_dn: float) -> bool:  # pragma: no cover
+    """Whether the clipped run ``[a, b)`` of column ``i`` has red light on both flanks:
+    the largest red excess within ``FLANK_ROWS`` rows beyond each end (an image border
+    counts as ``seed_dn``) positive on both sides and ``2 seed_dn`` together. A laser
+    core's flanks are both red, their sum judged rather than each (a steep Gaussian
+    flank sinks into the noise one row after the clip as often above as below); a
+    white highlight's fringe is white on both sides."""
+    n = img.shape[1]
+    up = seed_dn if a == 0 else -1e300
+    for d in range(1, FLANK_ROWS + 1):
+        if a - d >= 0:
+            up = max(up, _red_excess(img, bg, i, a - d))
+    dn = seed_dn if b == n else -1e300
+    for d in range(FLANK_ROWS):
+        if b + d < n:
+            dn = max(dn, _red_excess(img, bg, i, b + d))
+    return up > 0.0 and dn > 0.0 and up + dn >= 2.0 * seed_dn
+
+
+@njit(cache=True, nogil=True)
 def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarray,
            mi: np.ndarray, seed_dn: float, sigma_y: float,
            max_run: int, rank: np.ndarray, centre: np.ndarray, run_a: np.ndarray,
@@ -114,13 +135,7 @@ def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarr
             b = j
             if b - a > max_run:
                 continue
-            up = a == 0
-            for d in range(1, FLANK_ROWS + 1):
-                up = up or (a - d >= 0 and _red_excess(img, bg, i, a - d) >= seed_dn)
-            dn = b == n
-            for d in range(FLANK_ROWS):
-                dn = dn or (b + d < n and _red_excess(img, bg, i, b + d) >= seed_dn)
-            if not (up and dn):
+            if not _red_flanks(img, bg, i, a, b, seed_dn):
                 continue
             c = 0.5 * (a + b - 1)
             sig = max(sigma_y, _local_sigma(yi, mi, c, 1.5 * (b - a) + 1.0, clip))
