@@ -126,8 +126,17 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             ratio = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01)) / sheet_px
             strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z) & np.isfinite(ratio)
             ref = float(np.median(ratio[strong])) if strong.sum() >= COLOUR_SUPPORT else 1.0
-            # a clipped core's width rests on its flanks alone: not judged
-            ok &= sat | ~(np.abs(np.log(ratio / ref)) > np.log(sheet_tolerance))
+            # judged on the fitted width itself, within its error: the sheet's
+            # sigma ``ref x sheet_px`` up to ``sheet_tolerance`` times either way, the
+            # pixel's extent added (subtracting it from a noisy narrow fit would
+            # inflate the fit's error), widened by two standard errors of the width
+            # (about the centre's for a Gaussian fit); a clipped core's width rests on
+            # its flanks alone: not judged
+            sheet = ref * sheet_px
+            se = 2.0 * np.nan_to_num(cand[..., F_SE_POS], nan=0.0)
+            lo = np.sqrt((sheet / sheet_tolerance) ** 2 + PIXEL_VAR) - se
+            hi = np.sqrt((sheet * sheet_tolerance) ** 2 + PIXEL_VAR) + se
+            ok &= sat | ~((s < lo) | (s > hi))
         # the sheet's width as the frame shows it: its strong unclipped columns
         strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z)
         if strong.sum() >= COLOUR_SUPPORT:
