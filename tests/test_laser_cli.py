@@ -26,8 +26,6 @@ def seq(tmp_path_factory):
     return out
 
 
-@pytest.mark.xfail(reason="issue 19 re-layering: 97 % of the distractors' stripe columns "
-                   "found, the test wants 99 % (docs/laser.md Limits)", strict=False)
 def test_laser_cli_matches_ground_truth(seq, tmp_path):
     out = tmp_path / "out"
     res = CliRunner().invoke(cli, ["laser", str(seq), "-o", str(out), "--overlay"])

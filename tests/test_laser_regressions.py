@@ -9,13 +9,14 @@ a frame here stands only for itself, so one seed is what it means.
 from __future__ import annotations
 
 import numpy as np
-from test_laser_render import GEOM, PARAMS, RIG, _stats
+from test_laser_render import GEOM, PARAMS, REGRESSION, RIG, _stats
 
 from slitcli.laser import detect_laser
 from slitcli.sim.render import frame_truth, render_frame
 from slitcli.sim.scene import scene_from_dict
 
 
+@REGRESSION
 def test_rendered_stripe_between_a_red_objects_edges():
     # a green wall 1.0-1.2 m ahead behind a low red textured box (1.1 m, 23 cm tall)
     # and a red cylinder: in the columns where the stripe on the wall (truth peak

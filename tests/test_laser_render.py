@@ -302,8 +302,11 @@ COLOUR_BAND_SCENES = {
 }
 
 
-@REGRESSION
-@pytest.mark.parametrize("case", sorted(COLOUR_BAND_SCENES))
+@pytest.mark.parametrize("case", [
+    pytest.param("pink top face", marks=REGRESSION),
+    pytest.param("wall/floor seam", marks=REGRESSION),
+    "box edge, laser off",
+])
 def test_rendered_coloured_bands_are_not_the_laser(case):
     # narrow bands of a surface's own colour (neither red nor the laser's light, but
     # redder than what lies around them, as thin as the sheet there) pass the per-pixel
