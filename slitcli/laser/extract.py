@@ -171,11 +171,16 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # two noise levels of each: the pixel noise (lag-2 residuals) seeds candidates; the
     # spread of the evidence over the image (noise and the clutter it does not cancel)
     # judges them, where it is larger
-    noise_avg = max(evidence.robust_sigma(y_avg, mask_t, evidence.NOISE_STEP),
+    # pixels whose red is clipped to black show no noise (nor does a clipped core): the
+    # noise is measured where the red channel is inside its range
+    live = mask_t & (img_t[..., 2] > 0) & ~clipped
+    if not live.any():
+        live = mask_t
+    noise_avg = max(evidence.robust_sigma(y_avg, live, evidence.NOISE_STEP),
                     AVG_NOISE * params.noise_floor_dn)
-    sigma_y = max(evidence.robust_sigma(y, mask_t, evidence.NOISE_STEP),
-                  evidence.spread_sigma(y, mask_t, evidence.NOISE_STEP), params.noise_floor_dn)
-    sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, mask_t, evidence.NOISE_STEP))
+    sigma_y = max(evidence.robust_sigma(y, live, evidence.NOISE_STEP),
+                  evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
+    sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
     seed = params.seed_z * noise_avg
     s_max = max_w / choose.EQ_WIDTH
