@@ -154,7 +154,6 @@ def test_rendered_red_box_laser_not_the_box(power_dn):
     assert hit.mean() >= 0.95
 
 
-@REGRESSION
 def test_rendered_wide_red_wall_with_and_without_the_laser():
     # a red wall filling the view (texture contrast 0.6) 0.8 m ahead: its texture is
     # red like the laser (colour cannot cancel it), the stripe saturates on it

@@ -91,8 +91,8 @@ def colour_residual(cand: np.ndarray, laser_rgb: np.ndarray) -> np.ndarray:
 def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: float,
                      max_chi2: float, min_th: float, min_delta_th: float,
                      colour_error: float, channel_sigma_dn: float,
-                     sheet_px: np.ndarray | None,
-                     sheet_tolerance: float) -> tuple[np.ndarray, np.ndarray | None]:
+                     sheet_px: np.ndarray | None, sheet_tolerance: float,
+                     sheet_support: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
     """Which candidates (W, K) can be the laser, and the laser colour used.
 
     Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
@@ -103,7 +103,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
     ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
-    strong columns do (or, without enough of them, the parameter); and at most
+    strong columns do (when at least ``sheet_support`` of them show it, else the
+    parameter); and at most
     ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
     """
     pos = cand[..., F_POS]
@@ -125,7 +126,10 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             # its own clearly (its strong unclipped columns), that is the reference
             ratio = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01)) / sheet_px
             strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z) & np.isfinite(ratio)
-            ref = float(np.median(ratio[strong])) if strong.sum() >= COLOUR_SUPPORT else 1.0
+            # (a stripe's worth of them: a few strong columns beside a clipped core are
+            # widened by it, and would move the reference for the whole frame)
+            ref = float(np.median(ratio[strong])) if strong.sum() >= max(
+                COLOUR_SUPPORT, sheet_support) else 1.0
             # judged on the fitted width itself, within its error: the sheet's
             # sigma ``ref x sheet_px`` up to ``sheet_tolerance`` times either way, the
             # pixel's extent added (subtracting it from a noisy narrow fit would

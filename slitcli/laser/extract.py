@@ -199,7 +199,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
         colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
-        sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance)
+        sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
+        sheet_support=round(params.min_stripe_share * w))
     v = np.empty(w)
     amp = np.empty(w)
     sat = np.empty(w, bool)
