@@ -505,7 +505,7 @@ def test_stripe_absence_says_why():
     r = stripe_absence([0, 0, 0, 120], [True, True, False, False])
     assert r is not None and r.without_stripe == 3 and r.grey == 2 and "grey" in r.message
     r = stripe_absence([0, 0, 0, 120], [False] * 4, search="rig")
-    assert r is not None and "laser may be off" in r.message and "search full" in r.message
+    assert r is not None and "laser may be off" in r.message and "`search` full" in r.message
     assert stripe_absence([100, 0, 120], [False] * 3) is None
     assert stripe_absence([], []) is None
     off = make_frame(RIG, stripe_cols=(0, 0))

@@ -46,6 +46,7 @@ def test_a_run_mostly_without_a_stripe_says_so_and_why(tmp_path, seed, command):
     assert res.exit_code == 0, res.stderr
     assert "no laser stripe in 2 of 3 frames" in res.stderr
     assert "laser may be off" in res.stderr and "grey" not in res.stderr
+    assert "--search full searches every row" in res.stderr  # the flag, not the field
     # the same frames as a grey stream: the stripe cannot be there, and it says why
     grey = tmp_path / "grey"
     _sequence(grey, 110.0, range(seed, seed + 3), grey=True)

@@ -62,6 +62,7 @@ PARAM_FLAGS: dict[str, str] = {
     "on_bad": "--on-bad-frame", "on_bad_frame": "--on-bad-frame",
     "cluster": "--cluster", "chunk_frames": "--chunk-frames", "inputs": "--inputs",
     "sources": "SEQ|BAG",
+    "search": "--search", "max_search_range_m": "--max-search-range-m",
 }
 
 

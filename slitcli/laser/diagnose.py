@@ -100,11 +100,11 @@ def stripe_absence(found_columns: Sequence[int], grey: Sequence[bool], *,
         why = (f"{k_grey} of {of} are grey images (red = green = blue), which cannot carry a "
                "red stripe: give the colour camera's images, not a grey or infrared stream")
     else:
-        where = ("the rows where the rig's laser plane lies within max_search_range_m"
-                 if search == "rig" else "every row")
+        where = ("the rows where the rig's laser plane lies within `max_search_range_m` "
+                 "were" if search == "rig" else "every row was")
         why = ("no red line stood out of the noise measured on the images: the laser may be "
-               "off or blocked, or too weak for the exposure; " + where + " was searched" +
-               (" (search full searches every row: a camera whose geometry differs from "
+               "off or blocked, or too weak for the exposure; " + where + " searched" +
+               (" (`search` full searches every row: a camera whose geometry differs from "
                 "the rig)" if search == "rig" else ""))
     return StripeAbsence(frames=n, without_stripe=k, grey=k_grey, message=f"{head}: {why}")
 
