@@ -123,7 +123,7 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
         ok &= eq2 | (sat & ~has_core)
         if sheet_px is not None:
             # the sheet's thickness relative to the parameter's; where the frame shows
-            # its own clearly (its strong unclipped columns), that is the reference
+            # its own clearly (its strong unclipped columns), that is a second reference
             ratio = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01)) / sheet_px
             strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z) & np.isfinite(ratio)
             # (a stripe's worth of them: a few strong columns beside a clipped core are
@@ -136,11 +136,15 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             # inflate the fit's error), widened by two standard errors of the width
             # (about the centre's for a Gaussian fit); a clipped core's width rests on
             # its flanks alone: not judged
-            sheet = ref * sheet_px
+            # A width that fits the sheet of the parameter passes as well: the frame's
+            # strong columns can be clutter when the stripe itself is clipped
             se = 2.0 * np.nan_to_num(cand[..., F_SE_POS], nan=0.0)
-            lo = np.sqrt((sheet / sheet_tolerance) ** 2 + PIXEL_VAR) - se
-            hi = np.sqrt((sheet * sheet_tolerance) ** 2 + PIXEL_VAR) + se
-            ok &= sat | ~((s < lo) | (s > hi))
+            fits = np.zeros(s.shape, bool)
+            for r in {1.0, ref}:
+                lo = np.sqrt((r * sheet_px / sheet_tolerance) ** 2 + PIXEL_VAR) - se
+                hi = np.sqrt((r * sheet_px * sheet_tolerance) ** 2 + PIXEL_VAR) + se
+                fits |= (s >= lo) & (s <= hi)
+            ok &= sat | fits
         # the sheet's width as the frame shows it: its strong unclipped columns
         strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z)
         if strong.sum() >= COLOUR_SUPPORT:
