@@ -179,11 +179,10 @@ def _red_box(contrast, power_dn, noise_dn):
             "robot": {"frames": 1}}
 
 
-@REGRESSION
 @pytest.mark.parametrize(("contrast", "power_dn", "noise_dn"), [
     # the stripe clips on the box (truth peaks 175-240 DN over a red level of 80-200);
     # texture blobs next to the core reach more red contrast than the clipped pixels
-    (0.8, 900.0, 8.0),
+    pytest.param(0.8, 900.0, 8.0, marks=REGRESSION),
     (0.5, 500.0, 5.0),
 ])
 def test_rendered_red_textured_box_laser_not_the_texture(contrast, power_dn, noise_dn):

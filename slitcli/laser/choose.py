@@ -49,6 +49,10 @@ COLOUR_SIGMAS = 3.0
 #: an unclipped candidate may be this many times wider than the median width of the
 #: frame's strong columns (the sheet's width changes with range and incidence)
 WIDTH_SPREAD = 2.5
+#: chromaticity step (any channel) between the surface above and below a candidate
+#: beyond which they are two surfaces; sides darker than SURFACE_MIN_DN are not judged
+SURFACE_STEP = 0.1
+SURFACE_MIN_DN = 10.0
 #: found columns of one segment may be this many columns apart
 MAX_GAP = 2
 #: the choice along the stripe is made again, without the candidates of segments that
@@ -139,7 +143,7 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             # A width that fits the sheet of the parameter passes as well: the frame's
             # strong columns can be clutter when the stripe itself is clipped
             se = 2.0 * np.nan_to_num(cand[..., F_SE_POS], nan=0.0)
-            fits = np.zeros(s.shape, bool)
+            fits = ~np.isfinite(sheet_px)  # the sheet's width unknown there: not judged
             for r in {1.0, ref}:
                 lo = np.sqrt((r * sheet_px / sheet_tolerance) ** 2 + PIXEL_VAR) - se
                 hi = np.sqrt((r * sheet_px * sheet_tolerance) ** 2 + PIXEL_VAR) + se
@@ -157,6 +161,55 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
                 colour_error * np.linalg.norm(t, axis=-1)
             ok &= ~has_core | (q <= lim)
     return ok, laser
+
+
+def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
+                      channel_sigma_dn: float) -> np.ndarray:
+    """Whether the surface beneath each candidate (W, K) is one surface: the laser adds
+    light to the surface it falls on, so the surface's colour (chromaticity) just above
+    the stripe and just below it is the same; an edge between two surfaces of different
+    colour (a red object's border on a grey floor) is not the laser, whatever light it
+    seems to add.
+
+    The colour is taken on the image ``img_t`` (W, H', 3, BGR, rows from ``row0``) in
+    two rows each side, ``2.5 sigma + 2`` rows from the candidate's centre (beyond its
+    light); the two sides differ when their chromaticities differ by more than
+    ``SURFACE_STEP`` plus four noise sigmas (``channel_sigma_dn``) in any channel.
+    Sides too dark to show a colour (below ``SURFACE_MIN_DN`` per channel on average)
+    are not judged. An edge along the stripe runs on, so the break must show in both
+    neighbouring columns too (at the same rows): where an object's side crosses the
+    stripe, its end column sees two surfaces alone. Returns (W, K) bool, True where the
+    surface continues or where it cannot be told.
+    """
+    n_cols, n_rows = img_t.shape[0], img_t.shape[1]
+    pos = cand[..., F_POS] - row0
+    off = np.ceil(EQ_WIDTH * np.nan_to_num(cand[..., F_WIDTH], nan=1.0) + 2.0)
+    breaks = np.isfinite(pos)
+    # an edge along the stripe runs on: the break must show in the neighbouring columns
+    # too (at the same rows); where an object's side crosses the stripe (its end
+    # column) the surfaces differ in one column only
+    for shift in (-1, 0, 1):
+        cols = np.clip(np.arange(n_cols) + shift, 0, n_cols - 1)[:, None]
+        sides = []
+        for sign in (-1.0, 1.0):
+            tot = np.zeros((*cand.shape[:2], 3))
+            inside = np.isfinite(pos)
+            for extra in (0.0, 1.0):
+                r = np.rint(np.nan_to_num(pos, nan=-1e6) + sign * (off + extra))
+                inside &= (r >= 0) & (r < n_rows)
+                ri = np.clip(r, 0, n_rows - 1).astype(np.int64)
+                tot += img_t[cols, ri].astype(np.float64)
+            sides.append((tot, inside))
+        (up, in_up), (dn, in_dn) = sides
+        s_up, s_dn = up.sum(axis=-1), dn.sum(axis=-1)
+        lit = (s_up >= 6.0 * SURFACE_MIN_DN) & (s_dn >= 6.0 * SURFACE_MIN_DN)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = np.abs(up / s_up[..., None] - dn / s_dn[..., None]).max(axis=-1)
+            # a chromaticity of a two-row sum of three channels: noise about
+            # sigma sqrt(2) / sum per channel, on each side
+            noise = channel_sigma_dn * math.sqrt(2.0) * (1.0 / s_up + 1.0 / s_dn)
+        breaks &= in_up & in_dn & lit & (d > SURFACE_STEP + 4.0 * noise)
+    return ~breaks
 
 
 @njit(cache=True, nogil=True)

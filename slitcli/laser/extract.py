@@ -201,6 +201,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w))
+    ok &= choose.surface_continues(cand, img_t, r0, float(np.median(chan)))
     v = np.empty(w)
     amp = np.empty(w)
     sat = np.empty(w, bool)
