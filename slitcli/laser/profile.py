@@ -27,36 +27,41 @@ N_PAR = 5  # offset, peak, centre, width, background slope
 (F_POS, F_AMP, F_WIDTH, F_Z, F_SE_POS, F_CHI2, F_SAT, F_NOISE, F_TR, F_TG, F_TB, F_KR, F_KG,
  F_KB, F_NCORE, F_FLAT, F_GNOISE) = range(17)
 N_FIELDS = 17
-#: rows of :func:`fit_gaussian`'s scratch (h, its copy, g, dx, p)
-WORK_ROWS = 2 * N_PAR + 3
+#: rows of :func:`fit_gaussian`'s scratch (h, g, dx, p)
+WORK_ROWS = N_PAR + 3
 
 
 @njit(cache=True, nogil=True)
-def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
-    """Solve the small system ``a x = b`` in place (Gaussian elimination with partial
-    pivoting; ``a`` and ``b`` are overwritten); False if singular."""
+def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  # pragma: no cover
+    """Solve ``a x = b`` for a small symmetric positive definite ``a`` by its Cholesky
+    factor ``L`` (``a = L L'``), which ``factor`` first writes over the lower triangle of
+    ``a`` (the factor of the normal equations serves the step and the covariance
+    alike); False if ``a`` is not positive definite. ``b`` is kept."""
     n = b.shape[0]
-    for col in range(n):
-        piv = col
-        for r in range(col + 1, n):
-            if abs(a[r, col]) > abs(a[piv, col]):
-                piv = r
-        if abs(a[piv, col]) < 1e-300:
-            return False
-        if piv != col:
-            for c in range(n):
-                a[col, c], a[piv, c] = a[piv, c], a[col, c]
-            b[col], b[piv] = b[piv], b[col]
-        for r in range(col + 1, n):
-            f = a[r, col] / a[col, col]
-            for c in range(col, n):
-                a[r, c] -= f * a[col, c]
-            b[r] -= f * b[col]
-    for r in range(n - 1, -1, -1):
-        s = b[r]
-        for c in range(r + 1, n):
-            s -= a[r, c] * x[c]
-        x[r] = s / a[r, r]
+    if factor:
+        for j in range(n):
+            d = a[j, j]
+            for k in range(j):
+                d -= a[j, k] * a[j, k]
+            if not d > 1e-300:
+                return False
+            d = math.sqrt(d)
+            a[j, j] = d
+            for i in range(j + 1, n):
+                t = a[i, j]
+                for k in range(j):
+                    t -= a[i, k] * a[j, k]
+                a[i, j] = t / d
+    for i in range(n):  # L z = b
+        t = b[i]
+        for k in range(i):
+            t -= a[i, k] * x[k]
+        x[i] = t / a[i, i]
+    for i in range(n - 1, -1, -1):  # L' x = z
+        t = x[i]
+        for k in range(i + 1, n):
+            t -= a[k, i] * x[k]
+        x[i] = t / a[i, i]
     return True
 
 
@@ -153,10 +158,9 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     """
     m = y.shape[0]
     h = work[0:N_PAR]
-    hh = work[N_PAR:2 * N_PAR]
-    g = work[2 * N_PAR]
-    dx = work[2 * N_PAR + 1]
-    p = work[2 * N_PAR + 2]
+    g = work[N_PAR]
+    dx = work[N_PAR + 1]
+    p = work[N_PAR + 2]
     p[:] = 0.0
     lo = 1e300
     pk = -1e300
@@ -179,7 +183,7 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
             return False
         for q in range(N_PAR):
             h[q, q] *= 1.0 + 1e-6
-        if not _solve(h, g, dx):
+        if not _solve(h, g, dx, True):
             return False
         # keep the step sane: the centre moves at most a width, the width changes by at
         # most half of itself
@@ -196,14 +200,13 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf)
     if p[1] <= 0.0 or n_use < MIN_ROWS:
         return False
-    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0)
+    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0), from one factor
     var_a = 0.0
     var_v = 0.0
     for idx in (1, 2):
-        hh[:] = h
         g[:] = 0.0
         g[idx] = 1.0
-        if not _solve(hh, g, dx):
+        if not _solve(h, g, dx, idx == 1):
             return False
         if idx == 1:
             var_a = dx[idx]
