@@ -68,12 +68,13 @@ def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  
 @njit(cache=True, nogil=True)
 def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
             sigma: float, shape_error: float, h: np.ndarray, g: np.ndarray,
-            e: np.ndarray) -> tuple[float, int]:  # pragma: no cover
+            e: np.ndarray, with_chi: bool) -> tuple[float, int]:  # pragma: no cover
     """Chi-square of the model at ``p = (c, A, v0, s, b)`` under the row variance with
     the model error, and the Gauss-Newton normal equations ``h = J' J / sigma^2``,
     ``g = J' r / sigma^2`` there (the noise alone weighs the rows: the model error is
     no evidence against the stripe's presence); also the rows used. The background is
-    the line ``c + b (v - ref)``. ``e`` (rows,) is scratch for the Gaussian's samples."""
+    the line ``c + b (v - ref)``. ``e`` (rows,) is scratch for the Gaussian's samples;
+    the chi-square (a division a row) only ``with_chi``, else 0."""
     m = y.shape[0]
     c, a, v0, s, sl = p[0], p[1], p[2], p[3], p[4]
     u = 1.0 / s
@@ -107,7 +108,8 @@ def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
         model = a * ej
         d = j0 + jj - ref
         r = y[jj] - (c + sl * d + model)
-        chi += r * r / (var0 + (shape_error * model) ** 2)
+        if with_chi:
+            chi += r * r / (var0 + (shape_error * model) ** 2)
         n += 1
         j2 = model * t * u
         j3 = j2 * t
@@ -178,7 +180,7 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     n_use = 0
     chi = 0.0
     for _ in range(MAX_ITER):
-        chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf)
+        chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf, False)
         if n_use < MIN_ROWS:
             return False
         for q in range(N_PAR):
@@ -197,7 +199,7 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
             return False
         if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 0.01 * p[3]:
             break
-    chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf)
+    chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf, True)
     if p[1] <= 0.0 or n_use < MIN_ROWS:
         return False
     # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0), from one factor
