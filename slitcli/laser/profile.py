@@ -36,8 +36,9 @@ def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  
     """Solve ``a x = b`` for a small symmetric positive definite ``a`` by its Cholesky
     factor ``L`` (``a = L L'``), which ``factor`` first writes over the lower triangle of
     ``a`` (the factor of the normal equations serves the step and the covariance
-    alike); False if ``a`` is not positive definite. ``b`` is kept."""
-    n = b.shape[0]
+    alike); False if ``a`` is not positive definite. ``b`` is kept. ``N_PAR`` unknowns
+    (a constant: the loops unroll)."""
+    n = N_PAR
     if factor:
         for j in range(n):
             d = a[j, j]
