@@ -66,7 +66,7 @@ def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
             sigma: float, shape_error: float, h: np.ndarray, g: np.ndarray,
             e: np.ndarray, with_chi: bool) -> tuple[float, int]:  # pragma: no cover
@@ -95,44 +95,49 @@ def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
         e[jj] = e[jj + 1] * q
         q *= dd
     chi = 0.0
-    n = 0
+    n = 0.0
     wt = 1.0 / (sigma * sigma)
     var0 = sigma * sigma
     h01 = h02 = h03 = h04 = h11 = h12 = h13 = h14 = 0.0
     h22 = h23 = h24 = h33 = h34 = h44 = 0.0
     g0 = g1 = g2 = g3 = g4 = 0.0
+    # branch-free (unused rows weigh 0), so that the sums over the rows vectorise
     for jj in range(m):
-        if not use[jj]:
-            continue
+        w = 1.0 if use[jj] else 0.0
         t = (j0 + jj - v0) * u
         ej = e[jj]
         model = a * ej
         d = j0 + jj - ref
         r = y[jj] - (c + sl * d + model)
+        rw = r * w
         if with_chi:
-            chi += r * r / (var0 + (shape_error * model) ** 2)
-        n += 1
+            chi += rw * r / (var0 + (shape_error * model) ** 2)
+        n += w
         j2 = model * t * u
         j3 = j2 * t
-        g0 += r
-        g1 += ej * r
-        g2 += j2 * r
-        g3 += j3 * r
-        g4 += d * r
-        h01 += ej
-        h02 += j2
-        h03 += j3
-        h04 += d
-        h11 += ej * ej
-        h12 += ej * j2
-        h13 += ej * j3
-        h14 += ej * d
-        h22 += j2 * j2
-        h23 += j2 * j3
-        h24 += j2 * d
-        h33 += j3 * j3
-        h34 += j3 * d
-        h44 += d * d
+        ew = ej * w
+        j2w = j2 * w
+        j3w = j3 * w
+        dw = d * w
+        g0 += rw
+        g1 += ej * rw
+        g2 += j2 * rw
+        g3 += j3 * rw
+        g4 += d * rw
+        h01 += ew
+        h02 += j2w
+        h03 += j3w
+        h04 += dw
+        h11 += ew * ej
+        h12 += ew * j2
+        h13 += ew * j3
+        h14 += ew * d
+        h22 += j2w * j2
+        h23 += j2w * j3
+        h24 += j2w * d
+        h33 += j3w * j3
+        h34 += j3w * d
+        h44 += dw * d
     h[0, 0], h[0, 1], h[0, 2], h[0, 3], h[0, 4] = wt * n, wt * h01, wt * h02, wt * h03, wt * h04
     h[1, 1], h[1, 2], h[1, 3], h[1, 4] = wt * h11, wt * h12, wt * h13, wt * h14
     h[2, 2], h[2, 3], h[2, 4] = wt * h22, wt * h23, wt * h24
@@ -142,7 +147,7 @@ def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
         for k in range(i):
             h[i, k] = h[k, i]
     g[0], g[1], g[2], g[3], g[4] = wt * g0, wt * g1, wt * g2, wt * g3, wt * g4
-    return chi, n
+    return chi, int(n)
 
 
 @njit(cache=True, nogil=True)
