@@ -43,6 +43,8 @@ from slitcli.laser.profile import (
     F_TR,
     F_WIDTH,
     F_Z,
+    N_PAR,
+    WORK_ROWS,
     fit_gaussian,
     flat_top,
     plateau_centre,
@@ -221,6 +223,8 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
     res_avg = np.empty(6)
     use = np.empty(n, np.bool_)
     red = np.empty(n)
+    work = np.empty((WORK_ROWS, N_PAR))
+    ebuf = np.empty(n)
     for i in range(n_cols):
         yi = y[i]
         ya = y_avg[i]
@@ -256,10 +260,10 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
             sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, CLIP_SIGMAS * 1.2 * sigma_y))
             gsig = sigma_y
             ok = fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig, shape_error,
-                              s_max, res)
+                              s_max, res, work, ebuf)
             if not sat and (not ok or res[3] < strong_z):
                 if fit_gaussian(ya[j0:j1], use[:m], j0, centre[q], s0, noise[q], shape_error,
-                                s_max, res_avg) and (not ok or res_avg[3] > res[3]):
+                                s_max, res_avg, work, ebuf) and (not ok or res_avg[3] > res[3]):
                     res[:] = res_avg
                     sig = noise[q]
                     gsig = sigma_avg
@@ -341,6 +345,8 @@ def fit_gaps(y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, cols: np.
     n = y_avg.shape[1]
     res = np.empty(6)
     use = np.empty(n, np.bool_)
+    work = np.empty((WORK_ROWS, N_PAR))
+    ebuf = np.empty(n)
     for k in range(cols.shape[0]):
         out[k] = np.nan
         i = cols[k]
@@ -355,5 +361,6 @@ def fit_gaps(y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, cols: np.
         for jj in range(m):
             use[jj] = mask[i, j0 + jj] and not clipped[i, j0 + jj]
         if fit_gaussian(y_avg[i, j0:j1], use[:m], j0, rows[k], s0, sigma_avg, shape_error,
-                        s_max, res) and abs(res[0] - rows[k]) <= 1.0 and res[3] >= z_min:
+                        s_max, res, work, ebuf) and abs(res[0] - rows[k]) <= 1.0 and \
+                res[3] >= z_min:
             out[k] = res[0]

@@ -140,6 +140,50 @@ def laser_evidence(img: np.ndarray, bg: np.ndarray, sat_dn: int, y: np.ndarray,
             ci[j] = xi[j, 2] >= sat_dn
 
 
+#: bins of :func:`_median`'s histogram
+MEDIAN_BINS = 1024
+
+
+@njit(cache=True, nogil=True)
+def _median(v: np.ndarray) -> float:  # pragma: no cover
+    """Median of ``v`` (n,) float, the same value as ``np.median``, without sorting all
+    of it: a histogram of ``MEDIAN_BINS`` bins over its range finds the bins of the
+    middle order statistics, and only their values are sorted."""
+    n = v.shape[0]
+    lo = v[0]
+    hi = v[0]
+    for t in range(n):
+        lo = min(lo, v[t])
+        hi = max(hi, v[t])
+    if not hi > lo:
+        return float(lo)
+    scale = MEDIAN_BINS / (hi - lo)
+    counts = np.zeros(MEDIAN_BINS, np.int64)
+    for t in range(n):
+        counts[min(int((v[t] - lo) * scale), MEDIAN_BINS - 1)] += 1
+    k1 = (n - 1) // 2  # the middle order statistics (one for odd n)
+    k2 = n // 2
+    below = 0  # values in bins before b1
+    b1 = 0
+    while below + counts[b1] <= k1:
+        below += counts[b1]
+        b1 += 1
+    b2 = b1
+    through = below + counts[b1]
+    while through <= k2:
+        b2 += 1
+        through += counts[b2]
+    sel = np.empty(through - below, v.dtype)
+    m = 0
+    for t in range(n):
+        b = min(int((v[t] - lo) * scale), MEDIAN_BINS - 1)
+        if b1 <= b <= b2:
+            sel[m] = v[t]
+            m += 1
+    sel.sort()
+    return 0.5 * (float(sel[k1 - below]) + float(sel[k2 - below]))
+
+
 @njit(cache=True, nogil=True)
 def robust_sigma(x: np.ndarray, mask: np.ndarray, step: int) -> float:  # pragma: no cover
     """Noise sigma of ``x`` (W, H) from the median absolute lag-2 residual down every
@@ -154,42 +198,47 @@ def robust_sigma(x: np.ndarray, mask: np.ndarray, step: int) -> float:  # pragma
                 m += 1
     if m == 0:
         return 0.0
-    return MAD_TO_SIGMA * np.median(vals[:m])
-
-
-@njit(cache=True, nogil=True)
-def _grouped_median(v: np.ndarray, step: float) -> float:  # pragma: no cover
-    """Median of non-negative values on a grid of ``step`` (integer pixels give lag-2
-    residuals in halves), interpolated within its bin as for grouped data: the plain
-    median of such values moves in whole steps (a 2 DN noise reads 2.4)."""
-    x = np.sort(v)
-    n = x.shape[0]
-    med = x[n // 2]
-    lo = np.searchsorted(x, med - 0.25 * step)  # first value in the median's bin
-    hi = np.searchsorted(x, med + 0.25 * step)
-    width = step if med > 0.25 * step else 0.5 * step  # the bin at 0 is half wide
-    edge = med - 0.5 * step if med > 0.25 * step else 0.0
-    return edge + (0.5 * n - lo) / max(hi - lo, 1) * width
+    return MAD_TO_SIGMA * _median(vals[:m])
 
 
 @njit(cache=True, nogil=True)
 def channel_sigma(img: np.ndarray, step: int) -> np.ndarray:  # pragma: no cover
     """Per-channel noise sigma (R, G, B), DN, of ``img`` (W, H, 3) BGR: the median
-    absolute lag-2 residual down every ``step``-th column (grouped: the residuals of
-    integers come in halves), unclipped pixels only."""
+    absolute lag-2 residual down every ``step``-th column, unclipped pixels only.
+
+    The residuals of integers come in halves (``k / 2``, ``k = |2 b - a - d|`` in
+    0 .. 510): they are counted per half (a histogram, no sort), and the median is
+    interpolated within its half-DN bin as for grouped data (the plain median of such
+    values moves in whole steps: a 2 DN noise reads 2.4); the bin at 0 is half wide.
+    """
     n_cols, n = img.shape[0], img.shape[1]
     out = np.zeros(3)
-    vals = np.empty(((n_cols + step - 1) // step) * max(n - 4, 0))
+    hist = np.zeros((3, 511), np.int64)
+    for i in range(0, n_cols, step):
+        col = img[i]
+        for j in range(2, n - 2):
+            for c in range(3):
+                a, b, d = np.int64(col[j - 2, c]), np.int64(col[j, c]), np.int64(col[j + 2, c])
+                if a < 255 and b < 255 and d < 255:
+                    hist[c, abs(2 * b - a - d)] += 1
     for c in range(3):
         m = 0
-        for i in range(0, n_cols, step):
-            for j in range(2, n - 2):
-                a, b, d = img[i, j - 2, c], img[i, j, c], img[i, j + 2, c]
-                if a < 255 and b < 255 and d < 255:
-                    vals[m] = abs(float(b) - 0.5 * (float(a) + float(d)))
-                    m += 1
-        if m > 0:
-            out[2 - c] = MAD_TO_SIGMA * _grouped_median(vals[:m], 0.5)
+        for k in range(511):
+            m += hist[c, k]
+        if m == 0:
+            continue
+        half = m // 2
+        lo = 0  # values below the median's bin
+        k = 0
+        while lo + hist[c, k] <= half:
+            lo += hist[c, k]
+            k += 1
+        hi = lo + hist[c, k]
+        step_dn = 0.5
+        med = 0.5 * k
+        width = step_dn if k > 0 else 0.5 * step_dn
+        edge = med - 0.5 * step_dn if k > 0 else 0.0
+        out[2 - c] = MAD_TO_SIGMA * (edge + (0.5 * m - lo) / max(hi - lo, 1) * width)
     return out
 
 
@@ -209,5 +258,5 @@ def spread_sigma(x: np.ndarray, mask: np.ndarray, step: int) -> float:  # pragma
     if m == 0:
         return 0.0
     v = vals[:m]
-    med = np.median(v)
-    return 1.4826 * np.median(np.abs(v - med))
+    med = _median(v)
+    return 1.4826 * _median(np.abs(v - med))

@@ -27,82 +27,133 @@ N_PAR = 5  # offset, peak, centre, width, background slope
 (F_POS, F_AMP, F_WIDTH, F_Z, F_SE_POS, F_CHI2, F_SAT, F_NOISE, F_TR, F_TG, F_TB, F_KR, F_KG,
  F_KB, F_NCORE, F_FLAT, F_GNOISE) = range(17)
 N_FIELDS = 17
+#: rows of :func:`fit_gaussian`'s scratch (h, g, dx, p)
+WORK_ROWS = N_PAR + 3
 
 
 @njit(cache=True, nogil=True)
-def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover
-    """Solve the small system ``a x = b`` in place (Gaussian elimination with partial
-    pivoting; ``a`` and ``b`` are overwritten); False if singular."""
-    n = b.shape[0]
-    for col in range(n):
-        piv = col
-        for r in range(col + 1, n):
-            if abs(a[r, col]) > abs(a[piv, col]):
-                piv = r
-        if abs(a[piv, col]) < 1e-300:
-            return False
-        if piv != col:
-            for c in range(n):
-                a[col, c], a[piv, c] = a[piv, c], a[col, c]
-            b[col], b[piv] = b[piv], b[col]
-        for r in range(col + 1, n):
-            f = a[r, col] / a[col, col]
-            for c in range(col, n):
-                a[r, c] -= f * a[col, c]
-            b[r] -= f * b[col]
-    for r in range(n - 1, -1, -1):
-        s = b[r]
-        for c in range(r + 1, n):
-            s -= a[r, c] * x[c]
-        x[r] = s / a[r, r]
+def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  # pragma: no cover
+    """Solve ``a x = b`` for a small symmetric positive definite ``a`` by its Cholesky
+    factor ``L`` (``a = L L'``), which ``factor`` first writes over the lower triangle of
+    ``a`` (the factor of the normal equations serves the step and the covariance
+    alike); False if ``a`` is not positive definite. ``b`` is kept. ``N_PAR`` unknowns
+    (a constant: the loops unroll)."""
+    n = N_PAR
+    if factor:
+        for j in range(n):
+            d = a[j, j]
+            for k in range(j):
+                d -= a[j, k] * a[j, k]
+            if not d > 1e-300:
+                return False
+            d = math.sqrt(d)
+            a[j, j] = d
+            for i in range(j + 1, n):
+                t = a[i, j]
+                for k in range(j):
+                    t -= a[i, k] * a[j, k]
+                a[i, j] = t / d
+    for i in range(n):  # L z = b
+        t = b[i]
+        for k in range(i):
+            t -= a[i, k] * x[k]
+        x[i] = t / a[i, i]
+    for i in range(n - 1, -1, -1):  # L' x = z
+        t = x[i]
+        for k in range(i + 1, n):
+            t -= a[k, i] * x[k]
+        x[i] = t / a[i, i]
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
-            sigma: float, shape_error: float, h: np.ndarray,
-            g: np.ndarray) -> tuple[float, int]:  # pragma: no cover
+            sigma: float, shape_error: float, h: np.ndarray, g: np.ndarray,
+            e: np.ndarray, with_chi: bool) -> tuple[float, int]:  # pragma: no cover
     """Chi-square of the model at ``p = (c, A, v0, s, b)`` under the row variance with
     the model error, and the Gauss-Newton normal equations ``h = J' J / sigma^2``,
     ``g = J' r / sigma^2`` there (the noise alone weighs the rows: the model error is
     no evidence against the stripe's presence); also the rows used. The background is
-    the line ``c + b (v - ref)``."""
-    h[:] = 0.0
-    g[:] = 0.0
-    chi = 0.0
-    n = 0
+    the line ``c + b (v - ref)``. ``e`` (rows,) is scratch for the Gaussian's samples;
+    the chi-square (a division a row) only ``with_chi``, else 0."""
+    m = y.shape[0]
     c, a, v0, s, sl = p[0], p[1], p[2], p[3], p[4]
-    jac = np.empty(N_PAR)
+    u = 1.0 / s
+    # the Gaussian on the rows by its ratio recurrence from the row nearest the centre
+    # (exp(-(t + u)^2 / 2) = exp(-t^2 / 2) exp(-t u - u^2 / 2)): three exponentials a
+    # pass instead of one a row (an exponential costs what a row's sums do)
+    jc = min(max(math.floor(v0 - j0 + 0.5), 0), m - 1)
+    tc = (j0 + jc - v0) * u
+    e[jc] = math.exp(-0.5 * tc * tc)
+    dd = math.exp(-u * u)
+    q = math.exp(-tc * u - 0.5 * u * u)
+    for jj in range(jc + 1, m):
+        e[jj] = e[jj - 1] * q
+        q *= dd
+    q = math.exp(tc * u - 0.5 * u * u)
+    for jj in range(jc - 1, -1, -1):
+        e[jj] = e[jj + 1] * q
+        q *= dd
+    chi = 0.0
+    n = 0.0
     wt = 1.0 / (sigma * sigma)
-    for jj in range(y.shape[0]):
-        if not use[jj]:
-            continue
-        t = (j0 + jj - v0) / s
-        e = math.exp(-0.5 * t * t)
-        model = a * e
+    var0 = sigma * sigma
+    h01 = h02 = h03 = h04 = h11 = h12 = h13 = h14 = 0.0
+    h22 = h23 = h24 = h33 = h34 = h44 = 0.0
+    g0 = g1 = g2 = g3 = g4 = 0.0
+    # branch-free (unused rows weigh 0), so that the sums over the rows vectorise
+    for jj in range(m):
+        w = 1.0 if use[jj] else 0.0
+        t = (j0 + jj - v0) * u
+        ej = e[jj]
+        model = a * ej
         d = j0 + jj - ref
         r = y[jj] - (c + sl * d + model)
-        chi += r * r / (sigma * sigma + (shape_error * model) ** 2)
-        n += 1
-        jac[0] = 1.0
-        jac[1] = e
-        jac[2] = model * t / s
-        jac[3] = model * t * t / s
-        jac[4] = d
-        for q in range(N_PAR):
-            g[q] += wt * jac[q] * r
-            for k in range(q, N_PAR):
-                h[q, k] += wt * jac[q] * jac[k]
-    for q in range(N_PAR):
-        for k in range(q):
-            h[q, k] = h[k, q]
-    return chi, n
+        rw = r * w
+        if with_chi:
+            chi += rw * r / (var0 + (shape_error * model) ** 2)
+        n += w
+        j2 = model * t * u
+        j3 = j2 * t
+        ew = ej * w
+        j2w = j2 * w
+        j3w = j3 * w
+        dw = d * w
+        g0 += rw
+        g1 += ej * rw
+        g2 += j2 * rw
+        g3 += j3 * rw
+        g4 += d * rw
+        h01 += ew
+        h02 += j2w
+        h03 += j3w
+        h04 += dw
+        h11 += ew * ej
+        h12 += ew * j2
+        h13 += ew * j3
+        h14 += ew * d
+        h22 += j2w * j2
+        h23 += j2w * j3
+        h24 += j2w * d
+        h33 += j3w * j3
+        h34 += j3w * d
+        h44 += dw * d
+    h[0, 0], h[0, 1], h[0, 2], h[0, 3], h[0, 4] = wt * n, wt * h01, wt * h02, wt * h03, wt * h04
+    h[1, 1], h[1, 2], h[1, 3], h[1, 4] = wt * h11, wt * h12, wt * h13, wt * h14
+    h[2, 2], h[2, 3], h[2, 4] = wt * h22, wt * h23, wt * h24
+    h[3, 3], h[3, 4] = wt * h33, wt * h34
+    h[4, 4] = wt * h44
+    for i in range(N_PAR):
+        for k in range(i):
+            h[i, k] = h[k, i]
+    g[0], g[1], g[2], g[3], g[4] = wt * g0, wt * g1, wt * g2, wt * g3, wt * g4
+    return chi, int(n)
 
 
 @njit(cache=True, nogil=True)
 def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_start: float,
-                 sigma: float, shape_error: float, s_max: float,
-                 out: np.ndarray) -> bool:  # pragma: no cover
+                 sigma: float, shape_error: float, s_max: float, out: np.ndarray,
+                 work: np.ndarray, ebuf: np.ndarray) -> bool:  # pragma: no cover
     """Fit ``c + b (v - v_start) + A exp(-(v - v0)^2 / 2 s^2)`` to ``y`` (rows ``j0 ..``)
     where ``use``.
 
@@ -110,9 +161,15 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     ``(v0, A, s, z, se_v0, chi2)``: ``z`` is ``A`` over its standard error, ``chi2``
     the reduced chi-square (module notes). False when fewer than ``MIN_ROWS`` rows, no
     convergence to a positive peak inside the window, or a width beyond ``2 s_max``.
+    ``work`` (WORK_ROWS, N_PAR) and ``ebuf`` (at least the rows) are scratch (no
+    allocation per fit).
     """
     m = y.shape[0]
-    p = np.zeros(N_PAR)
+    h = work[0:N_PAR]
+    g = work[N_PAR]
+    dx = work[N_PAR + 1]
+    p = work[N_PAR + 2]
+    p[:] = 0.0
     lo = 1e300
     pk = -1e300
     for jj in range(m):
@@ -126,50 +183,50 @@ def fit_gaussian(y: np.ndarray, use: np.ndarray, j0: int, v_start: float, s_star
     p[1] = max(pk - lo, 1e-3)
     p[2] = v_start
     p[3] = s_start
-    h = np.empty((N_PAR, N_PAR))
-    g = np.empty(N_PAR)
-    dx = np.empty(N_PAR)
     n_use = 0
     chi = 0.0
     for _ in range(MAX_ITER):
-        chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g)
+        chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf, False)
         if n_use < MIN_ROWS:
             return False
         for q in range(N_PAR):
             h[q, q] *= 1.0 + 1e-6
-        if not _solve(h, g, dx):
+        if not _solve(h, g, dx, True):
             return False
         # keep the step sane: the centre moves at most a width, the width changes by at
         # most half of itself
         lim_v = max(p[3], 0.5)
         dx[2] = min(max(dx[2], -lim_v), lim_v)
         dx[3] = min(max(dx[3], -0.5 * p[3]), 0.5 * p[3])
-        p += dx
+        for q in range(N_PAR):
+            p[q] += dx[q]
         p[3] = max(p[3], 0.5 * MIN_SIGMA_PX)
         if p[3] > 2.0 * s_max or not (j0 - 0.5 <= p[2] <= j0 + m - 0.5):
             return False
         if abs(dx[2]) < CONVERGED_PX and abs(dx[3]) < 0.01 * p[3]:
             break
-    chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g)
+    chi, n_use = _normal(y, use, j0, v_start, p, sigma, shape_error, h, g, ebuf, True)
     if p[1] <= 0.0 or n_use < MIN_ROWS:
         return False
-    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0)
-    var = np.empty(2)
-    for k, idx in enumerate((1, 2)):
-        hh = h.copy()
-        e = np.zeros(N_PAR)
-        e[idx] = 1.0
-        col = np.empty(N_PAR)
-        if not _solve(hh, e, col):
+    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0), from one factor
+    var_a = 0.0
+    var_v = 0.0
+    for idx in (1, 2):
+        g[:] = 0.0
+        g[idx] = 1.0
+        if not _solve(h, g, dx, idx == 1):
             return False
-        var[k] = col[idx]
-    if not (var[0] > 0.0 and var[1] > 0.0):
+        if idx == 1:
+            var_a = dx[idx]
+        else:
+            var_v = dx[idx]
+    if not (var_a > 0.0 and var_v > 0.0):
         return False
     out[0] = p[2]
     out[1] = p[1]
     out[2] = p[3]
-    out[3] = p[1] / math.sqrt(var[0])
-    out[4] = math.sqrt(var[1])
+    out[3] = p[1] / math.sqrt(var_a)
+    out[4] = math.sqrt(var_v)
     out[5] = chi / max(n_use - N_PAR, 1)
     return True
 
