@@ -68,9 +68,12 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
     count = _window_sum(np.ones_like(pl), m, n)
     pad = num + abs(dmin) + 1
     prr = _reversed_padded(pr, pad)
+    # inverse square roots of the right energies (0: no energy, or outside the image)
+    irr = _reversed_padded(np.where(er > 0, 1.0 / np.sqrt(np.maximum(er, 1e-30)), 0.0)
+                           .astype(np.float32), pad)
     err = _reversed_padded(er, pad)
     cost = np.empty((h, w, num), np.uint16)
-    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, pad, dmin, num, m, n,
+    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, irr, pad, dmin, num, m, n,
                                                 COST_MAX, COST_SCALE, y0, y1, cost),
                   h, pool, threads, min_rows=2 * n + 1)
     return cost, el, count
