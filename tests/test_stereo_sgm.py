@@ -97,7 +97,8 @@ def test_path_costs_equal_the_recurrence(seed, eight):
     ref_a, ref_b = reference_paths(cost, 13.0, 102.0, eight)
     for reverse, ref in ((False, ref_a), (True, ref_b)):
         out = np.empty_like(cost)
-        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out)
+        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out,
+                            np.zeros(cost.shape[:2], np.uint8), 0.0)
         np.testing.assert_array_equal(out, ref)
 
 

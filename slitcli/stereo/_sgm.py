@@ -171,7 +171,7 @@ def _p2(p1, p2, g, grey_a, grey_b):
 
 
 @nb.njit(cache=True, nogil=True)
-def aggregate_pass(cost, p1, p2, eight, reverse, out, grey=None, p2_grad=0.0):
+def aggregate_pass(cost, p1, p2, eight, reverse, out, grey, p2_grad):
     """Sum of the path costs of one sweep over the rows, (H, W, D) uint16 into ``out``.
 
     ``reverse`` False: the top-down sweep, paths left to right and from the top (and,
@@ -185,7 +185,7 @@ def aggregate_pass(cost, p1, p2, eight, reverse, out, grey=None, p2_grad=0.0):
     p1 = np.int32(p1)
     p2 = np.int32(p2)
     g = np.float32(p2_grad)
-    adapt = grey is not None and g > 0
+    adapt = g > 0
     zero = np.zeros(stride, np.uint16)
     zero[0] = SENTINEL
     zero[stride - 1] = SENTINEL

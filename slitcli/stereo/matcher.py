@@ -128,6 +128,10 @@ class MatcherParams:
     sgm_paths: int = 4
     sgm_p1: float = 0.05
     sgm_p2: float = 0.4
+    sgm_p2_edge_dn: float = 0.0
+    sgm_bracket_px: int = 32
+    sgm_bracket_tol_px: float = 1.0
+    sgm_bracket_span_px: float = 1.0
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -155,6 +159,12 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
         raise SlitcliError(f"sgm_p1 {p.sgm_p1} and sgm_p2 {p.sgm_p2} must satisfy "
                            "0 <= sgm_p1 <= sgm_p2 <= 8 (Eq. 10 cost units)")
+    if p.sgm_bracket_px < 0 or p.sgm_bracket_tol_px < 0:
+        raise SlitcliError(f"sgm_bracket_px {p.sgm_bracket_px} and sgm_bracket_tol_px "
+                           f"{p.sgm_bracket_tol_px} must be >= 0 (0 px reach = off)")
+    if not 0 <= p.sgm_p2_edge_dn <= 255:
+        raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
+                           "(0 = a constant sgm_p2)")
     if p.subpixel not in SUBPIXEL:
         raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
                            f"{', '.join(SUBPIXEL)}")

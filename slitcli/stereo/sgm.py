@@ -30,7 +30,13 @@ import cv2
 import numpy as np
 
 from slitcli.stereo.bands import kernel_threads, run_row_bands
-from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+from slitcli.stereo.filters import (
+    DISPARITY_FILTERS,
+    DisparityFilter,
+    FilterInputs,
+    run_disparity_filters,
+)
+from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
     from slitcli.stereo.matcher import DisparityResult, MatcherParams
@@ -80,23 +86,55 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
 
 
 def aggregate(cost: np.ndarray, params: MatcherParams,
-              pool: ThreadPoolExecutor | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The top-down and bottom-up sweeps' path-cost sums, each (H, W, D) uint16."""
+              pool: ThreadPoolExecutor | None = None,
+              grey: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The top-down and bottom-up sweeps' path-cost sums, each (H, W, D) uint16.
+
+    ``grey`` (H, W) uint8, the left image: with ``sgm_p2_edge_dn`` > 0 each step's P2
+    is ``sgm_p2 g / (g + |grey step|)`` (at least P1 + 1), ``g = sgm_p2_edge_dn``."""
     from slitcli.stereo import _sgm
 
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
     eight = params.sgm_paths == 8
+    g = float(params.sgm_p2_edge_dn) if grey is not None else 0.0
+    if grey is None:
+        grey = np.zeros(cost.shape[:2], np.uint8)
     s_a = np.empty_like(cost)
     s_b = np.empty_like(cost)
     if pool is not None:
-        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b)
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
+        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b, grey, g)
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
         job.result()
     else:
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
-        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b)
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
+        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b, grey, g)
     return s_a, s_b
+
+
+def _bracket(x: FilterInputs) -> None:
+    from slitcli.stereo import _bracket
+
+    p = x.params
+    keep = np.zeros(x.disparity_px.shape, np.bool_)
+    _bracket.bracket_rows(x.disparity_px, x.invalid_reason, int(Reason.VALID),
+                          int(Reason.SUPPORT), int(p.sgm_bracket_px),
+                          np.float32(p.sgm_bracket_tol_px), np.float32(p.sgm_bracket_span_px),
+                          keep)
+    x.invalid_reason[keep] = Reason.VALID
+
+
+#: The filters after the SGM winner step: the local matcher's chain with the bracket
+#: test (``sgm_bracket_px``) between the support test and the speckle filter.
+SGM_FILTERS: tuple[DisparityFilter, ...] = (
+    *DISPARITY_FILTERS[:-1],
+    DisparityFilter("sgm_bracket", (),
+                    "support-rejected pixels whose disparity lies between those of valid "
+                    "pixels on both sides (row or column, within sgm_bracket_px) are valid "
+                    "again", lambda p: p.sgm_bracket_px > 0 and p.support_min_zncc != 0,
+                    _bracket),
+    DISPARITY_FILTERS[-1],
+)
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -128,7 +166,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         pl = prefilter_image(left_grey, params)
         pr = prefilter_image(right_grey, params)
         cost, el, count = cost_volume(pl, pr, params, pool, threads)
-        s_a, s_b = aggregate(cost, params, pool)
+        s_a, s_b = aggregate(cost, params, pool, np.ascontiguousarray(left_grey))
         energy_min = ((params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none"
                       else 0.0)
         top = np.uint16(round(COST_MAX * COST_SCALE))
@@ -139,7 +177,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         run_row_bands(lambda y0, y1: _sgm.winners_rows(*args, y0, y1, disp, mcost, reason,
                                                        rdisp), h, pool, threads)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
-                                           rdisp, pool, threads))
+                                           rdisp, pool, threads), SGM_FILTERS)
     return DisparityResult(disp, reason, mcost)
 
 
