@@ -17,9 +17,10 @@ import numpy as np
 
 
 @nb.njit(cache=True, nogil=True)
-def bracket_rows(disp, reason, code_valid, code_weak, reach, tol, span, keep):
-    """Set ``keep`` (H, W) bool where a pixel of code ``code_weak`` is bracketed along
-    its row or its column by pixels of code ``code_valid`` within ``reach`` px.
+def bracket_rows(disp, reason, code_valid, weak, reach, tol, span, keep):
+    """Set ``keep`` (H, W) bool where a pixel whose code is marked in ``weak`` (bool
+    per code) is bracketed along its row or its column by pixels of code
+    ``code_valid`` within ``reach`` px.
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
     written."""
@@ -45,7 +46,7 @@ def bracket_rows(disp, reason, code_valid, code_weak, reach, tol, span, keep):
                 last_y[x] = y
                 continue
             keep[y, x] = False
-            if reason[y, x] != code_weak:
+            if not weak[reason[y, x]]:
                 continue
             d = disp[y, x]
             a = up_d[y, x]
@@ -70,7 +71,7 @@ def bracket_rows(disp, reason, code_valid, code_weak, reach, tol, span, keep):
                 rd = disp[y, x]
                 rx = x
                 continue
-            if reason[y, x] != code_weak or keep[y, x]:
+            if not weak[reason[y, x]] or keep[y, x]:
                 continue
             a = left[x]
             if rx - x <= reach and a == a:

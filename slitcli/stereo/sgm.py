@@ -117,21 +117,28 @@ def _bracket(x: FilterInputs) -> None:
 
     p = x.params
     keep = np.zeros(x.disparity_px.shape, np.bool_)
+    weak = np.zeros(256, np.bool_)
+    weak[[int(Reason.SUPPORT), int(Reason.UNIQUENESS)]] = True
     _bracket.bracket_rows(x.disparity_px, x.invalid_reason, int(Reason.VALID),
-                          int(Reason.SUPPORT), int(p.sgm_bracket_px),
+                          weak, int(p.sgm_bracket_px),
                           np.float32(p.sgm_bracket_tol_px), np.float32(p.sgm_bracket_span_px),
                           keep)
     x.invalid_reason[keep] = Reason.VALID
 
 
 #: The filters after the SGM winner step: the local matcher's chain with the bracket
-#: test (``sgm_bracket_px``) between the support test and the speckle filter.
+#: test (``sgm_bracket_px``, slitcli.stereo._bracket) between the support test and the
+#: speckle filter. Its candidates: pixels rejected by the support test (their own
+#: neighbourhood does not carry the match) or by uniqueness (on a plain surface the
+#: aggregated cost curve is flat around the winner); not left-right failures, which
+#: are mostly occlusions the right camera cannot see.
 SGM_FILTERS: tuple[DisparityFilter, ...] = (
     *DISPARITY_FILTERS[:-1],
     DisparityFilter("sgm_bracket", (),
-                    "support-rejected pixels whose disparity lies between those of valid "
-                    "pixels on both sides (row or column, within sgm_bracket_px) are valid "
-                    "again", lambda p: p.sgm_bracket_px > 0 and p.support_min_zncc != 0,
+                    "pixels rejected by the support or the uniqueness test whose disparity "
+                    "lies between those of valid pixels on both sides (row or column, "
+                    "within sgm_bracket_px) that agree within sgm_bracket_span_px are "
+                    "valid again", lambda p: p.sgm_bracket_px > 0 and p.support_min_zncc != 0,
                     _bracket),
     DISPARITY_FILTERS[-1],
 )
