@@ -13,8 +13,10 @@ a larger jump costs ``sgm_p2`` and happens at depth edges only.
 The Eq. 10 cost is that of the local matcher on the same prefiltered images (window
 sums with zeros outside the image), quantised to 1/256; the winner then passes the
 same tests (window texture energy, uniqueness and left-right consistency on the
-aggregated costs, the subpixel parabola) and the same post-filter chain
-(:data:`slitcli.stereo.filters.DISPARITY_FILTERS`).
+aggregated costs, the subpixel parabola) and the local matcher's post-filter chain
+with one more step, the bracket test (:data:`SGM_FILTERS`, slitcli.stereo._bracket):
+a pixel whose own neighbourhood does not carry the match is kept where valid pixels
+on both sides of it agree with each other and with it.
 
 Cost: three volumes of H x W x D uint16 (29 MB at 320 x 240 x 64; 236 MB at 640 x 480
 x 128). The two sweeps (top-down, bottom-up) run on two threads.
