@@ -182,6 +182,12 @@ def test_sgm_parameters_are_checked():
         MatcherParams(aggregation="global")
     with pytest.raises(SlitcliError, match="at least 2 disparities"):
         MatcherParams(aggregation="sgm", num_disparities=1)
+    with pytest.raises(SlitcliError, match="at most 512"):
+        MatcherParams(aggregation="sgm", num_disparities=528)
+    with pytest.raises(SlitcliError, match="sgm_bracket_px"):
+        MatcherParams(aggregation="sgm", sgm_bracket_px=-1)
+    with pytest.raises(SlitcliError, match="sgm_p2_edge_dn"):
+        MatcherParams(aggregation="sgm", sgm_p2_edge_dn=-2.0)
 
 
 @pytest.mark.parametrize("dmin", [-4, 0, 2])
