@@ -140,8 +140,7 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
                     "pixels rejected by the support or the uniqueness test whose disparity "
                     "lies between those of valid pixels on both sides (row or column, "
                     "within sgm_bracket_px) that agree within sgm_bracket_span_px are "
-                    "valid again", lambda p: p.sgm_bracket_px > 0 and p.support_min_zncc != 0,
-                    _bracket),
+                    "valid again", lambda p: p.sgm_bracket_px > 0, _bracket),
     DISPARITY_FILTERS[-1],
 )
 
