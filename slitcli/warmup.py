@@ -62,15 +62,11 @@ class JobResult:
         Wall time of the job in its worker, including imports and cache loads.
     compiled : int
         Kernel signatures compiled (numba cache misses) by this job.
-    ready : tuple of str
-        ``module.qualname`` of every slitcli kernel with machine code in the worker at
-        the end of the job (compiled or loaded from the cache).
     """
 
     name: str
     seconds: float
     compiled: int
-    ready: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -82,7 +78,7 @@ class WarmupReport:
     kernels : tuple of str
         Every kernel in the package sources (:func:`kernel_inventory`).
     ready : tuple of str
-        Kernels compiled or found in the cache by a job.
+        Kernels of ``kernels`` with valid entries in numba's cache after the jobs.
     not_reached : tuple of str
         Kernels of ``kernels`` that no job called: compiled on first use.
     compiled : int
@@ -113,17 +109,24 @@ class WarmupReport:
         return line
 
 
-def _is_jit(decorator: ast.expr) -> bool:
+def _is_kernel(decorator: ast.expr) -> bool:
+    """A ``@njit``/``@jit`` decorator of a function compiled on its own: one with
+    ``inline="always"`` is compiled into its callers only and has no cache entry."""
     import ast
 
     node = decorator.func if isinstance(decorator, ast.Call) else decorator
+    if isinstance(decorator, ast.Call) and any(
+            k.arg == "inline" and isinstance(k.value, ast.Constant) and k.value.value == "always"
+            for k in decorator.keywords):
+        return False
     if isinstance(node, ast.Name):
         return node.id in _JIT_NAMES
     return isinstance(node, ast.Attribute) and node.attr in _JIT_NAMES
 
 
 def kernel_inventory(package_dir: Path = PACKAGE_DIR) -> tuple[str, ...]:
-    """Every ``@njit``/``@jit``-decorated function in the package's sources.
+    """Every ``@njit``/``@jit``-decorated function in the package's sources that numba
+    compiles and caches on its own (``inline="always"`` ones live in their callers).
 
     Read from the source text (nothing is imported), so it is the list of kernels as
     the files stand now, whoever added them.
@@ -150,7 +153,7 @@ def kernel_inventory(package_dir: Path = PACKAGE_DIR) -> tuple[str, ...]:
                 if isinstance(child, ast.FunctionDef | ast.ClassDef):
                     qual = f"{prefix}{child.name}"
                     if isinstance(child, ast.FunctionDef) and any(
-                            _is_jit(d) for d in child.decorator_list):
+                            _is_kernel(d) for d in child.decorator_list):
                         found.append(f"{module}.{qual}")
                     inner = "<locals>." if isinstance(child, ast.FunctionDef) else ""
                     stack.append((child, f"{qual}.{inner}"))
@@ -222,10 +225,11 @@ class _AfterNumbaImport:
 
 
 # -------------------------------------------------------------------------------- the jobs
-# A one-frame scene with the laser on two boxes (paper Fig. 4) and textured surfaces, so
-# that every stage of the pipelines (stripe found, stereo matched, obstacles fused) runs.
+# A one-frame scene with the laser on two boxes (paper Fig. 4), textured surfaces and a
+# webcam's sensor (noise, blooming, Bayer, JPEG), so that every stage of the pipelines
+# (stripe found, stereo matched, obstacles fused) runs on an image like a real one.
 _SCENE = {
-    "slitcli_scene": 1, "name": "warm-up", "seed": 4,
+    "slitcli_scene": 1, "name": "warm-up", "seed": 4, "image": {"camera": "webcam"},
     "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
               "contrast": 0.5},
     "objects": [
@@ -266,10 +270,13 @@ def _job_stereo(work: Path) -> None:
 
 def _job_sgm(work: Path) -> None:
     from slitcli.stereo.matcher import MatcherParams
+    from slitcli.stereo.obstacles import ObstacleParams
     from slitcli.stereo.pipeline import StereoParams
     from slitcli.stereo.run import run_stereo
 
-    params = StereoParams(matcher=MatcherParams(aggregation="sgm"))
+    # the options that call kernels of their own: semi-global aggregation, floor check
+    params = StereoParams(matcher=MatcherParams(aggregation="sgm"),
+                          obstacles=ObstacleParams(floor_check_ratio=0.5))
     run_stereo(work / "seq", work / "sgm", params=params)
 
 
@@ -300,18 +307,45 @@ JOBS: MappingProxyType[str, tuple[Callable[[Path], None], tuple[str, ...]]] = Ma
 })
 
 
-def _ready_kernels() -> tuple[str, ...]:
+def cached_kernels(kernels: Iterable[str]) -> tuple[str, ...]:
+    """The kernels of ``kernels`` (``module.qualname``) with machine code in numba's cache.
+
+    Imports their modules. A kernel counts when its cache index holds an entry that is
+    valid for its source file as it stands (numba drops the entries of an edited file),
+    or when it is compiled in this process.
+    """
+    import importlib
+
     from numba.core.dispatcher import Dispatcher
 
-    ready = set()
-    for name, module in list(sys.modules.items()):
-        if not name.startswith("slitcli") or module is None:
-            continue
-        for value in list(vars(module).values()):
-            if isinstance(value, Dispatcher) and value.overloads:
-                func = value.py_func
-                ready.add(f"{func.__module__}.{func.__qualname__}")
-    return tuple(sorted(ready))
+    ready = []
+    for name in kernels:
+        module_name, _, qualname = name.rpartition(".")
+        while module_name and module_name not in sys.modules:
+            try:
+                importlib.import_module(module_name)
+                break
+            except ImportError:  # a nested qualname: move its head back
+                module_name, _, head = module_name.rpartition(".")
+                qualname = f"{head}.{qualname}"
+        value: Any = sys.modules.get(module_name)
+        for part in qualname.split("."):
+            value = getattr(value, part, None)
+        if isinstance(value, Dispatcher) and _has_cache_entry(value):
+            ready.append(name)
+    return tuple(ready)
+
+
+def _has_cache_entry(dispatcher: Any) -> bool:
+    if dispatcher.overloads:
+        return True
+    # numba's own index reader: {} when the index is missing, of another numba version
+    # or stale (the source file's mtime or size changed)
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    try:
+        return bool(cache_file._load_index()) if cache_file is not None else False
+    except Exception:  # an unreadable index is a cache miss to numba too
+        return False
 
 
 def _run_job(name: str, work: str) -> JobResult:
@@ -330,7 +364,7 @@ def _run_job(name: str, work: str) -> JobResult:
 
     with event.install_listener("numba:compile", _Count()):
         JOBS[name][0](Path(work))
-    return JobResult(name, time.perf_counter() - t0, compiled[0], _ready_kernels())
+    return JobResult(name, time.perf_counter() - t0, compiled[0])
 
 
 def default_workers() -> int:
@@ -397,14 +431,14 @@ def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
                 say(f"warm-up {name}: {result.compiled} signatures compiled, "
                     f"{result.seconds:.1f} s")
     kernels = kernel_inventory()
-    ready = sorted({k for r in results.values() for k in r.ready})
+    ready = cached_kernels(kernels)
     return WarmupReport(
-        kernels=kernels, ready=tuple(ready),
+        kernels=kernels, ready=ready,
         not_reached=tuple(k for k in kernels if k not in set(ready)),
         compiled=sum(r.compiled for r in results.values()),
         jobs=MappingProxyType(results), wall_s=time.perf_counter() - t0,
         workers=min(n_workers, len(todo)))
 
 
-__all__ = ["JOBS", "JobResult", "WarmupReport", "announce_compiles", "default_workers",
-           "kernel_inventory", "warm_up"]
+__all__ = ["JOBS", "JobResult", "WarmupReport", "announce_compiles", "cached_kernels",
+           "default_workers", "kernel_inventory", "warm_up"]
