@@ -192,7 +192,7 @@ def _install_listener(echo: Callable[[str], None]) -> None:
         def on_end(self, event_: Any) -> None:
             pass
 
-    event.install_listener("numba:compile", _FirstCompile())
+    event.register("numba:compile", _FirstCompile())
 
 
 class _AfterNumbaImport:
