@@ -60,12 +60,15 @@ class JobResult:
         The job (``render``, ``laser``, ...).
     seconds : float
         Wall time of the job in its worker, including imports and cache loads.
+    cpu_s : float
+        CPU time of the worker process over the job.
     compiled : int
         Kernel signatures compiled (numba cache misses) by this job.
     """
 
     name: str
     seconds: float
+    cpu_s: float
     compiled: int
 
 
@@ -350,7 +353,7 @@ def _has_cache_entry(dispatcher: Any) -> bool:
 
 def _run_job(name: str, work: str) -> JobResult:
     """One job in a worker process: run it, count compiles, list the kernels it holds."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     from numba.core import event
 
     compiled = [0]
@@ -364,7 +367,7 @@ def _run_job(name: str, work: str) -> JobResult:
 
     with event.install_listener("numba:compile", _Count()):
         JOBS[name][0](Path(work))
-    return JobResult(name, time.perf_counter() - t0, compiled[0])
+    return JobResult(name, time.perf_counter() - t0, time.process_time() - c0, compiled[0])
 
 
 def default_workers() -> int:
@@ -429,7 +432,7 @@ def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
                 result = future.result()
                 results[name] = result
                 say(f"warm-up {name}: {result.compiled} signatures compiled, "
-                    f"{result.seconds:.1f} s")
+                    f"{result.seconds:.1f} s ({result.cpu_s:.1f} s CPU)")
     kernels = kernel_inventory()
     ready = cached_kernels(kernels)
     return WarmupReport(
