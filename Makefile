@@ -4,9 +4,10 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 # numba kernels compiled for this machine (slitcli warm-up, docs/install.md); redone when
-# a file with kernels changes, since numba's cache entries are keyed on the file's mtime
+# a file with kernels (a line starting @njit / @nb.njit / @jit ...) changes, since numba's
+# cache entries are keyed on the file's modification time
 KERNELS := $(VENV)/.kernels
-KERNEL_SOURCES := $(shell grep -rl --include='*.py' 'numba' slitcli 2>/dev/null)
+KERNEL_SOURCES := $(shell grep -rlE --include='*.py' '^\s*@(\w+\.)?n?jit\b' slitcli 2>/dev/null)
 
 .PHONY: venv reproduce-figures test bench lint clean
 
