@@ -18,7 +18,8 @@ jobs run in separate processes (one per core): numba compiles in one thread per 
 
 :func:`kernel_inventory` reads every ``@njit``/``@jit`` function from the package's
 sources (no import); the report names the kernels no job reached. Those compile on
-first use, and :func:`announce_compiles` makes the command line say so on stderr.
+first use, and :func:`slitcli.compile_notice.announce_compiles` makes the command line
+say so on stderr.
 
 Cache validity
 --------------
@@ -161,70 +162,6 @@ def kernel_inventory(package_dir: Path = PACKAGE_DIR) -> tuple[str, ...]:
                     inner = "<locals>." if isinstance(child, ast.FunctionDef) else ""
                     stack.append((child, f"{qual}.{inner}"))
     return tuple(sorted(found))
-
-
-# ------------------------------------------------------------------ compile announcements
-_ANNOUNCED = "SLITCLI_COMPILE_ANNOUNCED"
-
-
-def announce_compiles(echo: Callable[[str], None]) -> None:
-    """Call ``echo`` once, with one line, when this process first compiles a kernel.
-
-    A cache hit says nothing: only a real compile (numba's ``numba:compile`` event, which
-    fires on a cache miss) does. Installed when numba is first imported, so a command
-    that never uses numba does not pay for importing it. Worker processes inherit the
-    environment flag and stay quiet once the parent has spoken.
-    """
-    if "numba" in sys.modules:
-        _install_listener(echo)
-        return
-    sys.meta_path.insert(0, _AfterNumbaImport(echo))
-
-
-def _install_listener(echo: Callable[[str], None]) -> None:
-    from numba.core import event
-
-    class _FirstCompile(event.Listener):
-        def on_start(self, event_: Any) -> None:
-            if os.environ.get(_ANNOUNCED):
-                return
-            os.environ[_ANNOUNCED] = "1"
-            echo("slitcli: compiling numba kernels for this machine (once after install or "
-                 "update; up to a minute). `slitcli warm-up` compiles them all ahead.")
-
-        def on_end(self, event_: Any) -> None:
-            pass
-
-    event.register("numba:compile", _FirstCompile())
-
-
-class _AfterNumbaImport:
-    """A meta-path finder that runs :func:`_install_listener` right after ``numba`` loads."""
-
-    def __init__(self, echo: Callable[[str], None]) -> None:
-        self.echo = echo
-
-    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
-        if name != "numba":
-            return None
-        sys.meta_path.remove(self)
-        from importlib.util import find_spec
-
-        spec = find_spec(name)
-        if spec is None or spec.loader is None:
-            return spec
-        inner, echo = spec.loader, self.echo
-
-        class _Loader:
-            def create_module(self, spec_: Any) -> Any:
-                return inner.create_module(spec_)
-
-            def exec_module(self, module: Any) -> None:
-                inner.exec_module(module)
-                _install_listener(echo)
-
-        spec.loader = _Loader()
-        return spec
 
 
 # -------------------------------------------------------------------------------- the jobs
@@ -443,5 +380,5 @@ def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
         workers=min(n_workers, len(todo)))
 
 
-__all__ = ["JOBS", "JobResult", "WarmupReport", "announce_compiles", "cached_kernels",
-           "default_workers", "kernel_inventory", "warm_up"]
+__all__ = ["JOBS", "JobResult", "WarmupReport", "cached_kernels", "default_workers",
+           "kernel_inventory", "warm_up"]

@@ -3,6 +3,7 @@ detect run after the warm-up compiles nothing."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -103,9 +104,14 @@ def test_inventory_matches_the_dispatchers_the_package_defines():
     assert len(inventory) >= 20 and len(modules) >= 5
 
 
+def _env() -> dict[str, str]:
+    """This environment without the flag of a notice already given."""
+    return {k: v for k, v in os.environ.items() if k != "SLITCLI_COMPILE_ANNOUNCED"}
+
+
 def _run(code: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=cwd,
-                          capture_output=True, text=True, timeout=600)
+                          capture_output=True, text=True, timeout=600, env=_env())
 
 
 def test_a_compile_is_announced_once_and_a_cache_hit_not_at_all(tmp_path):
@@ -124,7 +130,7 @@ def test_a_compile_is_announced_once_and_a_cache_hit_not_at_all(tmp_path):
         """)
     code = """
         import sys
-        from slitcli.warmup import announce_compiles
+        from slitcli.compile_notice import announce_compiles
         announce_compiles(lambda line: print(line, file=sys.stderr))
         import kern
         print(kern.twice(1.5), kern.thrice(2.0), kern.twice(2))
@@ -170,7 +176,7 @@ def test_detect_after_the_warm_up_compiles_nothing(tmp_path):
     (one / "times.csv").write_text("frame,time_s\n0,0\n")
     res = subprocess.run([sys.executable, "-m", "slitcli", "detect", str(one), "-o",
                           str(tmp_path / "out")], capture_output=True, text=True,
-                         timeout=600)
+                         timeout=600, env=_env())
     assert res.returncode == 0, res.stderr
     assert NOTICE not in res.stderr
     assert "1 frames" in res.stdout

@@ -371,7 +371,7 @@ def bad_frame_option(f: Any) -> Any:
 
 def main() -> None:
     """Console-script entry point (also ``python -m slitcli``)."""
-    from slitcli.warmup import announce_compiles
+    from slitcli.compile_notice import announce_compiles
 
     announce_compiles(lambda line: click.echo(line, err=True))
     cli.main()
