@@ -65,12 +65,16 @@ class JobResult:
         CPU time of the worker process over the job.
     compiled : int
         Kernel signatures compiled (numba cache misses) by this job.
+    error : str
+        Empty, or why the job failed (its kernels, and those of the jobs that need it,
+        then compile on first use).
     """
 
     name: str
     seconds: float
     cpu_s: float
     compiled: int
+    error: str = ""
 
 
 @dataclass(frozen=True)
@@ -103,11 +107,18 @@ class WarmupReport:
     wall_s: float
     workers: int
 
+    @property
+    def failed(self) -> tuple[str, ...]:
+        """The jobs that failed or were skipped for a failed job they need."""
+        return tuple(name for name, r in self.jobs.items() if r.error)
+
     def summary_line(self) -> str:
         """One line for the user."""
         line = (f"kernels ready: {len(self.kernels) - len(self.not_reached)} of "
                 f"{len(self.kernels)} ({self.compiled} signatures compiled, "
                 f"{self.wall_s:.1f} s on {self.workers} processes)")
+        if self.failed:
+            line += "; failed jobs: " + ", ".join(self.failed)
         if self.not_reached:
             line += "; compiled on first use: " + ", ".join(self.not_reached)
         return line
@@ -302,9 +313,14 @@ def _run_job(name: str, work: str) -> JobResult:
         def on_end(self, event_: Any) -> None:
             pass
 
+    error = ""
     with event.install_listener("numba:compile", _Count()):
-        JOBS[name][0](Path(work))
-    return JobResult(name, time.perf_counter() - t0, time.process_time() - c0, compiled[0])
+        try:
+            JOBS[name][0](Path(work))
+        except Exception as e:  # reported, not raised: a set-up step must not stop here
+            error = f"{e.__class__.__name__}: {str(e).splitlines()[0] if str(e) else ''}"
+    return JobResult(name, time.perf_counter() - t0, time.process_time() - c0, compiled[0],
+                     error)
 
 
 def default_workers() -> int:
@@ -360,16 +376,28 @@ def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
         running: dict[Future[JobResult], str] = {}
         pending = list(todo)
         while pending or running:
-            for name in [n for n in pending if all(d in results for d in JOBS[n][1])]:
-                pending.remove(name)
-                running[pool.submit(_run_job, name, work)] = name
+            for name in list(pending):
+                needs = [results.get(d) for d in JOBS[name][1]]
+                if any(r is not None and r.error for r in needs):  # skipped with its input
+                    pending.remove(name)
+                    results[name] = JobResult(name, 0.0, 0.0, 0, "needs a job that failed")
+                    say(f"warm-up {name}: skipped, {results[name].error}")
+                elif all(r is not None for r in needs):
+                    pending.remove(name)
+                    running[pool.submit(_run_job, name, work)] = name
+            if not running:
+                continue
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 name = running.pop(future)
                 result = future.result()
                 results[name] = result
-                say(f"warm-up {name}: {result.compiled} signatures compiled, "
-                    f"{result.seconds:.1f} s ({result.cpu_s:.1f} s CPU)")
+                if result.error:
+                    say(f"warm-up {name}: failed ({result.error}); its kernels compile on "
+                        "first use")
+                else:
+                    say(f"warm-up {name}: {result.compiled} signatures compiled, "
+                        f"{result.seconds:.1f} s ({result.cpu_s:.1f} s CPU)")
     kernels = kernel_inventory()
     ready = cached_kernels(kernels)
     return WarmupReport(

@@ -167,6 +167,7 @@ def test_detect_after_the_warm_up_compiles_nothing(tmp_path):
     kernel it calls in the cache: no compile is announced, and the run ranges bins."""
     report = warm_up(jobs=["detect"])
     assert set(report.jobs) == {"render", "laser", "stereo", "detect"}
+    assert report.failed == (), {n: report.jobs[n].error for n in report.failed}
     seq = ROOT / "sample_data" / "sequences" / "corridor"
     one = tmp_path / "one"
     for side in ("left", "right"):
@@ -182,3 +183,26 @@ def test_detect_after_the_warm_up_compiles_nothing(tmp_path):
     assert "1 frames" in res.stdout
     rows = (tmp_path / "out" / "ranges.csv").read_text().splitlines()
     assert len(rows) > 10
+
+
+def test_every_job_runs_against_the_library_as_it_stands():
+    """A job calls library entry points (run_laser, StereoParams fields...): one that
+    no longer fits fails here by name, while the set-up itself only reports it."""
+    report = warm_up()
+    assert report.failed == (), {n: report.jobs[n].error for n in report.failed}
+    assert set(report.jobs) == set(JOBS)
+    assert set(report.ready) <= set(report.kernels)
+    assert len(report.ready) + len(report.not_reached) == len(report.kernels)
+
+
+def test_a_failing_job_is_reported_not_raised(tmp_path, monkeypatch):
+    """In the worker: the job's exception becomes the result's one-line error."""
+    import slitcli.warmup as wu
+
+    def boom(work: Path) -> None:
+        raise ValueError(f"no scene in {work.name}\nsecond line")
+
+    monkeypatch.setattr(wu, "JOBS", {"boom": (boom, ())})
+    result = wu._run_job("boom", str(tmp_path))
+    assert result.name == "boom" and result.compiled == 0
+    assert result.error == f"ValueError: no scene in {tmp_path.name}"
