@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 _ANNOUNCED = "SLITCLI_COMPILE_ANNOUNCED"
+_WANTED = "SLITCLI_COMPILE_NOTICE"
 
 
 def announce_compiles(echo: Callable[[str], None]) -> None:
@@ -25,10 +26,18 @@ def announce_compiles(echo: Callable[[str], None]) -> None:
     that never uses numba does not pay for importing it. Worker processes inherit the
     environment flag and stay quiet once the parent has spoken.
     """
+    os.environ[_WANTED] = "1"  # worker processes started by this one announce too
     if "numba" in sys.modules:
         _install_listener(echo)
         return
     sys.meta_path.insert(0, _AfterNumbaImport(echo))
+
+
+def announce_in_worker() -> None:
+    """In a worker process (``--jobs N``): the notice on stderr, if the process that
+    started it asked for notices (:func:`announce_compiles`)."""
+    if os.environ.get(_WANTED) and not os.environ.get(_ANNOUNCED):
+        announce_compiles(lambda line: print(line, file=sys.stderr, flush=True))
 
 
 def _install_listener(echo: Callable[[str], None]) -> None:
@@ -77,4 +86,4 @@ class _AfterNumbaImport:
         return spec
 
 
-__all__ = ["announce_compiles"]
+__all__ = ["announce_compiles", "announce_in_worker"]

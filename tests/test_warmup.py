@@ -200,3 +200,29 @@ def test_a_failing_job_is_reported_not_raised(tmp_path, monkeypatch):
     result = wu._run_job("boom", str(tmp_path))
     assert result.name == "boom" and result.compiled == 0
     assert result.error == f"ValueError: no scene in {tmp_path.name}"
+
+
+@pytest.mark.parametrize("asked", [True, False])
+def test_a_worker_announces_only_when_its_parent_asked(tmp_path, asked):
+    """A --jobs worker (spawned: no hook inherited) gives the notice when the command
+    line that started it installed one, and stays quiet otherwise."""
+    _write(tmp_path / "kern_w.py", """
+        from numba import njit
+
+        @njit
+        def half(x):
+            return 0.5 * x
+        """)
+    env = _env()
+    env.pop("SLITCLI_COMPILE_NOTICE", None)
+    if asked:
+        env["SLITCLI_COMPILE_NOTICE"] = "1"
+    res = subprocess.run([sys.executable, "-c", textwrap.dedent("""
+        from slitcli.compile_notice import announce_in_worker
+        announce_in_worker()
+        import kern_w
+        print(kern_w.half(3.0))
+        """)], cwd=tmp_path, capture_output=True, text=True, timeout=600, env=env)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == ["1.5"]
+    assert res.stderr.count(NOTICE) == (1 if asked else 0)
