@@ -41,7 +41,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:  # the command line imports this module for announce_compiles: keep it light
+if TYPE_CHECKING:  # only the warm-up itself needs these at run time
     import ast
     from concurrent.futures import Future
 
