@@ -331,48 +331,16 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
-            on_progress: Callable[[str], None] | None = None) -> WarmupReport:
-    """Compile (or load) every kernel the pipelines use, in parallel processes.
-
-    Parameters
-    ----------
-    workers : int, optional
-        Worker processes (default: the cores available to this process).
-    jobs : iterable of str, optional
-        A subset of :data:`JOBS` (the jobs they need are added); default all.
-    on_progress : callable, optional
-        Called with one line per finished job.
-
-    Returns
-    -------
-    WarmupReport
-    """
+def _run_jobs(todo: list[str], workers: int, say: Callable[[str], None]) -> dict[str, JobResult]:
+    """Run ``todo`` (in :data:`JOBS` order) on ``workers`` spawned processes, each job once
+    the jobs it needs have finished; a job whose input job failed is skipped."""
     import tempfile
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from multiprocessing import get_context
 
-    from slitcli.errors import SlitcliError
-
-    n_workers = default_workers() if workers is None else workers
-    if n_workers < 1:
-        raise SlitcliError(f"`workers` = {n_workers}: give at least 1 worker process")
-    wanted = set(JOBS if jobs is None else jobs)
-    unknown = wanted - set(JOBS)
-    if unknown:
-        raise SlitcliError(f"`jobs`: unknown warm-up job(s) {', '.join(sorted(unknown))}; "
-                           f"use some of {', '.join(JOBS)}")
-    todo = [n for n in JOBS if n in wanted]
-    while True:  # add the jobs the chosen ones need
-        needed = {d for n in todo for d in JOBS[n][1]} - set(todo)
-        if not needed:
-            break
-        todo = [n for n in JOBS if n in set(todo) | needed]
-    say = on_progress or (lambda _line: None)
-    t0 = time.perf_counter()
     results: dict[str, JobResult] = {}
     with tempfile.TemporaryDirectory(prefix="slitcli-warmup-") as work, ProcessPoolExecutor(
-            max_workers=min(n_workers, len(todo)), mp_context=get_context("spawn")) as pool:
+            max_workers=workers, mp_context=get_context("spawn")) as pool:
         running: dict[Future[JobResult], str] = {}
         pending = list(todo)
         while pending or running:
@@ -398,6 +366,45 @@ def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
                 else:
                     say(f"warm-up {name}: {result.compiled} signatures compiled, "
                         f"{result.seconds:.1f} s ({result.cpu_s:.1f} s CPU)")
+    return results
+
+
+def warm_up(*, workers: int | None = None, jobs: Iterable[str] | None = None,
+            on_progress: Callable[[str], None] | None = None) -> WarmupReport:
+    """Compile (or load) every kernel the pipelines use, in parallel processes.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Worker processes (default: the cores available to this process).
+    jobs : iterable of str, optional
+        A subset of :data:`JOBS` (the jobs they need are added); default all.
+    on_progress : callable, optional
+        Called with one line per finished job.
+
+    Returns
+    -------
+    WarmupReport
+    """
+    from slitcli.errors import SlitcliError
+
+    n_workers = default_workers() if workers is None else workers
+    if n_workers < 1:
+        raise SlitcliError(f"`workers` = {n_workers}: give at least 1 worker process")
+    wanted = set(JOBS if jobs is None else jobs)
+    unknown = wanted - set(JOBS)
+    if unknown:
+        raise SlitcliError(f"`jobs`: unknown warm-up job(s) {', '.join(sorted(unknown))}; "
+                           f"use some of {', '.join(JOBS)}")
+    todo = [n for n in JOBS if n in wanted]
+    while True:  # add the jobs the chosen ones need
+        needed = {d for n in todo for d in JOBS[n][1]} - set(todo)
+        if not needed:
+            break
+        todo = [n for n in JOBS if n in set(todo) | needed]
+    say = on_progress or (lambda _line: None)
+    t0 = time.perf_counter()
+    results = _run_jobs(todo, min(n_workers, len(todo)), say)
     kernels = kernel_inventory()
     ready = cached_kernels(kernels)
     return WarmupReport(
