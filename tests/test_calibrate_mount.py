@@ -203,3 +203,25 @@ def test_corridor_sample_still_gives_its_mount(tmp_path, seed):
     assert m.height_m == pytest.approx(truth.height_m, abs=0.015)
     assert m.tilt_deg == pytest.approx(truth.tilt_deg, abs=1.0)
     assert abs(m.roll_deg - truth.roll_deg) < 1.0
+
+
+def test_remap_tables_are_built_once_per_run(floor_view, monkeypatch):
+    """Three raw frames: the rig's remap tables are built once, not once per frame; the
+    fit still finds the rendered mount (bounds of test_mount_from_rendered_floor)."""
+    from slitcli.calibrate import rectify
+
+    built = []
+    real = rectify.RectificationMaps.for_rig.__func__
+
+    def counting(cls, rig):
+        built.append(rig)
+        return real(cls, rig)
+
+    pair = (floor_view["left"], floor_view["right"])
+    params = MountParams(photometric_refinement=False)
+    monkeypatch.setattr(rectify.RectificationMaps, "for_rig", classmethod(counting))
+    res = calibrate_mount_frames(["f0", "f1", "f2"], [pair] * 3, floor_view["rig"], params)
+    assert len(built) == 1
+    t = floor_view["truth"]
+    assert abs(res.rig.mount.tilt_deg - t["tilt_deg"]) < 0.3
+    assert abs(res.rig.mount.height_m - t["height_m"]) < 0.005
