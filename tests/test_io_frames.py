@@ -235,6 +235,6 @@ def test_frame_source_is_abstract():
         def rig(self, rig_path=None):
             return paper_rig()
 
-    with pytest.raises(TypeError, match="frames|manifest"):
+    with pytest.raises(TypeError, match=r"frames|manifest"):
         Partial()
     assert issubclass(FolderFrames, FrameSource) and issubclass(BagFrames, FrameSource)
