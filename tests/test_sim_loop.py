@@ -155,11 +155,12 @@ def test_random_worlds_subset_no_collision(first_seed):
     assert (metrics["min_clearance_m"] > 0).all()
 
 
-def test_random_world_generator_is_seeded_and_has_a_free_path():
-    a, b = random_world(5), random_world(5)
-    assert a.yaml_text == b.yaml_text and a.yaml_text != random_world(6).yaml_text
+@pytest.mark.parametrize("first_seed", [0, 100, 200, 300, 400])
+def test_random_world_generator_is_seeded_and_has_a_free_path(first_seed):
+    a, b = random_world(first_seed + 5), random_world(first_seed + 5)
+    assert a.yaml_text == b.yaml_text and a.yaml_text != random_world(first_seed + 6).yaml_text
     p = RandomWorldParams()
-    for s in range(3):
+    for s in range(first_seed, first_seed + 3):
         w = random_world(s)
         assert _has_free_path(w.scene, p)
         kinds = {type(o).__name__ for o in w.scene.objects}
