@@ -23,13 +23,14 @@ from slitcli.sim.targets import (
 HEIGHT_M, TILT_DEG, ROLL_DEG = 0.65, 20.0, 1.5
 
 
-@pytest.fixture(scope="module")
-def floor_view():
+def _floor_view(seed: int) -> dict:
+    """A rendered floor pair (floor texture seed ``3 + 10 seed``, camera noise seeds after
+    it) with the truth in the rig frame."""
     raw = demo_raw_calibration()
     lc, rc = stereo_cameras(raw)
-    floor = floor_for_mount(HEIGHT_M, TILT_DEG, ROLL_DEG, seed=3)
-    left = TargetRenderer(lc).render_floor(floor, seed=1)
-    right = TargetRenderer(rc).render_floor(floor, seed=2)
+    floor = floor_for_mount(HEIGHT_M, TILT_DEG, ROLL_DEG, seed=3 + 10 * seed)
+    left = TargetRenderer(lc).render_floor(floor, seed=1 + 10 * seed)
+    right = TargetRenderer(rc).render_floor(floor, seed=2 + 10 * seed)
     rig = rig_with_raw(raw)
     # truth in the rig's (rectified left) frame: the floor normal rotated by R1
     n = raw.array("R1") @ -np.asarray(floor.up_left)
@@ -38,7 +39,14 @@ def floor_view():
     return {"rig": rig, "left": left, "right": right, "truth": truth}
 
 
-def test_mount_from_rendered_floor(floor_view):
+@pytest.fixture(scope="module")
+def floor_view():
+    return _floor_view(0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_mount_from_rendered_floor(floor_view, seed):
+    floor_view = floor_view if seed == 0 else _floor_view(seed)
     res = calibrate_mount_frames(["f0"], [(floor_view["left"], floor_view["right"])],
                                  floor_view["rig"], MountParams())
     m, t = res.rig.mount, floor_view["truth"]
