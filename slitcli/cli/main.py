@@ -136,7 +136,7 @@ class _Command(click.Command):
             ["--config"], type=click.Path(dir_okay=False, path_type=Path), is_eager=True,
             expose_value=False, callback=_load_config,
             help="YAML file of option values (e.g. 'bin-deg: 2'); options given on the "
-            "command line win."))
+            "command line win [default: none]. Example: --config detect.yaml"))
 
 
 # The top-level commands, the module that defines each and its one-line help: `slitcli
