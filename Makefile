@@ -3,25 +3,36 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# numba kernels compiled for this machine (slitcli warm-up, docs/install.md); redone when
+# a file with kernels (a line starting @njit / @nb.njit / @jit ...) changes, since numba's
+# cache entries are keyed on the file's modification time
+KERNELS := $(VENV)/.kernels
+KERNEL_SOURCES := $(shell grep -rlE --include='*.py' '^\s*@(\w+\.)?n?jit\b' slitcli 2>/dev/null)
 
 .PHONY: venv reproduce-figures test bench lint clean
 
 $(STAMP): pyproject.toml
+	@echo "set-up: installing slitcli and its dependencies into $(VENV) (a few minutes)"
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-venv: $(STAMP)
+$(KERNELS): $(STAMP) $(KERNEL_SOURCES)
+	@echo "set-up: compiling the numba kernels for this machine (one line per job)"
+	$(VENV)/bin/slitcli warm-up
+	touch $(KERNELS)
 
-reproduce-figures: $(STAMP)
+venv: $(KERNELS)
+
+reproduce-figures: $(KERNELS)
 	$(PY) -m slitcli.reproduce
 
-test: $(STAMP)
+test: $(KERNELS)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/pytest
 
-bench: $(STAMP)
+bench: $(KERNELS)
 	$(PY) bench/run.py
 
 lint: $(STAMP)

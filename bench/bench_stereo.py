@@ -114,8 +114,8 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
                                 "support (centred, one-sided, cross), depth edges, speckle; "
                                 "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
-        "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters; "
-                    "issue 23: <= sgbm at 320x240",
+        "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters and "
+                    "the bracket test; issue 23: <= sgbm at 320x240",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
     rows = [{"name": f"stereo bm defaults {tag}", **t["bm"], "ratio": 1.0, "note": load}]
@@ -341,6 +341,7 @@ def score(disp: np.ndarray, gt: np.ndarray) -> dict:
 FOLDER_METHODS: dict[str, dict | None] = {
     "none": {},
     "sgm": {"aggregation": "sgm"},
+    "sgm-nobracket": {"aggregation": "sgm", "sgm_bracket_px": 0},
     "sgbm": None,
 }
 

@@ -127,9 +127,8 @@ def score_objects(d: dict, z: dict[str, np.ndarray], params: MatcherParams) -> l
 SETTINGS: dict[str, dict] = {
     "local (none)": {},
     "sgm": {"aggregation": "sgm"},
+    "sgm, no bracket": {"aggregation": "sgm", "sgm_bracket_px": 0},
     "sgm, no support": {"aggregation": "sgm", "support_min_zncc": 0.0},
-    "sgm 7x7, no support": {"aggregation": "sgm", "support_min_zncc": 0.0,
-                            "window_w_px": 7, "window_h_px": 7},
 }
 
 
@@ -200,10 +199,12 @@ def compare(frames: list[tuple[dict, dict[str, np.ndarray]]]) -> None:
               f"plain objects 1.2-3 m: {int(acc['bins_hit'])} of {int(acc['bins'])} bins")
 
 
-def slanted_floor(cache: Path, baseline_m: float, seeds: range) -> None:
+def slanted_floor(cache: Path, baseline_m: float, seeds: range,
+                  contrast: float = 0.25) -> None:
     """Floor-only scenes seen by the paper rig with a wider baseline (a steeper floor
     disparity gradient: ``baseline_m / height`` px per row, 0.135 for the paper rig's
-    0.088 m, 0.38 for 0.25 m, KITTI's road about 0.33): every setting of
+    0.088 m, 0.38 for 0.25 m, KITTI's road about 0.33; ``contrast``: the floor
+    texture's, 0.25 by default, lower for a weakly textured road): every setting of
     :data:`SETTINGS` scored on the floor pixels within 3 m (density, share more than
     1 px and 2 px off, share of those too near, median signed error)."""
     from dataclasses import replace
@@ -211,11 +212,12 @@ def slanted_floor(cache: Path, baseline_m: float, seeds: range) -> None:
     rig = replace(paper_rig(), baseline_m=baseline_m)
     frames = []
     for seed in seeds:
-        path = cache / f"slanted-{baseline_m:.3f}-{seed}.npz"
+        tag = "" if contrast == 0.25 else f"-c{contrast:.3f}"
+        path = cache / f"slanted-{baseline_m:.3f}{tag}-{seed}.npz"
         if not path.exists():
             d = {"slitcli_scene": 1, "name": f"slanted-{seed}", "seed": seed,
                  "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise",
-                           "scale_m": 0.03, "contrast": 0.25},
+                           "scale_m": 0.03, "contrast": contrast},
                  "objects": [], "image": {"noise_sigma_dn": 2.0},
                  "robot": {"start": [0.0, 0.0, 0.0], "motion": "static", "frames": 1}}
             scene = scene_from_dict(d, d["name"])
@@ -229,7 +231,8 @@ def slanted_floor(cache: Path, baseline_m: float, seeds: range) -> None:
         with np.load(path) as z:
             frames.append({k: z[k] for k in z.files})
     num = int(16 * np.ceil(np.nanmax(frames[0]["disparity_px"][120:]) / 16 + 0.5))
-    print(f"baseline {baseline_m} m, {len(frames)} frames, {num} disparities")
+    print(f"baseline {baseline_m} m, floor contrast {contrast}, {len(frames)} frames, "
+          f"{num} disparities")
     for name, kw in SETTINGS.items():
         n = valid = bad1 = bad2 = near = 0
         errs = []
@@ -262,9 +265,12 @@ def main() -> int:
                     help="score the matcher settings of SETTINGS side by side")
     ap.add_argument("--slanted", type=float, default=None, metavar="BASELINE_M",
                     help="score the settings on floor-only scenes with this baseline (m)")
+    ap.add_argument("--floor-contrast", type=float, default=0.25,
+                    help="--slanted: the floor texture's contrast (0-1)")
     args = ap.parse_args()
     if args.slanted is not None:
-        slanted_floor(Path(args.cache), args.slanted, range(args.scenes))
+        slanted_floor(Path(args.cache), args.slanted, range(args.scenes),
+                      args.floor_contrast)
         return 0
     if args.compare:
         compare([_frame(Path(args.cache), seed) for seed in range(args.scenes)])

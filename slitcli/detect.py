@@ -68,12 +68,13 @@ from slitcli.stereo.pipeline import (
 )
 
 COLOUR_ORDERS = ("bgr", "rgb")
+COLOUR_CHECKS = ("every", "once", "off")
 SKIPPED_FILE = "skipped_frames.csv"
 
 
 def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
                        params: LaserParams | None = None, *,
-                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> None:
+                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> bool:
     """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
 
     A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
@@ -86,6 +87,12 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     extraction and passes; a real blue light would have to form a thin line on the
     laser plane's rows to be taken for the stripe.
 
+    Returns
+    -------
+    bool
+        True when the frame settles the question: the stripe was found as given in at
+        least ``min_cols`` columns (a red line where the laser is: the order is right).
+
     Raises
     ------
     SlitcliError
@@ -93,7 +100,7 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     """
     n = int(found.found.sum())
     if 2 * n >= min_cols:
-        return
+        return n >= min_cols
     swapped = detect_laser(np.ascontiguousarray(np.asarray(left_bgr)[..., ::-1]), rig, params,
                            geometry=geometry)
     m = int(swapped.found.sum())
@@ -103,6 +110,7 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
             f"({m} stripe columns with red and blue swapped, {n} as given); set "
             "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
             param="colour_order")
+    return False
 
 
 # --save-images: 16-bit data images, the obstacle mask, and colour previews with a bar
@@ -182,10 +190,15 @@ class Detector:
     colour_order : {"bgr", "rgb"}
         Channel order of the images passed in (OpenCV reads BGR; most other readers
         RGB).
-    check_colours : bool
-        When the laser finds almost nothing, look for the stripe with red and blue
-        swapped and raise :class:`SlitcliError` (``colour_order``) if it is there
-        (:func:`check_colour_order`).
+    colour_check : {"every", "once", "off"}
+        When the laser finds almost nothing in a frame, look for the stripe with red
+        and blue swapped and raise :class:`SlitcliError` (``colour_order``) if it is
+        there (:func:`check_colour_order`; it costs a second laser extraction).
+        ``"every"`` (default) checks every such frame: images may come from anywhere.
+        ``"once"`` is for one source whose channel order cannot change between frames
+        (a sequence, a bag, the simulator): frames are checked until one settles the
+        order (a stripe of at least 16 columns found as given, or the error), then no
+        more. ``"off"`` never checks.
 
     Examples
     --------
@@ -195,17 +208,23 @@ class Detector:
     """
 
     def __init__(self, rig: Rig, params: DetectParams | None = None, *,
-                 colour_order: str = "bgr", check_colours: bool = True) -> None:
+                 colour_order: str = "bgr", colour_check: str = "every") -> None:
         if colour_order not in COLOUR_ORDERS:
             raise SlitcliError(f"`colour_order` {colour_order!r} is unknown; use 'bgr' or 'rgb'",
                                param="colour_order")
+        if colour_check not in COLOUR_CHECKS:
+            raise SlitcliError(f"`colour_check` {colour_check!r} is unknown; use 'every', "
+                               "'once' or 'off'", param="colour_check")
         p = DetectParams() if params is None else params
         stereo = replace(p.stereo, obstacles=replace(p.stereo.obstacles,
                                                      bin_width_deg=p.bin_deg))
         self.params = replace(p, stereo=stereo)
         self.rig = rig
         self.colour_order = colour_order
-        self.check_colours = check_colours
+        self.colour_check = colour_check
+        # "once": set when a frame has shown the stripe in the given order; it only
+        # ends the checks (never changes a result), so frames stay independent
+        self._colour_settled = colour_check == "off"
         # after rectification the images are described by the rig without its raw block
         self.rectified_rig = replace(rig, raw=None)
         check_stereo_params(self.rectified_rig, self.params.stereo)
@@ -241,9 +260,10 @@ class Detector:
         """The laser stripe of a rectified left image (Eqs. 1-7), checked for colour order."""
         las = detect_laser(left_rect_bgr, self.rectified_rig, self.params.laser,
                            geometry=self._laser_geometry)
-        if self.check_colours:
-            check_colour_order(left_rect_bgr, las, self.rectified_rig, self.params.laser,
-                               geometry=self._laser_geometry)
+        if not self._colour_settled:
+            settled = check_colour_order(left_rect_bgr, las, self.rectified_rig,
+                                         self.params.laser, geometry=self._laser_geometry)
+            self._colour_settled = settled and self.colour_check == "once"
         return las
 
     def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> FrameDetection:
@@ -338,7 +358,9 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     src = open_frames(source, left_topic=left_topic, right_topic=right_topic,
                       max_dt_s=max_dt_s)
     rig = src.rig(rig_path)
-    detector = Detector(rig, params)  # checks every parameter before anything is written
+    # checks every parameter before anything is written; one source, one channel order:
+    # its colour order is checked until a frame shows the stripe
+    detector = Detector(rig, params, colour_check="once")
     n = len(src)
     todo = range(n) if frames is None else frames
     if todo.step != 1 or not 0 <= todo.start <= todo.stop <= n:
@@ -417,5 +439,5 @@ def summary_line(summary: RunSummary) -> str:
 
 
 
-__all__ = ["COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection", "check_colour_order",
-           "run_detect", "summary_line"]
+__all__ = ["COLOUR_CHECKS", "COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection",
+           "check_colour_order", "run_detect", "summary_line"]

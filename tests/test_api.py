@@ -103,3 +103,40 @@ def test_colour_check_passes_images_without_a_stripe(seed):
     red, _ = _synthetic(seed, laser_dn=0.0, red_rect_off_laser=(100, 20, 400, 120))
     det.laser(np.ascontiguousarray(red[..., ::-1]))
     assert not det.laser(dark).found.any()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_colour_check_once_stops_after_a_lit_frame(seed, monkeypatch):
+    """``colour_check="once"`` (sequence runs, the simulator): dark frames are checked
+    (a second extraction each) until a lit frame shows the stripe as given; after it a
+    dark frame costs one extraction. An RGB source is still refused at its first lit
+    frame, however many dark frames come before it; ``"every"`` keeps checking."""
+    from slitcli import detect
+
+    calls = []
+    real = detect.detect_laser
+
+    def counting(*a, **kw):
+        calls.append(1)
+        return real(*a, **kw)
+
+    monkeypatch.setattr(detect, "detect_laser", counting)
+    lit, _ = _synthetic(seed)
+    dark, _ = _synthetic(seed, laser_dn=0.0)
+    once = slitcli.Detector(RIG, colour_check="once")
+    for img, extractions in ((dark, 2), (dark, 2), (lit, 1), (dark, 1), (dark, 1)):
+        calls.clear()
+        once.laser(img)
+        assert len(calls) == extractions
+    every = slitcli.Detector(RIG)
+    every.laser(lit)
+    calls.clear()
+    every.laser(dark)
+    assert len(calls) == 2
+    rgb_source = slitcli.Detector(RIG, colour_check="once")
+    rgb_source.laser(np.ascontiguousarray(dark[..., ::-1]))
+    with pytest.raises(SlitcliError, match="looks like RGB"):
+        rgb_source.laser(np.ascontiguousarray(lit[..., ::-1]))
+    with pytest.raises(SlitcliError) as e:
+        slitcli.Detector(RIG, colour_check="sometimes")
+    assert e.value.param == "colour_check"

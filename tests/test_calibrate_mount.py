@@ -23,13 +23,14 @@ from slitcli.sim.targets import (
 HEIGHT_M, TILT_DEG, ROLL_DEG = 0.65, 20.0, 1.5
 
 
-@pytest.fixture(scope="module")
-def floor_view():
+def _floor_view(seed: int) -> dict:
+    """A rendered floor pair (floor texture seed ``3 + 10 seed``, camera noise seeds after
+    it) with the truth in the rig frame."""
     raw = demo_raw_calibration()
     lc, rc = stereo_cameras(raw)
-    floor = floor_for_mount(HEIGHT_M, TILT_DEG, ROLL_DEG, seed=3)
-    left = TargetRenderer(lc).render_floor(floor, seed=1)
-    right = TargetRenderer(rc).render_floor(floor, seed=2)
+    floor = floor_for_mount(HEIGHT_M, TILT_DEG, ROLL_DEG, seed=3 + 10 * seed)
+    left = TargetRenderer(lc).render_floor(floor, seed=1 + 10 * seed)
+    right = TargetRenderer(rc).render_floor(floor, seed=2 + 10 * seed)
     rig = rig_with_raw(raw)
     # truth in the rig's (rectified left) frame: the floor normal rotated by R1
     n = raw.array("R1") @ -np.asarray(floor.up_left)
@@ -38,7 +39,14 @@ def floor_view():
     return {"rig": rig, "left": left, "right": right, "truth": truth}
 
 
-def test_mount_from_rendered_floor(floor_view):
+@pytest.fixture(scope="module")
+def floor_view():
+    return _floor_view(0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_mount_from_rendered_floor(floor_view, seed):
+    floor_view = floor_view if seed == 0 else _floor_view(seed)
     res = calibrate_mount_frames(["f0"], [(floor_view["left"], floor_view["right"])],
                                  floor_view["rig"], MountParams())
     m, t = res.rig.mount, floor_view["truth"]
@@ -49,10 +57,11 @@ def test_mount_from_rendered_floor(floor_view):
     assert "tilt_deg" in "\n".join(res.report_lines())
 
 
-def test_ransac_ignores_an_obstacle_and_far_noise():
+@pytest.mark.parametrize("seed", range(5))
+def test_ransac_ignores_an_obstacle_and_far_noise(seed):
     # 60 % floor points with depth-dependent noise, 40 % on a box face and scattered
     rig = rig_with_raw(demo_raw_calibration())
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(4 + 10 * seed)
     t = math.radians(25.0)
     n = np.array([0.0, math.cos(t), math.sin(t)])
     e1 = np.array([1.0, 0.0, 0.0])
@@ -65,7 +74,7 @@ def test_ransac_ignores_an_obstacle_and_far_noise():
     box = np.column_stack([rng.uniform(-0.3, 0.3, 2500), rng.uniform(-0.2, 0.3, 2500),
                            np.full(2500, 1.2) + rng.normal(0, 0.003, 2500)])
     junk = rng.uniform([-1, -1, 0.4], [1, 1, 2.8], size=(1000, 3))
-    plane = fit_floor_ransac(np.vstack([floor, box, junk]), rig, MountParams(seed=1))
+    plane = fit_floor_ransac(np.vstack([floor, box, junk]), rig, MountParams(seed=seed))
     assert math.degrees(math.acos(min(1.0, float(np.asarray(plane.normal) @ n)))) < 0.3
     assert abs(plane.height_m - 0.5) < 0.005
 
@@ -203,3 +212,25 @@ def test_corridor_sample_still_gives_its_mount(tmp_path, seed):
     assert m.height_m == pytest.approx(truth.height_m, abs=0.015)
     assert m.tilt_deg == pytest.approx(truth.tilt_deg, abs=1.0)
     assert abs(m.roll_deg - truth.roll_deg) < 1.0
+
+
+def test_remap_tables_are_built_once_per_run(floor_view, monkeypatch):
+    """Three raw frames: the rig's remap tables are built once, not once per frame; the
+    fit still finds the rendered mount (bounds of test_mount_from_rendered_floor)."""
+    from slitcli.calibrate import rectify
+
+    built = []
+    real = rectify.RectificationMaps.for_rig.__func__
+
+    def counting(cls, rig):
+        built.append(rig)
+        return real(cls, rig)
+
+    pair = (floor_view["left"], floor_view["right"])
+    params = MountParams(photometric_refinement=False)
+    monkeypatch.setattr(rectify.RectificationMaps, "for_rig", classmethod(counting))
+    res = calibrate_mount_frames(["f0", "f1", "f2"], [pair] * 3, floor_view["rig"], params)
+    assert len(built) == 1
+    t = floor_view["truth"]
+    assert abs(res.rig.mount.tilt_deg - t["tilt_deg"]) < 0.3
+    assert abs(res.rig.mount.height_m - t["height_m"]) < 0.005

@@ -30,6 +30,15 @@ def test_every_command_has_help_with_an_example(path):
         cmd = cmd.commands[p]
     if not isinstance(cmd, click.Group):
         assert "Example" in res.output
+    else:
+        # a group's help shows a session (its commands in use), not only a docs pointer
+        assert "slitcli " in res.output.split("Options:")[0].split("Usage:")[1].split("\n", 1)[1]
+    # every value option states its default in the help itself (shown by click, or
+    # written out: "default: ...", "default: none: ..."), not only in docs/
+    missing = [p.opts[-1] for p in cmd.params
+               if isinstance(p, click.Option) and not p.is_flag and not p.required
+               and not p.show_default and "default" not in (p.help or "").lower()]
+    assert not missing, missing
 
 
 def test_rig_init_then_show(tmp_path):

@@ -90,8 +90,9 @@ def test_d_collision_points_inside_the_footprint():
     assert _cd(0.1, 0.0, [[-0.1, 0.2], [2.0, 0.0]]) == pytest.approx(2.0 - R)
 
 
-def test_d_collision_matches_brute_force_marching():
-    rng = np.random.default_rng(3)
+@pytest.mark.parametrize("seed", range(5))
+def test_d_collision_matches_brute_force_marching(seed):
+    rng = np.random.default_rng(3 + 10 * seed)
     pts = rng.uniform([-1.5, -2.0], [2.5, 2.0], size=(25, 2))
     pts = pts[np.hypot(*pts.T) > R]
     v, w = window_pairs(0.1, 0.0, P)
@@ -102,8 +103,9 @@ def test_d_collision_matches_brute_force_marching():
         assert d[k] == pytest.approx(brute, abs=2e-3)
 
 
-def test_d_collision_blocks_bound_memory_same_result():
-    rng = np.random.default_rng(4)
+@pytest.mark.parametrize("seed", range(5))
+def test_d_collision_blocks_bound_memory_same_result(seed):
+    rng = np.random.default_rng(4 + 10 * seed)
     pts = rng.uniform([-1, -2], [3, 2], size=(3000, 2))
     v, w = window_pairs(0.12, 0.0, P)
     d = collision_distance(v, w, pts, radius_m=0.05, d_max_m=3.0)
@@ -131,7 +133,8 @@ def test_admissibility_hand_values():
     assert admissible(np.array([0.0]), np.array([w]), np.array([0.0]), P).tolist() == [True]
 
 
-def test_a_pair_that_cannot_stop_in_time_is_never_chosen():
+@pytest.mark.parametrize("seed", range(5))
+def test_a_pair_that_cannot_stop_in_time_is_never_chosen(seed):
     # Driving at 0.2 m/s towards a wall 0.115 m beyond the footprint: straight on at full
     # speed scores best on Eq. 12 but needs 0.12 m to stop, so it must not be chosen.
     wall = np.column_stack([np.full(81, R + 0.115), np.linspace(-2, 2, 81)])
@@ -144,7 +147,7 @@ def test_a_pair_that_cannot_stop_in_time_is_never_chosen():
     assert cmd.v_mps**2 / (2 * P.acc_mps2) + cmd.v_mps * P.dt_s / 2 <= cmd.d_collision_m + 1e-12
     # Seeded clutter: the chosen pair always stops in time by an independent D_collision.
     # (Scenes where nothing is admissible any more give "brake", checked separately.)
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(7 + 10 * seed)
     checked = 0
     for _ in range(25):
         pts = rng.uniform([0.0, -1.5], [2.0, 1.5], size=(40, 2))
@@ -246,9 +249,10 @@ def test_unicycle_quarter_circle_and_line():
     np.testing.assert_allclose(pose, [0.0, 0.4, math.pi / 2], atol=1e-12)
 
 
-def test_frames_and_scan_points():
+@pytest.mark.parametrize("seed", range(5))
+def test_frames_and_scan_points(seed):
     pose = (1.0, -2.0, math.radians(30))
-    pts = np.random.default_rng(0).normal(size=(10, 2))
+    pts = np.random.default_rng(seed).normal(size=(10, 2))
     np.testing.assert_allclose(to_robot(pose, to_world(pose, pts)), pts, atol=1e-12)
     np.testing.assert_allclose(to_world(pose, [[1.0, 0.0]]),
                                [[1 + math.cos(math.radians(30)), -2 + 0.5]], atol=1e-12)

@@ -221,3 +221,20 @@ def test_detect_skips_a_bad_frame_and_retries_it(tmp_path):
     clean = tmp_path / "clean"
     assert runner.invoke(cli, [*args[:-1], str(clean)]).exit_code == 0
     assert (tmp_path / "o" / "ranges.csv").read_bytes() == (clean / "ranges.csv").read_bytes()
+
+
+def test_frame_source_is_abstract():
+    """A frame source that leaves out a reader method cannot be made (no stub that raises
+    only when called)."""
+    from slitcli.io.frames import FrameSource
+
+    with pytest.raises(TypeError):
+        FrameSource()
+
+    class Partial(FrameSource):
+        def rig(self, rig_path=None):
+            return paper_rig()
+
+    with pytest.raises(TypeError, match=r"frames|manifest"):
+        Partial()
+    assert issubclass(FolderFrames, FrameSource) and issubclass(BagFrames, FrameSource)

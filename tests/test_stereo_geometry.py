@@ -375,3 +375,31 @@ def test_pipeline_rectifies_raw_pairs_before_matching():
     assert np.median(np.abs(res.disparity_px[valid] - 14.5)) <= 0.1
     with pytest.raises(SlitcliError, match=r"raw\.image_size_px is 340x260"):
         process_stereo_pair(bgr[0][:240, :320], bgr[1][:240, :320], raw_rig)
+
+
+def test_pair_is_converted_to_grey_once(monkeypatch):
+    """The matcher and the mask filters read one grey pair: two conversions per frame
+    (left and right), not four; the result is that of the colour pair."""
+    from stereo_synth import plane_pair
+
+    from slitcli.stereo import cost
+    from slitcli.stereo.pipeline import process_stereo_pair
+
+    rig = paper_rig()
+    left, right = plane_pair(14.5, width=320, height=240)
+    bgr = [cv2.cvtColor(a, cv2.COLOR_GRAY2BGR) for a in (left, right)]
+    calls = []
+    real = cost.cv2.cvtColor
+
+    def counting(img, code, *a, **kw):
+        if code == cv2.COLOR_BGR2GRAY:
+            calls.append(img.shape)
+        return real(img, code, *a, **kw)
+
+    monkeypatch.setattr(cost.cv2, "cvtColor", counting)
+    res = process_stereo_pair(bgr[0], bgr[1], rig)
+    assert len(calls) == 2
+    monkeypatch.undo()
+    grey = process_stereo_pair(left, right, rig)
+    np.testing.assert_array_equal(res.disparity_px, grey.disparity_px)
+    np.testing.assert_array_equal(res.obstacle_mask, grey.obstacle_mask)

@@ -51,10 +51,13 @@ def test_cost_volume_is_quantised_eq10(seed):
     np.testing.assert_array_less(np.abs(cost[fin] - want), 0.5 + 1e-3 * want + 1e-6)
 
 
-def reference_paths(cost: np.ndarray, p1: float, p2: float, eight: bool
+def reference_paths(cost: np.ndarray, p1: float, p2: float, eight: bool,
+                    grey: np.ndarray | None = None, edge_dn: float = 0.0
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Hirschmueller's recurrence path by path (float64, plain loops): the sums of the
-    top-down sweep's paths and of the bottom-up sweep's paths."""
+    top-down sweep's paths and of the bottom-up sweep's paths. With ``grey`` and
+    ``edge_dn`` > 0, a step from q to p costs ``int(P2 e / (e + |grey p - grey q|))``
+    (at least P1 + 1) for a larger jump."""
     h, w, num = cost.shape
     c = cost.astype(np.float64)
     down = [(0, -1), (-1, 0)] + ([(-1, -1), (-1, 1)] if eight else [])
@@ -75,8 +78,12 @@ def reference_paths(cost: np.ndarray, p1: float, p2: float, eight: bool
                         continue
                     prev = lr[py, px]
                     pm = prev.min()
+                    q2 = p2
+                    if grey is not None and edge_dn > 0:
+                        step = abs(float(grey[y, x]) - float(grey[py, px]))
+                        q2 = max(int(np.float32(p2 * edge_dn / (edge_dn + step))), p1 + 1)
                     for d in range(num):
-                        v = min(prev[d], pm + p2)
+                        v = min(prev[d], pm + q2)
                         if d > 0:
                             v = min(v, prev[d - 1] + p1)
                         if d < num - 1:
@@ -97,7 +104,23 @@ def test_path_costs_equal_the_recurrence(seed, eight):
     ref_a, ref_b = reference_paths(cost, 13.0, 102.0, eight)
     for reverse, ref in ((False, ref_a), (True, ref_b)):
         out = np.empty_like(cost)
-        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out)
+        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out,
+                            np.zeros(cost.shape[:2], np.uint8), 0.0)
+        np.testing.assert_array_equal(out, ref)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("eight", [True, False])
+def test_path_costs_with_edge_adapted_p2(seed, eight):
+    from slitcli.stereo import _sgm
+
+    rng = np.random.default_rng(seed)
+    cost = rng.integers(0, 512, (6, 9, 7)).astype(np.uint16)
+    grey = rng.integers(0, 256, (6, 9)).astype(np.uint8)
+    ref_a, ref_b = reference_paths(cost, 13, 102, eight, grey, 8.0)
+    for reverse, ref in ((False, ref_a), (True, ref_b)):
+        out = np.empty_like(cost)
+        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out, grey, 8.0)
         np.testing.assert_array_equal(out, ref)
 
 
@@ -159,6 +182,12 @@ def test_sgm_parameters_are_checked():
         MatcherParams(aggregation="global")
     with pytest.raises(SlitcliError, match="at least 2 disparities"):
         MatcherParams(aggregation="sgm", num_disparities=1)
+    with pytest.raises(SlitcliError, match="at most 512"):
+        MatcherParams(aggregation="sgm", num_disparities=528)
+    with pytest.raises(SlitcliError, match="sgm_bracket_px"):
+        MatcherParams(aggregation="sgm", sgm_bracket_px=-1)
+    with pytest.raises(SlitcliError, match="sgm_p2_edge_dn"):
+        MatcherParams(aggregation="sgm", sgm_p2_edge_dn=-2.0)
 
 
 @pytest.mark.parametrize("dmin", [-4, 0, 2])

@@ -34,7 +34,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from slitcli.calibrate.rectify import rectify_pair
+from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.io.frames import open_frames
 from slitcli.rig import Mount, Rig, load_rig, save_rig
@@ -302,8 +302,10 @@ def calibrate_mount_frames(names: list[str], pairs: list[tuple[np.ndarray, np.nd
                            source: str = "sequence") -> MountCalibration:
     """Fit the floor from raw (or, without ``rig.raw``, rectified) stereo pairs."""
     grays, clouds, pixels = [], [], []
+    # the remap tables once per run, not per frame
+    maps = RectificationMaps.for_rig(rig) if rig.raw is not None else None
     for left, right in pairs:
-        lr, rr = rectify_pair(rig, left, right)
+        lr, rr = rectify_pair(rig, left, right, maps=maps)
         assert rr is not None
         gl = cv2.cvtColor(lr, cv2.COLOR_BGR2GRAY) if lr.ndim == 3 else lr
         gr = cv2.cvtColor(rr, cv2.COLOR_BGR2GRAY) if rr.ndim == 3 else rr

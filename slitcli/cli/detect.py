@@ -18,11 +18,13 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               "several inputs OUT/<input name>/ per input and OUT/index.csv.")
 @click.option("--inputs", "inputs_file", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Text file of inputs, one folder or bag per line (# comments; "
-              "relative paths are relative to the file), added to SEQ|BAG...")
+              "relative paths are relative to the file), added to SEQ|BAG... [default: none]. "
+              "Example: --inputs runs.txt")
 @click.option("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
               help="Run on a Dask cluster: local:N starts N worker processes here, "
               "tcp://HOST:PORT uses a running scheduler (paths must be the same on every "
-              "worker). Needs pip install 'slitcli[cluster]'. See docs/cluster.md.")
+              "worker). Needs pip install 'slitcli[cluster]'. [default: none: --jobs processes "
+              "here] Example: --cluster local:4. See docs/cluster.md.")
 @click.option("--chunk-frames", type=click.IntRange(1, 10_000_000), default=None,
               help="Split each input into chunks of this many frames (default: one chunk per "
               "input); the tables are byte-identical for any chunking.")

@@ -105,7 +105,8 @@ def _dwa_params(kw: dict[str, Any], footprint_radius_m: float | None = None) -> 
               help="One remembered point per grid cell of this size, m.")
 @click.option("--period-s", type=float, default=None,
               help="Time between frames, s, for a table whose time_s is empty (detect on a "
-                   "sequence without times.csv): time_s = frame x this.")
+                   "sequence without times.csv): time_s = frame x this [default: none: such a "
+                   "table is refused]. Example: --period-s 0.1")
 @click.option("--free-range-m", type=float, default=0.0, show_default=True,
               help="Up to this range a bearing bin with no return counts as free space and "
                    "clears the memory, m. 0 (default) = only a farther return clears: a "
@@ -123,7 +124,8 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
     writes the command (v_mps, w_dps) it would have sent. A range table has no
     odometry, so the robot is ASSUMED TO HAVE MOVED EXACTLY AS COMMANDED between
     frames; poses and the goal are in the robot frame at the first frame. Output
-    columns: docs/dwa.md.
+    columns (CMDS.csv): frame, time_s (s), x_m, y_m (m), heading_deg, goal_distance_m,
+    v_mps (m/s), w_dps (deg/s), status, d_collision_m, n_points; docs/dwa.md.
 
     Example: slitcli dwa out/det/ranges.csv --goal 4,0.5 -o out/cmds.csv
     """
@@ -151,7 +153,7 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
                    "0.6,1,1.5,2 m), 'random' (--worlds seeded worlds, 3 m), 'hard' (8 hard "
                    "static worlds, 1,2,3 m) or 'dynamic' (a walking person: crossings, a "
                    "doorway, a slow walker, one walking at the robot; each also run without "
-                   "the person as <case>_empty; 3 m).")
+                   "the person as <case>_empty; 3 m) [default: none: give WORLD].")
 @click.option("--sensing", type=click.Choice(["perfect", "vision"]), default="perfect",
               show_default=True,
               help="Sensing mode: 'perfect' = true ranges per 1-deg bearing bin over the "
@@ -168,10 +170,12 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Seed of the first random world (>= 0).")
 @click.option("--start", metavar="X,Y,YAW_DEG", default=None,
               callback=_floats(3, "three numbers X,Y,YAW_DEG"),
-              help="Override the world's start: X,Y in m, heading in deg.")
+              help="Override the world's start: X,Y in m, heading in deg [default: the "
+                   "world's robot.start]. Example: --start 0,0,0")
 @click.option("--goal", metavar="X,Y", callback=_floats(2, "two numbers X,Y in metres"),
               default=None,
-              help="Override the world's goal X,Y, m.")
+              help="Override the world's goal X,Y, m [default: the world's goal_xy_m]. "
+                   "Example: --goal 6,0")
 @click.option("--rig", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Rig file (field of view, mount.forward_m). Default: the paper rig.")
 @click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,

@@ -111,7 +111,8 @@ LASER_OPTION_NAMES = tuple(_LD)
 @cli.command("laser", short_help="Laser stripe rows and ranges of a sequence.")
 @click.argument("seq", metavar="SEQ|BAG", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out", required=True, type=click.Path(path_type=Path),
-              help="Output folder; OUT/laser.csv is written (schema: docs/laser.md).")
+              help="Output folder; OUT/laser.csv is written: per stripe column frame, u_px, "
+              "v_px, strength, x_m, y_m, range_m, bearing_deg, in_band (docs/laser.md).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Rig file (default: SEQ/rig.yaml, else the paper rig; required for bags). "
               "A rig with a raw calibration rectifies the images first.")

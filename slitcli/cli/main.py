@@ -137,7 +137,91 @@ class _Command(click.Command):
             ["--config"], type=click.Path(dir_okay=False, path_type=Path), is_eager=True,
             expose_value=False, callback=_load_config,
             help="YAML file of option values (e.g. 'bin-deg: 2'); options given on the "
-            "command line win."))
+            "command line win [default: none]. Example: --config detect.yaml"))
+
+
+# The top-level commands, the module that defines each and its one-line help: `slitcli
+# --help` lists them and `slitcli detect` imports one module, not all eleven (a command
+# module may import numpy or the library at decoration time for its defaults).
+# tests/test_cli_lazy.py checks this table against the commands the modules define.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "calibrate": ("slitcli.cli.calibrate", "Calibrate the rig: stereo from chessboards, the "
+                  "laser plane, the camera mount."),
+    "detect": ("slitcli.cli.detect", "Per-bearing obstacle ranges of a sequence or bag."),
+    "dwa": ("slitcli.cli.dwa", "Offline modified DWA over a recorded range table."),
+    "export": ("slitcli.cli.export", "Write a detect run as ROS LaserScan messages (bag)."),
+    "figures": ("slitcli.cli.figures", "Draw Figs. 4, 7, 8, 9 and range accuracy."),
+    "laser": ("slitcli.cli.laser", "Laser stripe rows and ranges of a sequence."),
+    "render": ("slitcli.cli.sim", "Render a generated scene into a stereo sequence with "
+               "ground truth."),
+    "report": ("slitcli.cli.report", "HTML report and overlay video of a detect run."),
+    "rig": ("slitcli.cli.rig", "Create, inspect, edit, import and export rig files "
+            "(docs/rig.md)."),
+    "simulate-dwa": ("slitcli.cli.dwa", "Closed-loop modified DWA: sense -> plan -> move, per "
+                     "world and sensing range."),
+    "stereo": ("slitcli.cli.stereo", "Disparity, distance and obstacle images (Eq. 10)."),
+    "warm-up": ("slitcli.cli.warmup", "Compile the numba kernels for this machine ahead of "
+                "the first run."),
+}
+
+
+class _LazyCommands(dict):  # type: ignore[type-arg]
+    """A group's commands that imports a command's module when the command is looked up
+    (by name, iteration or membership), so code that reads ``group.commands`` sees every
+    command while a start-up that names one command imports one module."""
+
+    def __init__(self, where: dict[str, tuple[str, str]]) -> None:
+        super().__init__()
+        self.where = where
+
+    def names(self) -> list[str]:
+        """Every command name, importing nothing."""
+        return sorted({*super().keys(), *self.where})
+
+    def _load(self, name: str) -> None:
+        if not super().__contains__(name) and name in self.where:
+            import importlib
+
+            importlib.import_module(self.where[name][0])
+
+    def _load_all(self) -> None:
+        for name in self.where:
+            self._load(name)
+
+    def __missing__(self, name: str) -> Any:
+        self._load(name)
+        if super().__contains__(name):
+            return super().__getitem__(name)
+        raise KeyError(name)
+
+    def get(self, name: Any, default: Any = None) -> Any:
+        try:
+            return self[name]
+        except KeyError:
+            return default
+
+    def __contains__(self, name: object) -> bool:
+        return super().__contains__(name) or name in self.where
+
+    def __iter__(self) -> Iterator[str]:
+        self._load_all()
+        return super().__iter__()
+
+    def __len__(self) -> int:
+        self._load_all()
+        return super().__len__()
+
+    def keys(self) -> Any:
+        self._load_all()
+        return super().keys()
+
+    def values(self) -> Any:
+        self._load_all()
+        return super().values()
+
+    def items(self) -> Any:
+        self._load_all()
+        return super().items()
 
 
 class _Group(click.Group):
@@ -146,6 +230,28 @@ class _Group(click.Group):
 
     command_class = _Command
     group_class = type
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        if isinstance(self.commands, _LazyCommands):
+            return self.commands.names()
+        return super().list_commands(ctx)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The command list from the :data:`COMMANDS` table: no command module imported."""
+        if not isinstance(self.commands, _LazyCommands):
+            super().format_commands(ctx, formatter)
+            return
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = []
+        for name in names:
+            if name in self.commands.where:
+                text = click.Command(name, short_help=self.commands.where[name][1])
+                rows.append((name, text.get_short_help_str(limit)))
+            else:
+                rows.append((name, self.commands[name].get_short_help_str(limit)))
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def main(self, args: Any = None, prog_name: str | None = None,
              complete_var: str | None = None, standalone_mode: bool = True,
@@ -232,6 +338,9 @@ def cli(debug: bool) -> None:
     """
 
 
+cli.commands = _LazyCommands(COMMANDS)
+
+
 def bag_options(f: Any) -> Any:
     """The options that read a ROS bag as a frame source (``laser``, ``stereo``, ``detect``)."""
     from slitcli.io.frames import DEFAULT_LEFT_TOPIC, DEFAULT_MAX_DT_S, DEFAULT_RIGHT_TOPIC
@@ -263,4 +372,7 @@ def bad_frame_option(f: Any) -> Any:
 
 def main() -> None:
     """Console-script entry point (also ``python -m slitcli``)."""
+    from slitcli.compile_notice import announce_compiles
+
+    announce_compiles(lambda line: click.echo(line, err=True))
     cli.main()

@@ -12,7 +12,14 @@ from slitcli.errors import SlitcliError
 
 @cli.group("rig")
 def rig_group() -> None:
-    """Create, inspect, edit, import and export rig files (docs/rig.md)."""
+    """Create, inspect, edit, import and export rig files (docs/rig.md).
+
+    \b
+    Example:
+      slitcli rig init rig.yaml
+      slitcli rig set rig.yaml --mount-height-m 0.42 --tilt-deg 12
+      slitcli rig show rig.yaml
+    """
 
 
 def _size_wh(text: str | None) -> tuple[int, int] | None:
@@ -45,12 +52,14 @@ def _flagged(e: SlitcliError) -> SlitcliError:
 @rig_group.command("init")
 @click.argument("file", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--out", "out_opt", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="Rig file to write (or give it as FILE).")
+              default=None, help="Rig file to write (or give it as FILE) [default: FILE].")
 @click.option("--force", is_flag=True, help="Overwrite FILE if it exists.")
 @click.option("--image-size", default=None, metavar="W,H",
-              help="Factory calibration: image width and height of the rectified images, px.")
+              help="Factory calibration: image width and height of the rectified images, px "
+              "[default: the paper rig's 320,240].")
 @click.option("--fx-px", type=float, default=None,
-              help="Factory calibration: focal length of the rectified left camera, px.")
+              help="Factory calibration: focal length of the rectified left camera, px "
+              "[default: the paper rig's 250].")
 @click.option("--fy-px", type=float, default=None, help="Vertical focal length, px "
               "[default: --fx-px].")
 @click.option("--cx-px", type=float, default=None, help="Principal point column, px "
@@ -58,7 +67,8 @@ def _flagged(e: SlitcliError) -> SlitcliError:
 @click.option("--cy-px", type=float, default=None, help="Principal point row, px "
               "[default: (H-1)/2].")
 @click.option("--baseline-m", type=float, default=None,
-              help="Factory calibration: distance between the optical centres, metres.")
+              help="Factory calibration: distance between the optical centres, metres "
+              "[default: the paper rig's 0.088].")
 def rig_init(file: Path | None, out_opt: Path | None, force: bool, image_size: str | None,
              fx_px: float | None, fy_px: float | None, cx_px: float | None,
              cy_px: float | None, baseline_m: float | None) -> None:
@@ -116,12 +126,13 @@ PLACEHOLDER_COMMENT = (
 @click.option("-o", "--out", "out", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file to write [default: update RIG_FILE in place].")
 @click.option("--mount-height-m", type=float, default=None,
-              help="Camera optical centre above the floor, metres.")
+              help="Camera optical centre above the floor, metres [default: unchanged].")
 @click.option("--tilt-deg", type=float, default=None,
-              help="Pitch of the optical axis below horizontal, degrees.")
-@click.option("--roll-deg", type=float, default=None, help="Roll about the optical axis, deg.")
+              help="Pitch of the optical axis below horizontal, degrees [default: unchanged].")
+@click.option("--roll-deg", type=float, default=None, help="Roll about the optical axis, deg "
+              "[default: unchanged].")
 @click.option("--forward-m", type=float, default=None,
-              help="Camera ahead of the robot's rotation centre, metres.")
+              help="Camera ahead of the robot's rotation centre, metres [default: unchanged].")
 @click.option("--laser-height-m", type=float, default=None,
               help="Make the laser sheet horizontal at this height above the floor, metres "
               "[default: keep the sheet where it is on the robot].")
@@ -206,7 +217,8 @@ def rig_show(file: Path | None) -> None:
 @click.option("--name", default=None, help="Rig name [default: the base rig's, or 'imported'].")
 @click.option("--image-size", default=None, metavar="W,H",
               help="Raw image size in pixels, for files that do not give it (OpenCV files "
-              "without image_width/image_height, camchains without resolution).")
+              "without image_width/image_height, camchains without resolution) [default: "
+              "read from the files].")
 @click.option("--overwrite", is_flag=True, help="Replace the output rig file if it exists.")
 def rig_import(files: tuple[Path, ...], out: Path, fmt: str, base: Path | None,
                name: str | None, image_size: str | None, overwrite: bool) -> None:

@@ -16,7 +16,8 @@ from slitcli.cli.main import cli
 @click.option("--frames", type=click.IntRange(1, 100_000), default=None,
               help="Frames to render, 1-100000 [default: the scene's robot.frames].")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=None,
-              help="Replace the scene's seed (textures and sensor noise), a whole number >= 0.")
+              help="Replace the scene's seed (textures and sensor noise), a whole number >= 0 "
+              "[default: the scene file's seed]. Example: --seed 9")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Rig file [default: the paper rig].")
 @click.option("--overwrite", is_flag=True,

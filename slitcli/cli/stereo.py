@@ -46,8 +46,9 @@ def matcher_options(f: Any) -> Any:
         click.option("--aggregation", type=click.Choice(["none", "sgm"]), default="none",
               show_default=True, expose_value=False, callback=_keep_aggregation,
               help="nssd only: none = the paper's local Eq. 10 window; sgm = semi-global "
-              "aggregation of the Eq. 10 cost along 4 paths (denser on weak texture, "
-              "follows slanted floors; 4-6x slower), then the same checks. Example: "
+              "aggregation of the Eq. 10 cost along 4 paths (denser on weak texture and "
+              "on plain surfaces between agreeing textured borders, follows slanted "
+              "floors; about 3x slower), then the same checks. Example: "
               "--aggregation sgm"),
         click.option("--num-disparities", type=int, default=48, show_default=True,
               help="Disparities searched, px (48 px: 0.46 m and beyond for the paper rig)."),

@@ -319,6 +319,9 @@ def _worker_start(run_pid: int, initializer: Callable[[], None] | None) -> None:
     # Ctrl-C and SIGTERM go to the run, which shuts the pool down; a worker stopped
     # mid-frame by the terminal's SIGINT would only print a traceback
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from slitcli.compile_notice import announce_in_worker  # a kernel compiled here says so
+
+    announce_in_worker()
     if initializer is not None:
         initializer()
 

@@ -26,6 +26,7 @@ or on any number of workers. :func:`slitcli.laser.detect_laser` still takes a
 from __future__ import annotations
 
 import hashlib
+from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -80,8 +81,13 @@ class BadFrame:
     reason: str
 
 
-class FrameSource:
-    """The stereo pairs of a sequence folder or a bag (:func:`open_frames`)."""
+class FrameSource(ABC):
+    """The stereo pairs of a sequence folder or a bag (:func:`open_frames`).
+
+    An abstract base: a new kind of input implements :meth:`rig`, :meth:`frames` and
+    :meth:`manifest` and sets ``path``, ``kind`` and ``info``; a subclass that leaves
+    one out cannot be instantiated.
+    """
 
     path: Path
     kind: str
@@ -90,11 +96,12 @@ class FrameSource:
     def __len__(self) -> int:
         return len(self.info)
 
+    @abstractmethod
     def rig(self, rig_path: str | Path | None = None) -> Rig:
         """The rig to use (``rig_path``; folders default to their ``rig.yaml``, else
         the paper rig)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def frames(self, rig: Rig | None = None, *, skip: frozenset[int] | set[int] = frozenset(),
                rectify: bool = False, on_bad: str = "stop"
                ) -> Iterator[StereoFrame | BadFrame]:
@@ -106,11 +113,10 @@ class FrameSource:
         naming the file (``on_bad="stop"``), or is yielded as a :class:`BadFrame` and
         the frames after it follow (``on_bad="skip"``).
         """
-        raise NotImplementedError
 
+    @abstractmethod
     def manifest(self) -> dict[str, Any]:
         """JSON-able identity of the input, for the manifests of resumable batches."""
-        raise NotImplementedError
 
     def notes(self) -> tuple[str, ...]:
         """What the user should know about the input (bags: images left unpaired)."""

@@ -46,5 +46,7 @@ def vision_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
                   bin_deg: float = 1.0) -> VisionSensor:
     """The ``vision`` sensing mode of ``simulate-dwa``."""
     fast = replace(scene, image=replace(scene.image, supersample=VISION_SUPERSAMPLE))
-    return VisionSensor(fast, rig, Detector(rig, DetectParams(bin_deg=bin_deg)),
+    # the renderer writes BGR: its channel order is checked until a frame shows the stripe
+    det = Detector(rig, DetectParams(bin_deg=bin_deg), colour_check="once")
+    return VisionSensor(fast, rig, det,
                         sensing_range_m)

@@ -128,6 +128,10 @@ class MatcherParams:
     sgm_paths: int = 4
     sgm_p1: float = 0.05
     sgm_p2: float = 0.4
+    sgm_p2_edge_dn: float = 0.0
+    sgm_bracket_px: int = 32
+    sgm_bracket_tol_px: float = 1.0
+    sgm_bracket_span_px: float = 1.0
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -147,14 +151,20 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         raise SlitcliError(f"aggregation 'sgm' aggregates the Eq. 10 cost of matcher "
                            f"'nssd', not {p.matcher!r}; use matcher 'nssd' or aggregation "
                            "'none'")
-    if p.aggregation == "sgm" and p.num_disparities < 2:
+    if p.aggregation == "sgm" and not 2 <= p.num_disparities <= 512:
         raise SlitcliError(f"num_disparities {p.num_disparities}: aggregation 'sgm' needs at "
-                           "least 2 disparities")
+                           "least 2 disparities and searches at most 512")
     if p.sgm_paths not in (4, 8):
         raise SlitcliError(f"sgm_paths {p.sgm_paths} must be 4 or 8")
     if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
         raise SlitcliError(f"sgm_p1 {p.sgm_p1} and sgm_p2 {p.sgm_p2} must satisfy "
                            "0 <= sgm_p1 <= sgm_p2 <= 8 (Eq. 10 cost units)")
+    if p.sgm_bracket_px < 0 or p.sgm_bracket_tol_px < 0:
+        raise SlitcliError(f"sgm_bracket_px {p.sgm_bracket_px} and sgm_bracket_tol_px "
+                           f"{p.sgm_bracket_tol_px} must be >= 0 (0 px reach = off)")
+    if not 0 <= p.sgm_p2_edge_dn <= 255:
+        raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
+                           "(0 = a constant sgm_p2)")
     if p.subpixel not in SUBPIXEL:
         raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
                            f"{', '.join(SUBPIXEL)}")

@@ -119,9 +119,11 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
         # built once per run by a caller that checked the parameters then
         geometry.check_for(rig, p.obstacles.bin_width_deg)
     left, right = rectify_pair(rig, left_bgr, right_bgr, maps=geometry.rectification)
-    disp = compute_disparity(left, right, p.matcher)
+    # grey once per frame: the matcher and the mask filters read the same grey pair
+    left_grey, right_grey = to_grey(left), to_grey(right)
+    disp = compute_disparity(left_grey, right_grey, p.matcher)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
-    inputs = MaskInputs(to_grey(left), to_grey(right), disp.disparity_px, geometry)
+    inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)
     obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)
     br = bearing_ranges(pts, obstacle, feature, geometry, p.obstacles)
     return StereoFrameResult(disp.disparity_px, disp.invalid_reason, depth, pts, obstacle,

@@ -13,8 +13,10 @@ a larger jump costs ``sgm_p2`` and happens at depth edges only.
 The Eq. 10 cost is that of the local matcher on the same prefiltered images (window
 sums with zeros outside the image), quantised to 1/256; the winner then passes the
 same tests (window texture energy, uniqueness and left-right consistency on the
-aggregated costs, the subpixel parabola) and the same post-filter chain
-(:data:`slitcli.stereo.filters.DISPARITY_FILTERS`).
+aggregated costs, the subpixel parabola) and the local matcher's post-filter chain
+with one more step, the bracket test (:data:`SGM_FILTERS`, slitcli.stereo._bracket):
+a pixel whose own neighbourhood does not carry the match is kept where valid pixels
+on both sides of it agree with each other and with it.
 
 Cost: three volumes of H x W x D uint16 (29 MB at 320 x 240 x 64; 236 MB at 640 x 480
 x 128). The two sweeps (top-down, bottom-up) run on two threads.
@@ -30,7 +32,13 @@ import cv2
 import numpy as np
 
 from slitcli.stereo.bands import kernel_threads, run_row_bands
-from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+from slitcli.stereo.filters import (
+    DISPARITY_FILTERS,
+    DisparityFilter,
+    FilterInputs,
+    run_disparity_filters,
+)
+from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
     from slitcli.stereo.matcher import DisparityResult, MatcherParams
@@ -68,32 +76,73 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
     count = _window_sum(np.ones_like(pl), m, n)
     pad = num + abs(dmin) + 1
     prr = _reversed_padded(pr, pad)
+    # inverse square roots of the right energies (0: no energy, or outside the image)
+    irr = _reversed_padded(np.where(er > 0, 1.0 / np.sqrt(np.maximum(er, 1e-30)), 0.0)
+                           .astype(np.float32), pad)
     err = _reversed_padded(er, pad)
     cost = np.empty((h, w, num), np.uint16)
-    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, pad, dmin, num, m, n,
+    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, irr, pad, dmin, num, m, n,
                                                 COST_MAX, COST_SCALE, y0, y1, cost),
                   h, pool, threads, min_rows=2 * n + 1)
     return cost, el, count
 
 
 def aggregate(cost: np.ndarray, params: MatcherParams,
-              pool: ThreadPoolExecutor | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The top-down and bottom-up sweeps' path-cost sums, each (H, W, D) uint16."""
+              pool: ThreadPoolExecutor | None = None,
+              grey: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The top-down and bottom-up sweeps' path-cost sums, each (H, W, D) uint16.
+
+    ``grey`` (H, W) uint8, the left image: with ``sgm_p2_edge_dn`` > 0 each step's P2
+    is ``sgm_p2 g / (g + |grey step|)`` (at least P1 + 1), ``g = sgm_p2_edge_dn``."""
     from slitcli.stereo import _sgm
 
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
     eight = params.sgm_paths == 8
+    g = float(params.sgm_p2_edge_dn) if grey is not None else 0.0
+    if grey is None:
+        grey = np.zeros(cost.shape[:2], np.uint8)
     s_a = np.empty_like(cost)
     s_b = np.empty_like(cost)
     if pool is not None:
-        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b)
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
+        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b, grey, g)
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
         job.result()
     else:
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a)
-        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b)
+        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
+        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b, grey, g)
     return s_a, s_b
+
+
+def _bracket(x: FilterInputs) -> None:
+    from slitcli.stereo import _bracket
+
+    p = x.params
+    keep = np.zeros(x.disparity_px.shape, np.bool_)
+    weak = np.zeros(256, np.bool_)
+    weak[[int(Reason.SUPPORT), int(Reason.UNIQUENESS)]] = True
+    _bracket.bracket_rows(x.disparity_px, x.invalid_reason, int(Reason.VALID),
+                          weak, int(p.sgm_bracket_px),
+                          np.float32(p.sgm_bracket_tol_px), np.float32(p.sgm_bracket_span_px),
+                          keep)
+    x.invalid_reason[keep] = Reason.VALID
+
+
+#: The filters after the SGM winner step: the local matcher's chain with the bracket
+#: test (``sgm_bracket_px``, slitcli.stereo._bracket) between the support test and the
+#: speckle filter. Its candidates: pixels rejected by the support test (their own
+#: neighbourhood does not carry the match) or by uniqueness (on a plain surface the
+#: aggregated cost curve is flat around the winner); not left-right failures, which
+#: are mostly occlusions the right camera cannot see.
+SGM_FILTERS: tuple[DisparityFilter, ...] = (
+    *DISPARITY_FILTERS[:-1],
+    DisparityFilter("sgm_bracket", (),
+                    "pixels rejected by the support or the uniqueness test whose disparity "
+                    "lies between those of valid pixels on both sides (row or column, "
+                    "within sgm_bracket_px) that agree within sgm_bracket_span_px are "
+                    "valid again", lambda p: p.sgm_bracket_px > 0, _bracket),
+    DISPARITY_FILTERS[-1],
+)
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -125,7 +174,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         pl = prefilter_image(left_grey, params)
         pr = prefilter_image(right_grey, params)
         cost, el, count = cost_volume(pl, pr, params, pool, threads)
-        s_a, s_b = aggregate(cost, params, pool)
+        s_a, s_b = aggregate(cost, params, pool, np.ascontiguousarray(left_grey))
         energy_min = ((params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none"
                       else 0.0)
         top = np.uint16(round(COST_MAX * COST_SCALE))
@@ -136,7 +185,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         run_row_bands(lambda y0, y1: _sgm.winners_rows(*args, y0, y1, disp, mcost, reason,
                                                        rdisp), h, pool, threads)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
-                                           rdisp, pool, threads))
+                                           rdisp, pool, threads), SGM_FILTERS)
     return DisparityResult(disp, reason, mcost)
 
 
