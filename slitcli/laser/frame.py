@@ -188,8 +188,14 @@ def _triangulate(v_px: np.ndarray, ray_x: np.ndarray, ray_y: np.ndarray, plane: 
 
 def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = None, *,
                  previous: LaserFrame | np.ndarray | None = None,
-                 geometry: LaserGeometry | None = None) -> LaserFrame:
+                 geometry: LaserGeometry | None = None,
+                 edges: EdgeParams | None = None) -> LaserFrame:
     """Find the laser stripe in one left image and triangulate it (Eqs. 1-7).
+
+    A column at the near end of a lit segment (its outward neighbour unlit or farther)
+    sees the surface over part of its width only; it is triangulated along the ray
+    through the centre of that part (:func:`covered_shift_px`), so that its bearing
+    lies on the surface, not beyond its edge.
 
     Parameters
     ----------
@@ -203,12 +209,15 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     geometry : LaserGeometry, optional
         ``LaserGeometry.from_rig(rig, params)``; pass it when processing many
         frames so it is computed once.
+    edges : EdgeParams, optional
+        Surface jump and coverage confidence of the end columns.
 
     Returns
     -------
     LaserFrame
     """
     params = LaserParams() if params is None else params
+    edges = EdgeParams() if edges is None else edges
     img = np.asarray(left_bgr)
     if img.shape[:2] != (rig.height_px, rig.width_px):
         raise ValueError(f"image is {img.shape[1]}x{img.shape[0]}, the rig's is "
@@ -223,12 +232,74 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     _triangulate(stripe.v_px, geometry.ray_x, geometry.ray_y_coeffs, geometry.plane_cam,
                  geometry.sensor_from_cam, rig.laser.min_range_m, rig.laser.max_range_m,
                  pts, in_band)
+    shift = covered_shift_px(pts[2], stripe.strength_dn, stripe.noise_sigma_dn, edges)
+    if np.any(shift != 0.0):
+        px = geometry.ray_x[1] - geometry.ray_x[0] if rig.width_px > 1 else 0.0
+        _triangulate(stripe.v_px, geometry.ray_x + shift * px, geometry.ray_y_coeffs,
+                     geometry.plane_cam, geometry.sensor_from_cam, rig.laser.min_range_m,
+                     rig.laser.max_range_m, pts, in_band)
     x, y, rng, bearing = pts
     return LaserFrame(u_px=u, v_px=stripe.v_px, strength_dn=stripe.strength_dn,
                       saturated=stripe.saturated, x_m=x, y_m=y, range_m=rng,
                       bearing_deg=bearing, in_band=in_band,
                       noise_sigma_dn=stripe.noise_sigma_dn, threshold_dn=stripe.threshold_dn,
                       grey_image=is_grey(img))
+
+
+def covered_shift_px(range_m: np.ndarray, strength_dn: np.ndarray, noise_sigma_dn: float,
+                     params: EdgeParams) -> np.ndarray:
+    """Shift of each stripe column's ray to the centre of the part of its pixel that sees
+    the lit surface, pixels (positive: towards higher ``u``).
+
+    A pixel integrates the light over its width, so a column that sees a surface over a
+    share ``f`` of its width shows the stripe at ``f`` times the strength of the
+    surface's full columns beside it; the seen part's centre lies ``(1 - f) / 2`` pixel
+    inwards (away from the edge) of the pixel centre. That matters at the near end of a
+    lit segment: its outward neighbour is unlit or farther (more than ``jump_m``), and
+    the pixel centre may lie beyond the surface's edge, so the point would range a
+    bearing where the surface is not. ``f`` is the end column's strength over the
+    strongest of the three columns inward on the same surface (ranges within
+    ``jump_m``), taken ``coverage_z`` standard errors low (noise ``noise_sigma_dn``),
+    so the shifted ray stays on the surface; an end with no such column inward keeps
+    its centre from that side.
+
+    Parameters
+    ----------
+    range_m, strength_dn : ndarray, shape (W,)
+        Triangulated range and fitted stripe strength of each column (NaN: no stripe).
+    noise_sigma_dn : float
+        Noise of the laser evidence, DN.
+    params : EdgeParams
+
+    Returns
+    -------
+    ndarray, shape (W,)
+        Signed shift, pixels, in ``[-0.5, 0.5]``; 0 inside segments.
+    """
+    r = np.asarray(range_m, dtype=np.float64)
+    s = np.asarray(strength_dn, dtype=np.float64)
+    w = r.size
+    found = np.isfinite(r) & np.isfinite(s)
+    shift = np.zeros(w)
+    if w < 2:
+        return shift
+    pad_r = np.r_[np.full(3, np.nan), r, np.full(3, np.nan)]
+    pad_s = np.r_[np.full(3, np.nan), s, np.full(3, np.nan)]
+    idx = np.arange(w) + 3
+    with np.errstate(invalid="ignore"):
+        for d in (1, -1):  # inward direction: +1 for a left end, -1 for a right end
+            out_r = pad_r[idx - d]
+            end = found & ~(out_r <= r + params.jump_m)
+            ref = np.full(w, np.nan)
+            for k in (1, 2, 3):
+                rk, sk = pad_r[idx + d * k], pad_s[idx + d * k]
+                same = np.abs(rk - r) <= params.jump_m
+                ref = np.fmax(ref, np.where(same, sk, np.nan))
+            ok = end & (ref > 0)
+            f = s / ref - params.coverage_z * noise_sigma_dn / ref
+            f = np.clip(np.where(ok, f, 1.0), 0.0, 1.0)
+            shift += d * 0.5 * (1.0 - f)
+    return shift
 
 
 def bearing_bin_centres_deg(rig: Rig, bin_deg: float = 1.0) -> np.ndarray:
@@ -308,12 +379,16 @@ class EdgeParams:
         pixels: beyond the next column's centre nothing was measured.
     min_inner_cols : int
         Columns of the segment needed inside the end column for an estimate.
+    coverage_z : float
+        An end column's coverage (:func:`covered_shift_px`) is taken this many standard
+        errors below its measured value, so that the point stays on the surface.
     """
 
     jump_m: float = 0.05
     fade_ratio: float = 0.8
     max_reach_px: float = 1.0
     min_inner_cols: int = 3
+    coverage_z: float = 2.0
 
 
 @dataclass(frozen=True)
