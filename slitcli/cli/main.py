@@ -72,6 +72,7 @@ PARAM_FLAGS: dict[str, str] = {
     "stuck_timeout_s": "--stuck-timeout-s", "stuck_new_ground_m": "--stuck-new-ground-m",
     "recovery_after_s": "--recovery-after-s", "recovery_back_m": "--recovery-back-m",
     "min_disparity_px": "--min-disparity", "bin_width_deg": "--bin-deg", "base_rig": "--base",
+    "aggregation": "--aggregation",
 }
 
 

@@ -146,15 +146,16 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         raise SlitcliError(f"`prefilter` {p.prefilter!r} is unknown; use one of "
                            f"{', '.join(PREFILTERS)}", param="prefilter")
     if p.aggregation not in AGGREGATIONS:
-        raise SlitcliError(f"aggregation {p.aggregation!r} is unknown; use one of "
-                           f"{', '.join(AGGREGATIONS)}")
+        raise SlitcliError(f"`aggregation` {p.aggregation!r} is unknown; use one of "
+                           f"{', '.join(AGGREGATIONS)}", param="aggregation")
     if p.aggregation == "sgm" and p.matcher != "nssd":
-        raise SlitcliError(f"aggregation 'sgm' aggregates the Eq. 10 cost of matcher "
-                           f"'nssd', not {p.matcher!r}; use matcher 'nssd' or aggregation "
-                           "'none'")
+        raise SlitcliError(f"`aggregation` 'sgm' aggregates the Eq. 10 cost of `matcher` "
+                           f"'nssd', not {p.matcher!r}; use `matcher` 'nssd' or "
+                           "`aggregation` 'none'", param=("aggregation", "matcher"))
     if p.aggregation == "sgm" and not 2 <= p.num_disparities <= 512:
-        raise SlitcliError(f"num_disparities {p.num_disparities}: aggregation 'sgm' needs at "
-                           "least 2 disparities and searches at most 512")
+        raise SlitcliError(f"`num_disparities` {p.num_disparities}: `aggregation` 'sgm' needs "
+                           "at least 2 disparities and searches at most 512",
+                           param=("num_disparities", "aggregation"))
     if p.sgm_paths not in (4, 8):
         raise SlitcliError(f"sgm_paths {p.sgm_paths} must be 4 or 8")
     if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
