@@ -104,7 +104,8 @@ def test_every_mapped_flag_is_a_real_option():
     ("`num_disparities` 40 must be a multiple of 16 for `matcher` bm (OpenCV)",
      ("num_disparities", "matcher"), "--num-disparities 40 must be a multiple of 16 for "
      "--matcher bm (OpenCV)"),
-    ("`window_w_px` 8 must be odd", "window_w_px", "--window 8 must be odd"),
+    ("`window_w_px` 8: the window width must be odd", "window_w_px",
+     "--window 8: the window width must be odd"),
     ("`mode` 'best' is unknown", "mode", "--fusion 'best' is unknown"),
     # a parameter without an option keeps its library name, unquoted
     ("`support_radius_px` must be >= 1 px", "support_radius_px",

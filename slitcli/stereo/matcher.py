@@ -173,10 +173,11 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if not isinstance(p.num_disparities, int | np.integer) or p.num_disparities <= 0:
         raise SlitcliError(f"`num_disparities` {p.num_disparities} must be a positive whole "
                            "number of pixels (e.g. 48)", param="num_disparities")
-    for name, w in (("window_w_px", p.window_w_px), ("window_h_px", p.window_h_px)):
+    for name, dim, w in (("window_w_px", "width", p.window_w_px),
+                         ("window_h_px", "height", p.window_h_px)):
         if not isinstance(w, int | np.integer) or w < 1 or w % 2 == 0:
-            raise SlitcliError(f"`{name}` {w} must be an odd number of pixels >= 1 "
-                               "(2m+1 of Eq. 10), e.g. 9", param=name)
+            raise SlitcliError(f"`{name}` {w}: the window {dim} must be an odd number of "
+                               "pixels >= 1 (2m+1 of Eq. 10), e.g. 9", param=name)
     if p.prefilter_size_px < 3 or p.prefilter_size_px % 2 == 0:
         raise SlitcliError(f"`prefilter_size_px` {p.prefilter_size_px} must be odd and >= 3",
                            param="prefilter_size_px")
