@@ -68,8 +68,9 @@ def read_range_table(path: str | Path, range_column: str = "fused_range_m", *,
     if df["time_s"].isna().all():
         if period_s is None:
             raise SlitcliError(f"{p}: column time_s is empty (the sequence had no times.csv); "
-                               "pass --period-s SECONDS (the time between frames) or add "
-                               "times.csv to the sequence and run detect again")
+                               "give `period_s` (seconds between frames) or add "
+                               "times.csv to the sequence and run detect again",
+                               param="period_s")
         df = df.assign(time_s=pd.to_numeric(df["frame"], errors="coerce") * period_s)
     for c in need:
         col = pd.to_numeric(df[c], errors="coerce")

@@ -80,12 +80,13 @@ class ExportParams:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.period_s) and self.period_s > 0):
-            raise SlitcliError(f"--period-s {self.period_s} must be a positive number of "
-                               "seconds")
-        for name, value in (("--frame-id", self.frame_id),
-                            ("--camera-frame-id", self.camera_frame_id)):
+            raise SlitcliError(f"`period_s` {self.period_s} must be a positive number of "
+                               "seconds", param="period_s")
+        for name, value in (("frame_id", self.frame_id),
+                            ("camera_frame_id", self.camera_frame_id)):
             if not value or any(c.isspace() for c in value):
-                raise SlitcliError(f"{name} {value!r} must be a non-empty name without spaces")
+                raise SlitcliError(f"`{name}` {value!r} must be a non-empty name without "
+                                   "spaces", param=name)
 
 
 @dataclass(frozen=True)
@@ -341,7 +342,8 @@ def export_run(run_dir: str | Path, out: str | Path, *,
     final = Path(out)
     kind = output_kind(final)
     if final.exists() and not overwrite:
-        raise SlitcliError(f"{final}: already exists; choose another name or pass --overwrite")
+        raise SlitcliError(f"{final}: already exists; choose another name or set `overwrite`",
+                           param="overwrite")
     if final.exists() and (final.is_dir() != (kind == "")):
         raise SlitcliError(f"{final}: exists and is a {'folder' if final.is_dir() else 'file'}"
                            "; choose another name")

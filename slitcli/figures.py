@@ -356,9 +356,10 @@ def save(fig: Figure, path: Path, *, dpi: int) -> Path:
 
 def check_format(fmt: str, dpi: int) -> None:
     if fmt not in FORMATS:
-        raise SlitcliError(f"--format {fmt!r} is unknown; use one of {', '.join(FORMATS)}")
+        raise SlitcliError(f"`fmt` {fmt!r} is unknown; use one of {', '.join(FORMATS)}",
+                           param="fmt")
     if not 20 <= dpi <= 1200:
-        raise SlitcliError(f"--dpi {dpi} is out of range; give 20-1200")
+        raise SlitcliError(f"`dpi` {dpi} is out of range; give 20-1200", param="dpi")
 
 
 # ----------------------------------------------------------------------------- make

@@ -66,8 +66,8 @@ class FusionParams:
 
     def __post_init__(self) -> None:
         if self.mode not in FUSION_MODES:
-            raise SlitcliError(f"--fusion {self.mode!r} is unknown; use one of "
-                               f"{', '.join(FUSION_MODES)}")
+            raise SlitcliError(f"`mode` {self.mode!r} is unknown; use one of "
+                               f"{', '.join(FUSION_MODES)}", param="mode")
         if not self.laser_max_range_m > 0 or not self.stereo_max_range_m > 0:
             raise SlitcliError("fusion ranges must be positive; check the rig's "
                                "laser.max_range_m and stereo.max_range_m")

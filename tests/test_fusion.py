@@ -67,7 +67,7 @@ def test_impossible_same_surface_parameters_are_input_errors():
 
 
 def test_unknown_mode_is_an_input_error():
-    with pytest.raises(SlitcliError, match="--fusion 'best'"):
+    with pytest.raises(SlitcliError, match="`mode` 'best'"):
         FusionParams(mode="best")
 
 

@@ -71,13 +71,14 @@ def test_stripe_truth_matches_closed_form_across_columns():
     np.testing.assert_allclose(t.stripe_sensor_xyz[cols, 2], 0.05, atol=1e-9)
 
 
-def test_disparity_truth_and_brute_force_shift_search():
+@pytest.mark.parametrize("seed", [5, 6, 7, 8, 9])
+def test_disparity_truth_and_brute_force_shift_search(seed):
     # a textured wall parallel to the image plane: an untilted rig, a wall at x = Z
     z = 1.7
     rig = paper_rig()
     rig = replace(rig, mount=replace(rig.mount, tilt_deg=0.0, height_m=0.6))
     scene = scene_from_dict({
-        "slitcli_scene": 1, "seed": 5, "image": {"noise_sigma_dn": 0.0},
+        "slitcli_scene": 1, "seed": seed, "image": {"noise_sigma_dn": 0.0},
         "laser": {"enabled": False},
         "objects": [{"type": "wall", "from_xy_m": [z, -4.0], "to_xy_m": [z, 4.0],
                      "height_m": 3.0, "surface": {"texture": "noise", "scale_m": 0.02,

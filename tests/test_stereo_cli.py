@@ -159,8 +159,8 @@ def test_missing_right_frame(tmp_path):
 @pytest.mark.parametrize("args,fragment", [
     (["--num-disparities", "0"], "--num-disparities 0"),
     (["--num-disparities", "-16"], "--num-disparities -16"),
-    (["--window", "8"], "--window width 8"),
-    (["--window", "9x6"], "--window height 6"),
+    (["--window", "8"], "--window 8: the window width must be an odd"),
+    (["--window", "9x6"], "--window 6: the window height must be an odd"),
     (["--window", "401"], "wider than the image"),
     (["--window", "9x301"], "taller than the image"),
     (["--window", "nine"], "--window 'nine'"),

@@ -403,3 +403,17 @@ def test_pair_is_converted_to_grey_once(monkeypatch):
     grey = process_stereo_pair(left, right, rig)
     np.testing.assert_array_equal(res.disparity_px, grey.disparity_px)
     np.testing.assert_array_equal(res.obstacle_mask, grey.obstacle_mask)
+
+
+def test_pickled_geometry_stays_read_only():
+    # `--jobs` workers receive the geometry by pickle, which returns writable arrays;
+    # numba types a writable array apart from a read-only one, so a worker would compile
+    # a second signature of every kernel the set-up compiled ahead
+    import pickle
+
+    geo = StereoGeometry.for_rig(paper_rig())
+    back = pickle.loads(pickle.dumps(geo))
+    arrays = [v for v in vars(back).values() if isinstance(v, np.ndarray)]
+    assert len(arrays) >= 5
+    assert not any(a.flags.writeable for a in arrays)
+    np.testing.assert_array_equal(back.pixel_bin, geo.pixel_bin)

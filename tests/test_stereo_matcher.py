@@ -292,14 +292,14 @@ def test_opencv_matchers_behind_the_same_interface(matcher, seed):
 
 
 @pytest.mark.parametrize("kwargs,fragment", [
-    (dict(num_disparities=0), "--num-disparities 0"),
-    (dict(num_disparities=-5), "--num-disparities -5"),
-    (dict(window_w_px=8), "--window width 8"),
-    (dict(window_h_px=4), "--window height 4"),
+    (dict(num_disparities=0), "`num_disparities` 0"),
+    (dict(num_disparities=-5), "`num_disparities` -5"),
+    (dict(window_w_px=8), "`window_w_px` 8"),
+    (dict(window_h_px=4), "`window_h_px` 4"),
     (dict(matcher="bm", num_disparities=40), "multiple of 16"),
-    (dict(prefilter="median"), "--prefilter"),
-    (dict(boundary_ratio=1.5), "--boundary-ratio"),
-    (dict(support_side_min_zncc=2.0), "--support-side-min"),
+    (dict(prefilter="median"), "`prefilter`"),
+    (dict(boundary_ratio=1.5), "`boundary_ratio`"),
+    (dict(support_side_min_zncc=2.0), "`support_side_min_zncc`"),
     (dict(boundary_radius_px=0), "boundary_radius_px"),
 ])
 def test_impossible_parameters_are_one_line_errors(kwargs, fragment):

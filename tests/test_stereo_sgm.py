@@ -176,7 +176,7 @@ def test_sgm_parameters_are_checked():
         MatcherParams(aggregation="sgm", sgm_paths=6)
     with pytest.raises(SlitcliError, match="sgm_p1"):
         MatcherParams(aggregation="sgm", sgm_p1=0.5, sgm_p2=0.1)
-    with pytest.raises(SlitcliError, match="aggregation 'sgm'"):
+    with pytest.raises(SlitcliError, match="`aggregation` 'sgm'"):
         MatcherParams(matcher="bm", aggregation="sgm")
     with pytest.raises(SlitcliError, match="aggregation"):
         MatcherParams(aggregation="global")

@@ -33,19 +33,20 @@ class BoardSpec:
 
     def __post_init__(self) -> None:
         if self.cols < 3 or self.rows < 3:
-            raise SlitcliError(f"--board {self.cols}x{self.rows}: a board needs at least 3x3 "
-                               "inner corners; count the inner corners (where 4 squares meet)")
+            raise SlitcliError(f"`board` {self.cols}x{self.rows}: a board needs at least 3x3 "
+                               "inner corners; count the inner corners (where 4 squares meet)",
+                               param="board")
         if not self.square_m > 0:
-            raise SlitcliError(f"--square-m {self.square_m:g}: the square size must be a "
-                               "positive length in metres, e.g. 0.025")
+            raise SlitcliError(f"`square_m` {self.square_m:g}: the square size must be a "
+                               "positive length in metres, e.g. 0.025", param="square_m")
 
     @classmethod
     def parse(cls, text: str, square_m: float) -> BoardSpec:
         """``"9x6"`` -> BoardSpec(9, 6, square_m)."""
         m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
         if m is None:
-            raise SlitcliError(f"--board {text!r}: give the inner corner counts as COLSxROWS, "
-                               "e.g. 9x6")
+            raise SlitcliError(f"`board` {text!r}: give the inner corner counts as COLSxROWS, "
+                               "e.g. 9x6", param="board")
         return cls(int(m.group(1)), int(m.group(2)), float(square_m))
 
     @property

@@ -307,13 +307,14 @@ def import_opencv(paths: list[Path],
     if len(size) == 2:
         wh = _size(src, size["image_width"], size["image_height"])
         if image_size_px is not None and tuple(image_size_px) != wh:
-            raise SlitcliError(f"{src}: the file says {wh[0]}x{wh[1]} px but --image-size is "
-                               f"{image_size_px[0]}x{image_size_px[1]}; drop --image-size")
+            raise SlitcliError(f"{src}: the file says {wh[0]}x{wh[1]} px but `image_size_px` "
+                               f"is {image_size_px[0]}x{image_size_px[1]}; drop "
+                               "`image_size_px`", param="image_size_px")
     elif image_size_px is not None:
         wh = _size(src, *image_size_px)
     else:
-        raise SlitcliError(f"{paths[0]}: no image_width / image_height; give --image-size W,H "
-                           "(the raw image size in pixels)")
+        raise SlitcliError(f"{paths[0]}: no image_width / image_height; give `image_size_px` "
+                           "W,H (the raw image size in pixels)", param="image_size_px")
     for k in ("D1", "D2"):
         n = values[k].size
         if n not in (4, 5, 8):
@@ -361,7 +362,7 @@ def _kalibr_camera(path: Path, cam: Any, name: str,
         size = _size(path, *image_size_px)
     elif not isinstance(res, list) or len(res) != 2:
         raise SlitcliError(f"{path}: {name}.resolution must be [width, height] (or give "
-                           "--image-size W,H)")
+                           "`image_size_px` W,H)", param="image_size_px")
     else:
         size = _size(path, res[0], res[1])
     K = np.array([[intr[0], 0.0, intr[2]], [0.0, intr[1], intr[3]], [0.0, 0.0, 1.0]])
@@ -424,7 +425,7 @@ def detect_format(path: Path, text: str) -> str:
     if isinstance(data, dict) and ({"M1", "D1"} <= set(data) or {"R", "T"} <= set(data)):
         return "opencv"
     raise SlitcliError(f"{path}: not a ROS camera_info, OpenCV FileStorage or Kalibr camchain "
-                       "file; give one of those (or --format)")
+                       "file; give one of those (or `fmt`)", param="fmt")
 
 
 def import_raw(paths: list[str | Path], fmt: str = "auto", *,
@@ -455,7 +456,8 @@ def import_raw(paths: list[str | Path], fmt: str = "auto", *,
         if len(ps) != 1:
             raise SlitcliError(f"{ps[1]}: a Kalibr camchain is one file; give only it")
         return import_kalibr(ps[0], docs[0], image_size_px)
-    raise SlitcliError(f"--format {kind}: unknown; use one of {', '.join(FORMATS)}")
+    raise SlitcliError(f"`fmt` {kind}: unknown; use one of {', '.join(FORMATS)}",
+                       param="fmt")
 
 
 def run_rig_import(paths: list[str | Path], out_rig: str | Path, *, fmt: str = "auto",
@@ -522,7 +524,7 @@ def export_texts(rig: Rig, fmt: str) -> dict[str, str]:
                         "rostopic": f"/cam{i}/image_raw", "cam_overlaps": [1 - i]})
             cams[f"cam{i}"] = cam
         return {"camchain.yaml": yaml.safe_dump(cams, sort_keys=False, default_flow_style=None)}
-    raise SlitcliError(f"--format {fmt}: unknown; use one of {', '.join(FORMATS)}")
+    raise SlitcliError(f"`fmt` {fmt}: unknown; use one of {', '.join(FORMATS)}", param="fmt")
 
 
 def run_rig_export(rig_path: str | Path, fmt: str, out_dir: str | Path) -> list[Path]:

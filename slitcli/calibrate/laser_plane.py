@@ -268,7 +268,7 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
         if (img.shape[1], img.shape[0]) != tuple(want):
             raise SlitcliError(f"{source}/{name}: size {img.shape[1]}x{img.shape[0]} does not "
                                f"match the rig's {want[0]}x{want[1]}; use the rig of this "
-                               "camera (--rig)")
+                               "camera (`rig`)", param="rig")
         corners = find_corners(img, board)
         if corners is None:
             reports.append(LaserViewReport(name, False, f"no {board.cols}x{board.rows} board "
@@ -288,7 +288,8 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
     if not per_view:
         detail = "; ".join(f"{r.name}: {r.reason}" for r in reports[:3])
         raise SlitcliError(f"{source}: no view shows both the board and the laser stripe "
-                           f"({detail}); check --board and that the stripe crosses the board")
+                           f"({detail}); check `board` and that the stripe crosses the board",
+                           param="board")
     if len(per_view) < params.min_views:
         raise SlitcliError(f"{source}: only {len(per_view)} usable board pose(s); the laser "
                            f"plane needs at least {max(params.min_views, 2)} poses at different"

@@ -51,7 +51,7 @@ class ViewReport:
 
 
 PLACEHOLDER_NOTE = ("the rig's mount and laser plane are placeholders (the paper rig's, or "
-                    "--base's), not calibrated: run `slitcli calibrate laser` and "
+                    "`base_rig`'s), not calibrated: run `slitcli calibrate laser` and "
                     "`slitcli calibrate mount`, or set them with `slitcli rig set`")
 PLACEHOLDER_COMMENT = (
     "# mount and laser were NOT calibrated by `slitcli calibrate stereo`: they are\n"
@@ -204,8 +204,8 @@ def calibrate_stereo_images(names: list[str], left_bgr: list[np.ndarray],
     reports, used_idx, pts_l, pts_r = _board_views(names, left_bgr, right_bgr, board)
     if not used_idx:
         raise SlitcliError(f"{source}: no {board.cols}x{board.rows} chessboard found in any of "
-                           f"the {len(names)} views; check --board (inner corners, COLSxROWS) "
-                           "and that the whole board is in view")
+                           f"the {len(names)} views; check `board` (inner corners, COLSxROWS) "
+                           "and that the whole board is in view", param="board")
     if len(used_idx) < params.min_views:
         skipped = ", ".join(v.name for v in reports if not v.used)
         raise SlitcliError(f"{source}: only {len(used_idx)} of {len(names)} views show the "

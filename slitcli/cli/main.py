@@ -63,6 +63,17 @@ PARAM_FLAGS: dict[str, str] = {
     "cluster": "--cluster", "chunk_frames": "--chunk-frames", "inputs": "--inputs",
     "sources": "SEQ|BAG",
     "search": "--search", "max_search_range_m": "--max-search-range-m",
+    "mode": "--fusion", "fps": "--fps", "dpi": "--dpi", "save_images": "--save-images",
+    "frame_id": "--frame-id", "camera_frame_id": "--camera-frame-id",
+    "board": "--board", "square_m": "--square-m", "image_size_px": "--image-size",
+    "fmt": "--format", "source": "--source", "world_path": "WORLD",
+    "scenario": "--scenario", "start": "--start", "sensing": "--sensing",
+    "sensing_ranges_m": "--sensing-range", "worlds": "--worlds",
+    "max_time_s": "--max-time-s", "memory": "--memory", "safety_margin_m": "--safety-margin-m",
+    "stuck_timeout_s": "--stuck-timeout-s", "stuck_new_ground_m": "--stuck-new-ground-m",
+    "recovery_after_s": "--recovery-after-s", "recovery_back_m": "--recovery-back-m",
+    "min_disparity_px": "--min-disparity", "bin_width_deg": "--bin-deg", "base_rig": "--base",
+    "aggregation": "--aggregation",
 }
 
 

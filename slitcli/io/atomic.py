@@ -160,7 +160,7 @@ def _within(path: Path, folder: Path) -> bool:
 
 
 def check_output_file(out: str | Path, *, inputs: Iterable[str | Path] = (),
-                      overwrite: bool = False, flag: str = "--overwrite") -> Path:
+                      overwrite: bool = False) -> Path:
     """Refuse an output file that is one of the inputs, a folder, or exists without ``overwrite``.
 
     Paths are compared after resolving symbolic links and ``..``, so ``-o ./x.csv`` and a
@@ -176,8 +176,8 @@ def check_output_file(out: str | Path, *, inputs: Iterable[str | Path] = (),
     if p.is_dir():
         raise SlitcliError(f"{p}: is a folder; give a file name for the output")
     if p.exists() and not overwrite:
-        raise SlitcliError(f"{p}: already exists; pass {flag} to replace it or choose another "
-                           "output file")
+        raise SlitcliError(f"{p}: already exists; set `overwrite` to replace it or choose "
+                           "another output file", param="overwrite")
     sweep_temp(p.parent)
     return p
 
@@ -304,8 +304,8 @@ _OS_FIXES = {
     errno.EACCES: "check the permissions or write to another folder",
     errno.EPERM: "check the permissions or write to another folder",
     errno.ENAMETOOLONG: "use a shorter name",
-    errno.EMFILE: "too many open files; raise the limit (ulimit -n) or use fewer --jobs",
-    errno.ENOMEM: "not enough memory; use fewer --jobs or smaller inputs",
+    errno.EMFILE: "too many open files; raise the limit (ulimit -n) or use fewer jobs",
+    errno.ENOMEM: "not enough memory; use fewer jobs or smaller inputs",
     errno.EIO: "the device reported an I/O error; check the disk",
 }
 

@@ -71,12 +71,13 @@ class ReportParams:
 
     def __post_init__(self) -> None:
         if self.fps is not None and not (math.isfinite(self.fps) and 0.1 <= self.fps <= 120):
-            raise SlitcliError(f"--fps {self.fps} is out of range; give 0.1-120 frames/s")
+            raise SlitcliError(f"`fps` {self.fps} is out of range; give 0.1-120 frames/s",
+                               param="fps")
         if not (math.isfinite(self.period_s) and self.period_s > 0):
-            raise SlitcliError(f"--period-s {self.period_s} must be a positive number of "
-                               "seconds")
+            raise SlitcliError(f"`period_s` {self.period_s} must be a positive number of "
+                               "seconds", param="period_s")
         if not 20 <= self.dpi <= 600:
-            raise SlitcliError(f"--dpi {self.dpi} is out of range; give 20-600")
+            raise SlitcliError(f"`dpi` {self.dpi} is out of range; give 20-600", param="dpi")
 
 
 @dataclass(frozen=True)
@@ -287,7 +288,8 @@ def _previews(run: DetectRun, folder: Path) -> None:
         raw = cv2.imread(str(run.folder / sub / f"{name}.png"), cv2.IMREAD_UNCHANGED)
         if raw is None or raw.dtype != np.uint16 or raw.ndim != 2:
             raise SlitcliError(f"{run.folder / sub / name}.png: not a 16-bit image "
-                               "(docs/stereo.md); re-run `slitcli detect --save-images`")
+                               "(docs/stereo.md); re-run detect with `save_images` on",
+                               param="save_images")
         v = decode(raw.astype(np.float64))
         write_png_atomic(folder / f"preview_{sub}.png", preview(np.where(raw > 0, v, np.nan)))
 
@@ -299,8 +301,8 @@ def _stripes(run: DetectRun) -> dict[int, np.ndarray]:
     try:
         t = pd.read_csv(path, usecols=["frame", "u_px", "v_px"])
     except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
-        raise SlitcliError(f"{path}: not a laser table (docs/laser.md); re-run `slitcli "
-                           "detect --save-images`") from None
+        raise SlitcliError(f"{path}: not a laser table (docs/laser.md); re-run detect with "
+                           "`save_images` on", param="save_images") from None
     uv = t[["u_px", "v_px"]].to_numpy(dtype=np.float64)
     f = t["frame"].to_numpy()
     order = np.argsort(f, kind="stable")

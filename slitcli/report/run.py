@@ -256,10 +256,12 @@ def resolve_source(run: DetectRun, source: str | Path | None) -> Path:
     src = Path(source) if source is not None else run.recorded_source()
     if src is None:
         raise SlitcliError(f"{run.folder / MANIFEST}: does not record the input's path; "
-                           "give the sequence folder or bag the run was made from (--source)")
+                           "give the sequence folder or bag the run was made from (`source`)",
+                           param="source")
     if not src.exists():
         raise SlitcliError(f"{src}: the run's input is not there; give the sequence folder "
-                           "or bag the run was made from (--source)")
+                           "or bag the run was made from (`source`)",
+                           param="source")
     return src
 
 
@@ -273,7 +275,8 @@ def _open_source(run: DetectRun, src: Path):  # -> slitcli.io.frames.FrameSource
     _check_count(run, src, len(frames))
     if frames.manifest() != inp:
         raise SlitcliError(f"{src}: its images are not the ones the run was made from "
-                           "(other names or stamps); give the run's own input (--source)")
+                           "(other names or stamps); give the run's own input (`source`)",
+                           param="source")
     return frames
 
 
@@ -288,7 +291,8 @@ def _check_count(run: DetectRun, src: Path, n: int) -> None:
     recorded = run.manifest.get("input", {}).get("frames")
     if isinstance(recorded, int) and recorded != n:
         raise SlitcliError(f"{src}: holds {n} frames, the run was made from {recorded}; give "
-                           "the run's own input (--source)")
+                           "the run's own input (`source`)",
+                           param="source")
 
 
 def bag_stamps_ns(run: DetectRun, source: str | Path | None) -> np.ndarray | None:

@@ -110,7 +110,8 @@ def perfect_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
                    bin_deg: float = 1.0) -> PerfectSensor:
     """The ``perfect`` sensing mode for a scene seen through ``rig``'s field of view."""
     if not sensing_range_m > 0:
-        raise SlitcliError(f"--sensing-range {sensing_range_m:g} must be > 0 m")
+        raise SlitcliError(f"`sensing_range_m` {sensing_range_m:g} must be > 0 m",
+                           param="sensing_range_m")
     centres, lo, hi = rig.bearing_bins(bin_deg)
     outlines = footprints(scene, z_low_m=0.02, z_high_m=scene.robot.height_m)
     return PerfectSensor(outlines, centres, lo, hi, rig.mount.forward_m, float(sensing_range_m),
@@ -195,12 +196,12 @@ class SimParams:
         for name, ok in checks.items():
             value = getattr(self, name)
             if not ok or isinstance(value, bool) or not math.isfinite(value):
-                raise SlitcliError(f"simulation parameter {name} (--{name.replace('_', '-')}) "
-                                   f"= {value!r} is out of range; see slitcli simulate-dwa "
-                                   "--help")
+                raise SlitcliError(f"simulation parameter `{name}` = {value!r} is out of "
+                                   "range; see the SimParams documentation for its bounds",
+                                   param=name)
         if self.memory not in MEMORY_MODES:
-            raise SlitcliError(f"simulation parameter memory (--memory) = {self.memory!r} is "
-                               f"unknown; use one of {', '.join(MEMORY_MODES)}")
+            raise SlitcliError(f"simulation parameter `memory` = {self.memory!r} is "
+                               f"unknown; use one of {', '.join(MEMORY_MODES)}", param="memory")
 
     def world_model(self) -> WorldModelParams:
         """The planner's world-model settings."""
@@ -413,8 +414,8 @@ def run_cases(cases: Sequence[Case], rig: Rig, dwa: DwaParams, sim: SimParams, *
 
 def _sensor_factory(sensing: str) -> SensorFactory:
     if sensing not in SENSING_MODES:
-        raise SlitcliError(f"--sensing {sensing!r} is not available; use one of "
-                           f"{', '.join(SENSING_MODES)}")
+        raise SlitcliError(f"`sensing` {sensing!r} is not available; use one of "
+                           f"{', '.join(SENSING_MODES)}", param="sensing")
     return SENSING_MODES[sensing]
 
 
@@ -431,14 +432,17 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
     per random world (with ``_range_<r>m`` appended when several ranges are given).
     """
     if (world_path is None) == (scenario is None):
-        raise SlitcliError("simulate-dwa: give either a WORLD.yaml file or --scenario "
-                           "(paper or random), not both and not neither")
+        raise SlitcliError("simulate-dwa: give either a world file (`world_path`) or "
+                           "`scenario` (paper or random), not both and not neither",
+                           param=("world_path", "scenario"))
     if scenario is not None and (start is not None or goal_xy_m is not None):
-        raise SlitcliError("--start and --goal apply to a WORLD.yaml file, not to --scenario")
+        raise SlitcliError("`start` and `goal_xy_m` apply to a world file, not to `scenario`",
+                           param=("start", "goal_xy_m", "scenario"))
     ranges = list(sensing_ranges_m) if sensing_ranges_m else None
     for r in ranges or []:
         if not (r > 0 and math.isfinite(r)):
-            raise SlitcliError(f"--sensing-range {r:g} must be > 0 m")
+            raise SlitcliError(f"`sensing_ranges_m` {r:g} must be > 0 m",
+                               param="sensing_ranges_m")
 
     def tag(r: float) -> str:
         return f"range_{r:g}m"
@@ -448,7 +452,7 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
         return [Case(tag(r), w, r) for r in (ranges or PAPER_SENSING_RANGES_M)]
     if scenario == "random":
         if not 1 <= worlds <= MAX_WORLDS:
-            raise SlitcliError(f"--worlds {worlds} must be 1 to {MAX_WORLDS}")
+            raise SlitcliError(f"`worlds` {worlds} must be 1 to {MAX_WORLDS}", param="worlds")
         ranges = ranges or [3.0]
         out = []
         for s in range(seed, seed + worlds):
@@ -468,8 +472,8 @@ def build_cases(*, world_path: str | Path | None = None, scenario: str | None = 
                            for r in rs)
         return out
     if scenario is not None:
-        raise SlitcliError(f"--scenario {scenario!r} is unknown; use paper, random, hard or "
-                           "dynamic")
+        raise SlitcliError(f"`scenario` {scenario!r} is unknown; use paper, random, hard or "
+                           "dynamic", param="scenario")
     w = load_world(world_path, start=start, goal_xy_m=goal_xy_m)
     return [Case(tag(r), w, r) for r in (ranges or [3.0])]
 
@@ -488,12 +492,13 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
     """
     check_output_folder(out_dir, overwrite=overwrite, inputs=[world_path, *inputs])
     if not (0.05 <= bin_deg <= 10):
-        raise SlitcliError(f"--bin-deg {bin_deg:g} must be in [0.05, 10] degrees")
+        raise SlitcliError(f"`bin_deg` {bin_deg:g} must be in [0.05, 10] degrees",
+                           param="bin_deg")
     steps = sim.max_time_s / dwa.dt_s
     if steps > MAX_STEPS:
-        raise SlitcliError(f"--max-time-s {sim.max_time_s:g} / --dt-s {dwa.dt_s:g} = {steps:.3g} "
-                           f"control steps per run, more than {MAX_STEPS}; raise --dt-s or "
-                           "lower --max-time-s")
+        raise SlitcliError(f"`max_time_s` {sim.max_time_s:g} / `dt_s` {dwa.dt_s:g} = "
+                           f"{steps:.3g} control steps per run, more than {MAX_STEPS}; raise "
+                           "`dt_s` or lower `max_time_s`", param=("max_time_s", "dt_s"))
     cases = build_cases(world_path=world_path, scenario=scenario,
                         sensing_ranges_m=sensing_ranges_m, worlds=worlds, seed=seed,
                         start=start, goal_xy_m=goal_xy_m)
@@ -524,7 +529,8 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     Returns the metrics table.
     """
     if not cases:
-        raise SlitcliError("simulate-dwa: nothing to run; give a world file or --scenario")
+        raise SlitcliError("simulate-dwa: nothing to run; give a world file or `scenario`",
+                           param="scenario")
     _sensor_factory(sensing)
     metrics, trajs = run_cases(cases, rig, dwa, sim, sensing=sensing, bin_deg=bin_deg)
     worlds = {c.world.name: c.world for c in cases}

@@ -238,8 +238,9 @@ class Scene:
                                f"{MAX_FRAMES} frames")
         if r.motion == "poses":
             if frames is not None and frames > len(r.poses):
-                raise SlitcliError(f"scene '{self.name}': --frames {frames} exceeds the "
-                                   f"{len(r.poses)} poses listed; give at most that many")
+                raise SlitcliError(f"scene '{self.name}': `frames` {frames} exceeds the "
+                                   f"{len(r.poses)} poses listed; give at most that many",
+                                   param="frames")
             return list(r.poses[:n])
         if r.motion == "static":
             return [r.start] * n

@@ -64,8 +64,8 @@ def load_world(path: str | Path, *, start: tuple[float, float, float] | None = N
     from slitcli.io.yamlfile import read_yaml
 
     p = Path(path)
-    data = read_yaml(p, kind="world file", missing_hint="check the path or use --scenario "
-                     "paper")
+    data = read_yaml(p, kind="world file", missing_hint="check the path or use the paper "
+                     "scenario")
     return world_from_dict(data, str(p), start=start, goal_xy_m=goal_xy_m)
 
 
@@ -77,7 +77,7 @@ def check_world(scene: Scene, source: str) -> None:
     """
     if scene.goal_xy_m is None:
         raise SlitcliError(f"{source}: no goal; add 'goal_xy_m: [x, y]' to the world file or "
-                           "pass --goal X,Y")
+                           "give `goal_xy_m` X,Y", param="goal_xy_m")
     geom = obstacle_geometry(scene)
     s = scene.robot.start
     pts = np.array([[s.x_m, s.y_m], scene.goal_xy_m], dtype=float)
@@ -89,12 +89,13 @@ def check_world(scene: Scene, source: str) -> None:
         raise SlitcliError(
             f"{source}: the start ({s.x_m:g}, {s.y_m:g}) puts the robot (radius "
             f"{scene.robot.radius_m:g} m) in collision with objects[{i}]; move robot.start "
-            "(or --start) at least the robot radius away")
+            "(or `start`) at least the robot radius away", param="start")
     j = int(np.argmin(d[1]))
     if d[1, j] <= 0:
         g = scene.goal_xy_m
         raise SlitcliError(f"{source}: the goal ({g[0]:g}, {g[1]:g}) lies inside objects[{j}]; "
-                           "move goal_xy_m (or --goal) into free space")
+                           "move goal_xy_m (or `goal_xy_m`) into free space",
+                           param="goal_xy_m")
 
 
 # ------------------------------------------------------------------ paper scenario
@@ -120,7 +121,7 @@ def paper_world() -> World:
         "goal_xy_m": [6.0, 0.0],
         "max_range_m": 5.0,
     }
-    return world_from_dict(data, "--scenario paper")
+    return world_from_dict(data, "scenario paper")
 
 
 # ------------------------------------------------------------------ random worlds
@@ -239,7 +240,7 @@ def _world(name: str, objects: list[dict[str, Any]], goal: tuple[float, float],
             "robot": {"start": {"x_m": start[0], "y_m": start[1], "yaw_deg": start[2]},
                       "radius_m": 0.25, "height_m": 0.8},
             "goal_xy_m": [goal[0], goal[1]], "max_range_m": 5.0}
-    return world_from_dict(data, f"--scenario hard ({name})")
+    return world_from_dict(data, f"scenario hard ({name})")
 
 
 def _clutter(seed: int) -> list[dict[str, Any]]:

@@ -62,6 +62,15 @@ class StereoGeometry:
     floor_disparity_px: np.ndarray
     rectification: RectificationMaps | None
 
+    def __setstate__(self, state: dict) -> None:
+        # a pickled array comes back writable (``--jobs`` workers get the geometry by
+        # pickle); read-only again, so the compiled kernels see the one argument type
+        # that was compiled ahead (numba types a read-only array apart)
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        self.__dict__.update(state)
+
     @classmethod
     def for_rig(cls, rig: Rig, bin_width_deg: float = 1.0) -> StereoGeometry:
         """Compute the geometry of ``rig`` with bearing bins ``bin_width_deg`` wide.

@@ -140,20 +140,22 @@ class MatcherParams:
 def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) -> None:
     """Raise :class:`SlitcliError` naming the option for impossible parameters."""
     if p.matcher not in MATCHERS:
-        raise SlitcliError(f"--matcher {p.matcher!r} is unknown; use one of {', '.join(MATCHERS)}")
+        raise SlitcliError(f"`matcher` {p.matcher!r} is unknown; use one of "
+                           f"{', '.join(MATCHERS)}", param="matcher")
     if p.prefilter not in PREFILTERS:
-        raise SlitcliError(f"--prefilter {p.prefilter!r} is unknown; use one of "
-                           f"{', '.join(PREFILTERS)}")
+        raise SlitcliError(f"`prefilter` {p.prefilter!r} is unknown; use one of "
+                           f"{', '.join(PREFILTERS)}", param="prefilter")
     if p.aggregation not in AGGREGATIONS:
-        raise SlitcliError(f"aggregation {p.aggregation!r} is unknown; use one of "
-                           f"{', '.join(AGGREGATIONS)}")
+        raise SlitcliError(f"`aggregation` {p.aggregation!r} is unknown; use one of "
+                           f"{', '.join(AGGREGATIONS)}", param="aggregation")
     if p.aggregation == "sgm" and p.matcher != "nssd":
-        raise SlitcliError(f"aggregation 'sgm' aggregates the Eq. 10 cost of matcher "
-                           f"'nssd', not {p.matcher!r}; use matcher 'nssd' or aggregation "
-                           "'none'")
+        raise SlitcliError(f"`aggregation` 'sgm' aggregates the Eq. 10 cost of `matcher` "
+                           f"'nssd', not {p.matcher!r}; use `matcher` 'nssd' or "
+                           "`aggregation` 'none'", param=("aggregation", "matcher"))
     if p.aggregation == "sgm" and not 2 <= p.num_disparities <= 512:
-        raise SlitcliError(f"num_disparities {p.num_disparities}: aggregation 'sgm' needs at "
-                           "least 2 disparities and searches at most 512")
+        raise SlitcliError(f"`num_disparities` {p.num_disparities}: `aggregation` 'sgm' needs "
+                           "at least 2 disparities and searches at most 512",
+                           param=("num_disparities", "aggregation"))
     if p.sgm_paths not in (4, 8):
         raise SlitcliError(f"sgm_paths {p.sgm_paths} must be 4 or 8")
     if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
@@ -166,56 +168,73 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
                            "(0 = a constant sgm_p2)")
     if p.subpixel not in SUBPIXEL:
-        raise SlitcliError(f"--subpixel {p.subpixel!r} is unknown; use one of "
-                           f"{', '.join(SUBPIXEL)}")
+        raise SlitcliError(f"`subpixel` {p.subpixel!r} is unknown; use one of "
+                           f"{', '.join(SUBPIXEL)}", param="subpixel")
     if not isinstance(p.num_disparities, int | np.integer) or p.num_disparities <= 0:
-        raise SlitcliError(f"--num-disparities {p.num_disparities} must be a positive whole "
-                           "number of pixels (e.g. 48)")
-    for name, w in (("width", p.window_w_px), ("height", p.window_h_px)):
+        raise SlitcliError(f"`num_disparities` {p.num_disparities} must be a positive whole "
+                           "number of pixels (e.g. 48)", param="num_disparities")
+    for name, dim, w in (("window_w_px", "width", p.window_w_px),
+                         ("window_h_px", "height", p.window_h_px)):
         if not isinstance(w, int | np.integer) or w < 1 or w % 2 == 0:
-            raise SlitcliError(f"--window {name} {w} must be an odd number of pixels >= 1 "
-                               "(2m+1 of Eq. 10), e.g. --window 9 or --window 9x7")
+            raise SlitcliError(f"`{name}` {w}: the window {dim} must be an odd number of "
+                               "pixels >= 1 (2m+1 of Eq. 10), e.g. 9", param=name)
     if p.prefilter_size_px < 3 or p.prefilter_size_px % 2 == 0:
-        raise SlitcliError(f"--prefilter-size {p.prefilter_size_px} must be odd and >= 3")
+        raise SlitcliError(f"`prefilter_size_px` {p.prefilter_size_px} must be odd and >= 3",
+                           param="prefilter_size_px")
     if not p.prefilter_cap_dn > 0:
-        raise SlitcliError(f"--prefilter-cap {p.prefilter_cap_dn} must be > 0 DN")
+        raise SlitcliError(f"`prefilter_cap_dn` {p.prefilter_cap_dn} must be > 0 DN",
+                           param="prefilter_cap_dn")
     if not p.log_sigma_px > 0:
         raise SlitcliError(f"log_sigma_px {p.log_sigma_px} must be > 0 px")
     if not p.texture_min_dn >= 0:
-        raise SlitcliError(f"--texture-min {p.texture_min_dn} must be >= 0 DN (0 = off)")
+        raise SlitcliError(f"`texture_min_dn` {p.texture_min_dn} must be >= 0 DN (0 = off)",
+                           param="texture_min_dn")
     if not p.uniqueness_ratio >= 0:
-        raise SlitcliError(f"--uniqueness {p.uniqueness_ratio} must be >= 0 (0 = off)")
+        raise SlitcliError(f"`uniqueness_ratio` {p.uniqueness_ratio} must be >= 0 (0 = off)",
+                           param="uniqueness_ratio")
     if p.support_radius_px < 1 or not -1.0 <= p.support_min_zncc <= 1.0 or \
             not -1.0 <= p.support_side_min_zncc <= 1.0 or \
             not -1.0 <= p.support_cross_min_zncc <= 1.0 or \
             not -1.0 <= p.support_strong_zncc <= 1.0:
-        raise SlitcliError("--support-radius must be >= 1 px and --support-min, "
-                           "--support-side-min, --support-cross-min in [-1, 1] (0 = off)")
+        raise SlitcliError("`support_radius_px` must be >= 1 px and `support_min_zncc`, "
+                           "`support_side_min_zncc`, `support_cross_min_zncc`, "
+                           "`support_strong_zncc` in [-1, 1] (0 = off)",
+                           param=("support_radius_px", "support_min_zncc",
+                                  "support_side_min_zncc", "support_cross_min_zncc",
+                                  "support_strong_zncc"))
     if not 0 <= p.boundary_ratio < 1:
-        raise SlitcliError(f"--boundary-ratio {p.boundary_ratio} must be in [0, 1) (0 = off)")
+        raise SlitcliError(f"`boundary_ratio` {p.boundary_ratio} must be in [0, 1) (0 = off)",
+                           param="boundary_ratio")
     if not p.boundary_step_px > 0 or not p.boundary_noise_dn >= 0 or p.boundary_radius_px < 1:
         raise SlitcliError("boundary_step_px must be > 0 px, boundary_noise_dn >= 0 DN and "
                            "boundary_radius_px >= 1 px")
     if p.speckle_window_px < 0 or not p.speckle_range_px >= 0:
-        raise SlitcliError("--speckle-window and --speckle-range must be >= 0 (0 = off)")
+        raise SlitcliError("`speckle_window_px` and `speckle_range_px` must be >= 0 (0 = off)",
+                           param=("speckle_window_px", "speckle_range_px"))
     if p.matcher in ("bm", "sgbm"):
         if p.num_disparities % 16:
-            raise SlitcliError(f"--num-disparities {p.num_disparities} must be a multiple of "
-                               f"16 for --matcher {p.matcher} (OpenCV); e.g. 48 or 64")
+            raise SlitcliError(f"`num_disparities` {p.num_disparities} must be a multiple of "
+                               f"16 for `matcher` {p.matcher} (OpenCV); e.g. 48 or 64",
+                               param=("num_disparities", "matcher"))
         if p.window_w_px != p.window_h_px:
-            raise SlitcliError(f"--window {p.window_w_px}x{p.window_h_px}: --matcher "
-                               f"{p.matcher} needs a square window; give one number")
+            raise SlitcliError(f"`window_w_px` {p.window_w_px} and `window_h_px` "
+                               f"{p.window_h_px}: `matcher` {p.matcher} needs a square "
+                               "window; make them equal",
+                               param=("window_w_px", "window_h_px", "matcher"))
         if p.matcher == "bm" and not 5 <= p.window_w_px <= 255:
-            raise SlitcliError(f"--window {p.window_w_px}: --matcher bm needs 5..255 px")
+            raise SlitcliError(f"`window_w_px` {p.window_w_px}: `matcher` bm needs 5..255 px",
+                               param=("window_w_px", "matcher"))
     if image_width_px is not None:
         if p.window_w_px > image_width_px:
-            raise SlitcliError(f"--window width {p.window_w_px} is wider than the image "
-                               f"({image_width_px} px); use a smaller odd window")
+            raise SlitcliError(f"`window_w_px` {p.window_w_px} is wider than the image "
+                               f"({image_width_px} px); use a smaller odd window",
+                               param="window_w_px")
         if p.min_disparity_px + p.num_disparities > image_width_px or \
                 p.min_disparity_px <= -image_width_px:
-            raise SlitcliError(f"--num-disparities {p.num_disparities} (from "
-                               f"{p.min_disparity_px} px) exceeds the image width "
-                               f"{image_width_px} px; use fewer disparities")
+            raise SlitcliError(f"`num_disparities` {p.num_disparities} (from "
+                               f"`min_disparity_px` {p.min_disparity_px} px) exceeds the "
+                               f"image width {image_width_px} px; use fewer disparities",
+                               param=("num_disparities", "min_disparity_px"))
 
 
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -335,8 +354,9 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
                            "pair of the same size")
     check_matcher_params(p, image_width_px=lg.shape[1])
     if p.window_h_px > lg.shape[0]:
-        raise SlitcliError(f"--window height {p.window_h_px} is taller than the image "
-                           f"({lg.shape[0]} px); use a smaller odd window")
+        raise SlitcliError(f"`window_h_px` {p.window_h_px} is taller than the image "
+                           f"({lg.shape[0]} px); use a smaller odd window",
+                           param="window_h_px")
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 

@@ -77,21 +77,26 @@ class ObstacleParams:
 
     def __post_init__(self) -> None:
         if not self.floor_margin_m >= 0 or not self.disparity_sigma_px >= 0:
-            raise SlitcliError("--floor-margin and the disparity sigma must be >= 0")
+            raise SlitcliError("`floor_margin_m` and `disparity_sigma_px` must be >= 0",
+                               param=("floor_margin_m", "disparity_sigma_px"))
         if not self.robot_height_m > self.floor_margin_m:
-            raise SlitcliError(f"--robot-height {self.robot_height_m} m must be above the "
-                               f"floor margin {self.floor_margin_m} m")
+            raise SlitcliError(f"`robot_height_m` {self.robot_height_m} m must be above "
+                               f"`floor_margin_m` {self.floor_margin_m} m",
+                               param=("robot_height_m", "floor_margin_m"))
         if self.max_range_m is not None and not self.max_range_m > 0:
-            raise SlitcliError(f"--max-range {self.max_range_m} must be > 0 m")
+            raise SlitcliError(f"`max_range_m` {self.max_range_m} must be > 0 m",
+                               param="max_range_m")
         if not 0 < self.bin_width_deg <= 45:
-            raise SlitcliError(f"--bin-width {self.bin_width_deg} must be in (0, 45] deg")
+            raise SlitcliError(f"`bin_width_deg` {self.bin_width_deg} must be in (0, 45] deg",
+                               param="bin_width_deg")
         if not 0 <= self.range_percentile <= 100:
-            raise SlitcliError(f"--range-percentile {self.range_percentile} must be in "
-                               "[0, 100]")
+            raise SlitcliError(f"`range_percentile` {self.range_percentile} must be in "
+                               "[0, 100]", param="range_percentile")
         if not self.surface_gap_px >= 0:
             raise SlitcliError(f"the surface gap {self.surface_gap_px} px must be >= 0")
         if self.min_obstacle_px < 1 or self.min_feature_px < 1:
-            raise SlitcliError("--min-obstacle-px and --min-feature-px must be >= 1")
+            raise SlitcliError("`min_obstacle_px` and `min_feature_px` must be >= 1",
+                               param=("min_obstacle_px", "min_feature_px"))
         if (self.silhouette_reach_px < 0 or not self.silhouette_step_dn >= 0
                 or not self.silhouette_same_px >= 0):
             raise SlitcliError("the silhouette reach (px), step (DN) and same-surface "
@@ -401,8 +406,9 @@ def bins_check(rig: Rig, params: ObstacleParams) -> None:
     """Raise if the field of view holds no whole bearing bin."""
     if len(BearingBins.for_rig(rig, params.bin_width_deg)) == 0:
         hfov = rig.fov_deg()[0]
-        raise SlitcliError(f"--bin-width {params.bin_width_deg} deg leaves no bearing bin in "
-                           f"the {hfov:.1f} deg field of view; use narrower bins")
+        raise SlitcliError(f"`bin_width_deg` {params.bin_width_deg} deg leaves no bearing bin "
+                           f"in the {hfov:.1f} deg field of view; use narrower bins",
+                           param="bin_width_deg")
 
 
 __all__ = [

@@ -74,8 +74,9 @@ def check_stereo_params(rig: Rig, params: StereoParams) -> None:
 
     check_matcher_params(params.matcher, image_width_px=rig.width_px)
     if params.matcher.window_h_px > rig.height_px:
-        raise SlitcliError(f"--window height {params.matcher.window_h_px} is taller than the "
-                           f"image ({rig.height_px} px); use a smaller odd window")
+        raise SlitcliError(f"`window_h_px` {params.matcher.window_h_px} is taller than the "
+                           f"image ({rig.height_px} px); use a smaller odd window",
+                           param="window_h_px")
     bins_check(rig, params.obstacles)
 
 
