@@ -465,3 +465,102 @@ def smooth_rows(v: np.ndarray, se: np.ndarray, width: np.ndarray, keep: np.ndarr
             continue
         num = t0 * (s2 * s4 - s3 * s3) - s1 * (t1 * s4 - s3 * t2) + s2 * (t1 * s3 - s2 * t2)
         out[u] = v[u] + num / det
+
+
+#: the light an averaged fit gives a column must show in the column's own evidence: it
+#: may fall short of it by at most this many standard errors of the own estimate
+#: (one-sided; a column inside a stripe falls short by more 0.13 % of the time)
+OWN_Z = 3.0
+
+
+@njit(cache=True, nogil=True)
+def _own_amplitude(yi: np.ndarray, ui: np.ndarray, pos: float, s: float, amp: float,
+                   sigma: float, shape_error: float) -> tuple[float, float]:  # pragma: no cover
+    """Peak of a Gaussian at row ``pos`` of width ``s`` in one column's own evidence
+    ``yi`` (rows where ``ui``), on a straight background, by weighted least squares
+    (row variance ``sigma^2 + (shape_error amp g)^2`` as the profile fit's); returns the
+    peak and its standard error (NaN, NaN with too few rows)."""
+    n = yi.shape[0]
+    w_half = math.ceil(3.0 * s + 3.0)
+    c = int(math.floor(pos + 0.5))
+    h = np.zeros((3, 3))
+    b = np.zeros(3)
+    m = 0
+    for j in range(max(c - w_half, 0), min(c + w_half + 1, n)):
+        if not ui[j]:
+            continue
+        d = j - pos
+        g = math.exp(-0.5 * d * d / (s * s))
+        var = sigma * sigma + (shape_error * amp * g) ** 2
+        x = (1.0, d, g)
+        for p in range(3):
+            b[p] += x[p] * yi[j] / var
+            for q in range(3):
+                h[p, q] += x[p] * x[q] / var
+        m += 1
+    if m < 6:
+        return np.nan, np.nan
+    # 3x3 inverse by cofactors (the peak's row of it)
+    c00 = h[1, 1] * h[2, 2] - h[1, 2] * h[2, 1]
+    c01 = h[1, 2] * h[2, 0] - h[1, 0] * h[2, 2]
+    c02 = h[1, 0] * h[2, 1] - h[1, 1] * h[2, 0]
+    det = h[0, 0] * c00 + h[0, 1] * c01 + h[0, 2] * c02
+    if not abs(det) > 1e-300:
+        return np.nan, np.nan
+    i20 = (h[0, 1] * h[1, 2] - h[0, 2] * h[1, 1]) / det
+    i21 = (h[0, 2] * h[1, 0] - h[0, 0] * h[1, 2]) / det
+    i22 = (h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]) / det
+    a = i20 * b[0] + i21 * b[1] + i22 * b[2]
+    return a, math.sqrt(max(i22, 0.0))
+
+
+@njit(cache=True, nogil=True)
+def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
+              cols: np.ndarray, rows: np.ndarray, widths: np.ndarray, sigma_y: float,
+              shape_error: float, z: float, ok: np.ndarray) -> None:  # pragma: no cover
+    """Whether the light the averaged evidence shows at each crossing is its column's own
+    (``ok`` (N,): False where not).
+
+    The evidence averaged along the stripe (weights 1, 4, 6, 4, 1 over five columns)
+    stands for a column only where the stripe runs on across them: one column past a
+    stripe's end the average still holds 5/16 of the neighbours' light, though the
+    column has none. So the peak of a Gaussian at the crossing (column ``cols[k]``, row
+    ``rows[k]`` of ``y`` (W, H'), width ``widths[k]``) in the averaged evidence
+    ``y_avg`` must show in the column's own evidence ``y``: the own peak
+    (:func:`_own_amplitude`, noise ``sigma_y``) may fall short of it by at most ``z``
+    standard errors (``OWN_Z``). Inside a stripe the two agree within the noise; at a
+    partly covered end column, whose own light is its coverage's share, the average's
+    missing outward columns lower it by about as much.
+    """
+    for k in range(cols.shape[0]):
+        ok[k] = True
+        i = cols[k]
+        pos = rows[k]
+        if not np.isfinite(pos):
+            continue
+        ui = mask[i] & ~clipped[i]
+        s = max(widths[k], MIN_SIGMA_PX)
+        a_avg, _ = _own_amplitude(y_avg[i], ui, pos, s, 0.0, 1.0, 0.0)
+        if not a_avg > 0.0:
+            continue
+        a, se = _own_amplitude(y[i], ui, pos, s, a_avg, sigma_y, shape_error)
+        if np.isfinite(a) and a_avg - a > z * se:
+            ok[k] = False
+
+
+def own_light_candidates(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
+                         clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
+                         shape_error: float) -> np.ndarray:
+    """:func:`own_light` of every candidate (W, K) fitted on the averaged evidence (rows
+    of ``cand`` from the image's top, of ``y`` from ``row0``); True where it holds and
+    for the others (a fit of the column's own evidence, whose noise ``sigma_y`` its
+    ``F_GNOISE`` holds, measured the column's own light; a clipped core is its own)."""
+    w, k = cand.shape[:2]
+    cols = np.repeat(np.arange(w, dtype=np.int64), k)
+    averaged = (cand[..., F_SAT] == 0) & (cand[..., F_GNOISE] != sigma_y)
+    rows = np.where(averaged, cand[..., F_POS] - row0, np.nan).ravel()
+    ok = np.empty(w * k, np.bool_)
+    own_light(y, y_avg, clipped, mask, cols, rows, np.nan_to_num(cand[..., F_WIDTH].ravel(),
+                                                                   nan=1.0),
+              sigma_y, shape_error, OWN_Z, ok)
+    return ok.reshape(w, k)

@@ -202,6 +202,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w))
     ok &= choose.surface_continues(cand, img_t, r0, float(np.median(chan)))
+    ok &= choose.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
+                                      params.shape_error)
     v = np.empty(w)
     amp = np.empty(w)
     sat = np.empty(w, bool)
@@ -210,12 +212,13 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          STRONG_SHARE * params.min_z,
                          round(params.min_stripe_share * int(mask.any(axis=0).sum())),
                          choose.CHOICE_ROUNDS, v, amp, sat)
-    _fill_gaps(v, amp, cand, y_avg, clipped, mask_t, sigma_avg, r0, params, s_max)
+    _fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, sigma_y, sigma_avg, r0, params, s_max)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)
 
 
-def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y_avg: np.ndarray,
-               clipped: np.ndarray, mask_t: np.ndarray, sigma_avg: float, r0: int,
+def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
+               y_avg: np.ndarray, clipped: np.ndarray, mask_t: np.ndarray, sigma_y: float,
+               sigma_avg: float, r0: int,
                params: LaserParams, s_max: float) -> None:
     """Columns without a stripe between two found ones at most ``choose.MAX_GAP + 1``
     apart whose rows link: the stripe passes there, so the averaged evidence is fitted
@@ -241,6 +244,9 @@ def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y_avg: np.ndarr
     out = np.empty(cols.size)
     candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
                         sigma_avg, GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, out)
-    ok = np.isfinite(out)
+    own = np.empty(cols.size, bool)
+    choose.own_light(y, y_avg, clipped, mask_t, cols.astype(np.int64), out, widths, sigma_y,
+                     params.shape_error, choose.OWN_Z, own)  # the gap column's own light, as a candidate's
+    ok = np.isfinite(out) & own
     v[cols[ok]] = out[ok] + r0
     amp[cols[ok]] = np.nan_to_num(amp[left[ok]])
