@@ -134,7 +134,9 @@ def test_no_import_cycle_even_through_deferred_imports():
 
 @pytest.mark.parametrize("module", ["slitcli/ranges.py", "slitcli/detect.py",
                                     "slitcli/evaluate.py", "slitcli/io/frames.py",
-                                    "slitcli/laser/frame.py", "slitcli/laser/batch.py",
+                                    "slitcli/laser/frame.py", "slitcli/laser/geometry.py",
+                                    "slitcli/laser/edges.py", "slitcli/laser/bins.py",
+                                    "slitcli/laser/batch.py",
                                     "slitcli/sim/truth.py", "slitcli/__init__.py"])
 def test_no_module_level_cache(module):
     """No lru_cache / cache decorators in the plumbing: per-rig state lives in objects

@@ -18,10 +18,10 @@ _WHERE = {
     "StripeColumns": "extract", "chromaticity": "extract", "extract_stripe": "extract",
     "StripeAbsence": "diagnose", "absence_notes": "diagnose", "is_grey": "diagnose",
     "stripe_absence": "diagnose",
-    "LaserBins": "frame", "LaserFrame": "frame", "LaserGeometry": "frame",
-    "bearing_bin_centres_deg": "frame", "bin_boundary_points": "frame",
-    "detect_laser": "frame", "laser_sight_range_m": "frame",
-    "nearest_range_per_bin": "frame", "triangulate_stripe": "frame",
+    "LaserBins": "bins", "LaserFrame": "frame", "LaserGeometry": "geometry",
+    "bearing_bin_centres_deg": "bins", "bin_boundary_points": "bins",
+    "detect_laser": "frame", "laser_sight_range_m": "geometry",
+    "nearest_range_per_bin": "bins", "triangulate_stripe": "geometry",
     "draw_overlay": "overlay", "LaserParams": "params",
 }
 _SUBMODULES = ("candidates", "choose", "evidence", "paper", "profile")

@@ -482,7 +482,7 @@ def _own_amplitude(yi: np.ndarray, ui: np.ndarray, pos: float, s: float, amp: fl
     peak and its standard error (NaN, NaN with too few rows)."""
     n = yi.shape[0]
     w_half = math.ceil(3.0 * s + 3.0)
-    c = int(math.floor(pos + 0.5))
+    c = math.floor(pos + 0.5)
     h = np.zeros((3, 3))
     b = np.zeros(3)
     m = 0

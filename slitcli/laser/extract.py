@@ -244,9 +244,9 @@ def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
     out = np.empty(cols.size)
     candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
                         sigma_avg, GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, out)
-    own = np.empty(cols.size, bool)
+    own = np.empty(cols.size, bool)  # the gap column's own light, as a candidate's
     choose.own_light(y, y_avg, clipped, mask_t, cols.astype(np.int64), out, widths, sigma_y,
-                     params.shape_error, choose.OWN_Z, own)  # the gap column's own light, as a candidate's
+                     params.shape_error, choose.OWN_Z, own)
     ok = np.isfinite(out) & own
     v[cols[ok]] = out[ok] + r0
     amp[cols[ok]] = np.nan_to_num(amp[left[ok]])
