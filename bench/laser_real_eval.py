@@ -226,6 +226,8 @@ ABLATIONS = {
     "no laser-colour test (colour_error 0.99)": {"colour_error": 0.99},
     "no frame width test (WIDTH_SPREAD inf)": {"WIDTH_SPREAD": float("inf")},
     "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
+    "no own-light test (OWN_Z inf)": {"OWN_Z": float("inf")},
+    "no laser-share test (LASER_SHARE_Z 0)": {"LASER_SHARE_Z": 0.0},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "paper method": {"method": "paper"},
 }

@@ -160,7 +160,39 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
             lim = COLOUR_SIGMAS * channel_sigma_dn / np.sqrt(n) + \
                 colour_error * np.linalg.norm(t, axis=-1)
             ok &= ~has_core | (q <= lim)
+            if LASER_SHARE_Z > 0:
+                ok &= ~has_core | sat | laser_share(cand, laser, channel_sigma_dn)
     return ok, laser
+
+
+#: significance of the laser's share of a candidate's light (see :func:`laser_share`)
+LASER_SHARE_Z = 3.0
+
+
+def laser_share(cand: np.ndarray, laser_rgb: np.ndarray, channel_sigma_dn: float) -> np.ndarray:
+    """Whether the light each candidate (W, K) adds shows the laser's colour where the
+    colours can tell it from the surface's (True: it does, or they cannot).
+
+    The core contrast ``t`` is the laser's light ``a L`` plus a change of the surface's
+    own colour ``b K`` (texture, shading). Only the part of ``L`` across ``K``, the unit
+    vector ``e``, tells them apart: ``t . e`` is ``a`` times ``L . e`` plus noise of
+    ``channel_sigma_dn / sqrt(n)`` (``n`` core rows). Where all of ``t`` being laser
+    light would show across ``K`` by at least twice ``LASER_SHARE_Z`` noise sigmas but
+    ``t . e`` stays below ``LASER_SHARE_Z`` sigmas, the light is the surface's own (a
+    brighter patch of its texture next to a faint stripe's end). On a surface of the
+    laser's colour ``L . e`` is near zero and the test does not judge."""
+    t = cand[..., [F_TR, F_TG, F_TB]]
+    k = cand[..., [F_KR, F_KG, F_KB]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        kn = k / np.linalg.norm(k, axis=-1, keepdims=True)
+        e = laser_rgb - (kn @ laser_rgb)[..., None] * kn
+        e_norm = np.linalg.norm(e, axis=-1)
+        e = e / e_norm[..., None]
+        lu = laser_rgb / np.linalg.norm(laser_rgb)
+        power = np.linalg.norm(t, axis=-1) * (e @ lu)  # t . e if t were all laser light
+        se = channel_sigma_dn / np.sqrt(np.maximum(cand[..., F_NCORE], 1.0))
+        across = np.sum(t * e, axis=-1)
+        return ~((power >= 2.0 * LASER_SHARE_Z * se) & (across < LASER_SHARE_Z * se))
 
 
 def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
