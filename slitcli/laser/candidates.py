@@ -47,6 +47,7 @@ from slitcli.laser.profile import (
     WORK_ROWS,
     fit_gaussian,
     flat_top,
+    gaussian_rows,
     plateau_centre,
 )
 
@@ -54,6 +55,11 @@ NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
 FLANK_ROWS = 2  # rows beyond a clipped run that must show laser light
 NOISE_HALF = 24  # rows either side whose evidence gives a candidate's local noise
 N_SEEDS = 5  # seeds fitted per column, at most
+SEED_MIN_SIGMA_PX = 0.6  # narrowest width a seed starts its fit with
+#: share of a Gaussian's matched-filter significance left when the filter sits half a
+#: row off its centre (a seed is a whole row) at the narrowest seed width: the
+#: normalised correlation of two Gaussians of width s offset by d, exp(-d^2 / (4 s^2))
+SEED_EFFICIENCY = math.exp(-0.25 / (4.0 * SEED_MIN_SIGMA_PX ** 2))
 #: mean absolute deviation of a Gaussian is sqrt(2 / pi) sigma; the lag-2 residual's
 #: sigma is sqrt(1.5) sigma
 MEAN_TO_SIGMA = math.sqrt(math.pi / 2.0) / math.sqrt(1.5)
@@ -81,6 +87,48 @@ def _local_sigma(yi: np.ndarray, mi: np.ndarray, c: float, core: float,
     if m < 8:
         return 0.0
     return MEAN_TO_SIGMA * acc / m
+
+
+@njit(cache=True, nogil=True)
+def _linear_z(y: np.ndarray, use: np.ndarray, j0: int, v: float, s: float,
+              sigma: float, e: np.ndarray) -> float:  # pragma: no cover
+    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
+    background over the used rows of ``y`` (rows ``j0 ..``): the linear least-squares
+    amplitude over its standard error, ``e_perp . y / (sigma |e_perp|)`` with
+    ``e_perp`` the Gaussian's part that the line does not explain (the matched
+    filter's output against the noise); 0 with fewer than six rows. ``e`` (rows,)
+    scratch."""
+    m = y.shape[0]
+    gaussian_rows(j0, v, s, e[:m])
+    n = s2 = se = sd = sdd = sde = sy = sdy = sey = 0.0
+    for jj in range(m):
+        w = 1.0 if use[jj] else 0.0
+        d = j0 + jj - v
+        ej = e[jj] * w
+        yj = y[jj] * w
+        n += w
+        sd += d * w
+        sdd += d * d * w
+        se += ej
+        sde += d * ej
+        s2 += ej * e[jj]
+        sy += yj
+        sdy += d * yj
+        sey += ej * y[jj]
+    if n < 6.0:
+        return 0.0
+    # the line's normal equations (n, sd; sd, sdd) give the projections of the
+    # Gaussian onto the line, which leave e_perp . e_perp and e_perp . y
+    det = n * sdd - sd * sd
+    if not det > 0.0:
+        return 0.0
+    ae = (sdd * se - sd * sde) / det
+    be = (n * sde - sd * se) / det
+    ee = s2 - (ae * se + be * sde)
+    ey = sey - (ae * sy + be * sdy)
+    if not ee > 1e-12 * s2:
+        return 0.0
+    return ey / (sigma * math.sqrt(ee))
 
 
 @njit(cache=True, nogil=True)
@@ -192,7 +240,7 @@ def _seeds(img: np.ndarray, bg: np.ndarray, i: int, yi: np.ndarray, ci: np.ndarr
 def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
                       clipped: np.ndarray, mask: np.ndarray, sigma_y: float,
                       sigma_avg: float, seed_dn: float, strong_z: float, sat_dn: int,
-                      s_max: float, shape_error: float, max_chi2: float,
+                      s_max: float, shape_error: float, max_chi2: float, weak_z: float,
                       out: np.ndarray) -> None:  # pragma: no cover
     """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
 
@@ -207,12 +255,20 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
     ``F_*`` (``F_T*`` the mean contrast of the core rows, ``F_K*`` the surface colour
     there, RGB). Where the Gaussian's reduced chi-square exceeds ``max_chi2`` a flat top
     is tried (:func:`~.profile.flat_top`; ``F_FLAT`` 1).
+
+    An unclipped seed is fitted on either evidence only where a Gaussian of its own
+    row and width is ``SEED_EFFICIENCY x weak_z`` significant there (:func:`_linear_z`,
+    against the fit's noise): a candidate less than ``weak_z`` significant is never
+    chosen, and a seed half a row off the centre keeps ``SEED_EFFICIENCY`` of the
+    significance; a seed that fails takes no candidate slot (two thirds of the
+    Gauss-Newton fits were of seeds that ended below ``weak_z``, or failed).
     """
     n_cols, n = y.shape
     k_best = out.shape[1]
     out[:] = np.nan
     # a clipped core spans more than the stripe's width: 2 s sqrt(2 ln(peak / clip))
     max_run = math.ceil(5.0 * s_max)
+    screen_z = SEED_EFFICIENCY * weak_z
     rank = np.empty(N_SEEDS)
     noise = np.empty(N_SEEDS)
     centre = np.empty(N_SEEDS)
@@ -248,7 +304,7 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                 hi = a
                 while hi < n - 1 and ya[hi + 1] >= half and mi[hi + 1]:
                     hi += 1
-                s0 = max((hi - lo + 1) / 2.355, 0.6)
+                s0 = max((hi - lo + 1) / 2.355, SEED_MIN_SIGMA_PX)
             s0 = min(s0, s_max)
             w_half = math.ceil(3.0 * s0 + 3.0) + (b - a) // 2
             j0 = max(int(centre[q]) - w_half, 0)
@@ -259,9 +315,11 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
             core = 3.0 * s0 + 0.5 * (b - a)
             sig = max(sigma_y, _local_sigma(yi, mi, centre[q], core, CLIP_SIGMAS * 1.2 * sigma_y))
             gsig = sigma_y
-            ok = fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig, shape_error,
-                              s_max, res, work, ebuf)
-            if not sat and (not ok or res[3] < strong_z):
+            ok = (sat or _linear_z(yi[j0:j1], use[:m], j0, centre[q], s0, sig, ebuf)
+                  >= screen_z) and fit_gaussian(yi[j0:j1], use[:m], j0, centre[q], s0, sig,
+                                                shape_error, s_max, res, work, ebuf)
+            if not sat and (not ok or res[3] < strong_z) and \
+                    _linear_z(ya[j0:j1], use[:m], j0, centre[q], s0, noise[q], ebuf) >= screen_z:
                 if fit_gaussian(ya[j0:j1], use[:m], j0, centre[q], s0, noise[q], shape_error,
                                 s_max, res_avg, work, ebuf) and (not ok or res_avg[3] > res[3]):
                     res[:] = res_avg

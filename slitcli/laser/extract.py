@@ -188,7 +188,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     candidates.column_candidates(img_t, bg_t, y, y_avg, clipped, mask_t, sigma_y, sigma_avg,
                                  seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
-                                 params.max_chi2, cand)
+                                 params.max_chi2, params.weak_z, cand)
     cand[..., 0] += r0
     sheet_px = None
     if px_per_m is not None and params.sheet_sigma_mm > 0:

@@ -66,6 +66,28 @@ def _solve(a: np.ndarray, b: np.ndarray, x: np.ndarray, factor: bool) -> bool:  
     return True
 
 
+@njit(cache=True, nogil=True)
+def gaussian_rows(j0: int, v0: float, s: float, e: np.ndarray) -> None:  # pragma: no cover
+    """``e[k] = exp(-(j0 + k - v0)^2 / (2 s^2))`` for every entry of ``e``, by the ratio
+    recurrence from the row nearest the centre (``exp(-(t + u)^2 / 2) = exp(-t^2 / 2)
+    exp(-t u - u^2 / 2)``, ``u = 1 / s``): three exponentials instead of one a row (an
+    exponential costs what a row's sums in the fit do)."""
+    m = e.shape[0]
+    u = 1.0 / s
+    jc = min(max(math.floor(v0 - j0 + 0.5), 0), m - 1)
+    tc = (j0 + jc - v0) * u
+    e[jc] = math.exp(-0.5 * tc * tc)
+    dd = math.exp(-u * u)
+    q = math.exp(-tc * u - 0.5 * u * u)
+    for jj in range(jc + 1, m):
+        e[jj] = e[jj - 1] * q
+        q *= dd
+    q = math.exp(tc * u - 0.5 * u * u)
+    for jj in range(jc - 1, -1, -1):
+        e[jj] = e[jj + 1] * q
+        q *= dd
+
+
 @njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
             sigma: float, shape_error: float, h: np.ndarray, g: np.ndarray,
@@ -79,21 +101,7 @@ def _normal(y: np.ndarray, use: np.ndarray, j0: int, ref: float, p: np.ndarray,
     m = y.shape[0]
     c, a, v0, s, sl = p[0], p[1], p[2], p[3], p[4]
     u = 1.0 / s
-    # the Gaussian on the rows by its ratio recurrence from the row nearest the centre
-    # (exp(-(t + u)^2 / 2) = exp(-t^2 / 2) exp(-t u - u^2 / 2)): three exponentials a
-    # pass instead of one a row (an exponential costs what a row's sums do)
-    jc = min(max(math.floor(v0 - j0 + 0.5), 0), m - 1)
-    tc = (j0 + jc - v0) * u
-    e[jc] = math.exp(-0.5 * tc * tc)
-    dd = math.exp(-u * u)
-    q = math.exp(-tc * u - 0.5 * u * u)
-    for jj in range(jc + 1, m):
-        e[jj] = e[jj - 1] * q
-        q *= dd
-    q = math.exp(tc * u - 0.5 * u * u)
-    for jj in range(jc - 1, -1, -1):
-        e[jj] = e[jj + 1] * q
-        q *= dd
+    gaussian_rows(j0, v0, s, e[:m])
     chi = 0.0
     n = 0.0
     wt = 1.0 / (sigma * sigma)
