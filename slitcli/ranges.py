@@ -248,6 +248,20 @@ def format_time_s(time_s: float) -> str:
     return np.format_float_positional(t, precision=9, unique=True, trim="-")
 
 
+TIME_COLUMNS = ("time_s", "t_s", "time_to_goal_s")
+
+
+def times_as_text(table: pd.DataFrame, columns: tuple[str, ...] = TIME_COLUMNS) -> pd.DataFrame:
+    """A copy of ``table`` whose time columns (those of ``columns`` it has) are text at
+    full precision (:func:`format_time_s`), for writing with a float format that would
+    round them."""
+    out = table.copy()
+    for col in columns:
+        if col in out.columns:
+            out[col] = [format_time_s(t) for t in out[col].to_numpy(dtype=float)]
+    return out
+
+
 def csv_rows(table: pd.DataFrame) -> str:
     """Rows of a table as CSV text without header (``FLOAT_FORMAT``, empty for NaN)."""
     return table.to_csv(header=False, index=False, float_format=FLOAT_FORMAT, na_rep="",
@@ -258,4 +272,4 @@ __all__ = ["DWA_COMMANDS", "FLOAT_FORMAT", "FUSED_SOURCES", "LASER", "RANGES",
            "RANGE_VALUE_COLUMNS", "SIM_METRICS", "SIM_TRAJECTORY", "STEREO_RANGES", "TABLES",
            "TIMES", "TRUTH_LASER", "TRUTH_LASER_RANGES", "TRUTH_POSES", "TRUTH_RANGES",
            "BearingBins", "RangeTable", "TableSchema", "absolute_bin", "bin_count", "bin_min",
-           "boundary_deg", "csv_rows", "format_time_s"]
+           "boundary_deg", "csv_rows", "format_time_s", "times_as_text"]
