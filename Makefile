@@ -28,9 +28,11 @@ venv: $(KERNELS)
 reproduce-figures: $(KERNELS)
 	$(PY) -m slitcli.reproduce
 
+# the suite on every core (at most 4 workers: its tests are single-threaded, and each
+# worker holds its own module fixtures); `pytest tests/x.py` alone stays serial
 test: $(KERNELS)
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/pytest
+	$(VENV)/bin/pytest -n auto --maxprocesses 4
 
 bench: $(KERNELS)
 	$(PY) bench/run.py
