@@ -94,7 +94,8 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
 
     ``grey`` (H, W) uint8, the left image: with ``sgm_p2_edge_dn`` > 0 each step's P2
     is ``sgm_p2 g / (g + |grey step|)`` (at least P1 + 1), ``g = sgm_p2_edge_dn``."""
-    from slitcli.stereo import _sgm
+    from slitcli.stereo import _sgm, _sgm_lanes
+    from slitcli.stereo._lanes import LANES16
 
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
@@ -104,13 +105,16 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
         grey = np.zeros(cost.shape[:2], np.uint8)
     s_a = np.empty_like(cost)
     s_b = np.empty_like(cost)
+    # explicit 16-lane kernels where D allows (same sums bit for bit)
+    kernel = (_sgm_lanes.aggregate_pass_lanes if cost.shape[2] % LANES16 == 0
+              else _sgm.aggregate_pass)
     if pool is not None:
-        job = pool.submit(_sgm.aggregate_pass, cost, p1, p2, eight, True, s_b, grey, g)
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
+        job = pool.submit(kernel, cost, p1, p2, eight, True, s_b, grey, g)
+        kernel(cost, p1, p2, eight, False, s_a, grey, g)
         job.result()
     else:
-        _sgm.aggregate_pass(cost, p1, p2, eight, False, s_a, grey, g)
-        _sgm.aggregate_pass(cost, p1, p2, eight, True, s_b, grey, g)
+        kernel(cost, p1, p2, eight, False, s_a, grey, g)
+        kernel(cost, p1, p2, eight, True, s_b, grey, g)
     return s_a, s_b
 
 
@@ -161,7 +165,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     DisparityResult
         ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
     """
-    from slitcli.stereo import _sgm
+    from slitcli.stereo import _sgm, _sgm_lanes
+    from slitcli.stereo._lanes import LANES16
     from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
 
     h, w = left_grey.shape
@@ -182,7 +187,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
                 np.float32(params.uniqueness_ratio), float(params.lr_max_diff_px),
                 params.subpixel == "parabola", np.float32(energy_min), top,
                 np.float32(COST_SCALE))
-        run_row_bands(lambda y0, y1: _sgm.winners_rows(*args, y0, y1, disp, mcost, reason,
+        win = (_sgm_lanes.winners_rows_lanes if params.num_disparities % LANES16 == 0
+               else _sgm.winners_rows)
+        run_row_bands(lambda y0, y1: win(*args, y0, y1, disp, mcost, reason,
                                                        rdisp), h, pool, threads)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
                                            rdisp, pool, threads), SGM_FILTERS)

@@ -1,0 +1,276 @@
+"""SGM path costs with explicit 16-lane int16 vectors (slitcli.stereo._lanes).
+
+The same recurrence, buffers and sentinels as :func:`slitcli.stereo._sgm.aggregate_pass`
+(see there), with the two (four) paths of a pixel computed in one loop over its
+disparities that stores both path rows and their sum: the scalar kernel needs one
+loop per store stream to be vectorised at all. Integer operations wrap in 16 bits as
+the scalar kernel's ``np.int16(...)`` do, so the sums are equal bit for bit. Needs
+D to be a multiple of 16.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from slitcli.stereo._lanes import (
+    hmin16,
+    iota16,
+    load16,
+    splat16,
+    store16,
+    vadd,
+    vmin,
+    vsub,
+    where_eq,
+    where_lt,
+)
+from slitcli.stereo._sgm import (
+    REASON_LEFT_RIGHT,
+    REASON_NO_CANDIDATE,
+    REASON_TEXTURE,
+    REASON_UNIQUENESS,
+    REASON_VALID,
+    SENTINEL,
+    _p2,
+)
+from slitcli.stereo._simd import offset, ptr
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _lane_step(cv, prev, k, q1, h, pm):
+    """``L = C + min(prev, prev -+ 1 + P1, min prev + P2) - min prev`` for the 16
+    disparities from ``k`` (``prev`` from index 1, sentinels at both ends)."""
+    a = load16(prev, k + 1)
+    b = vadd(load16(prev, k), q1)
+    c = vadd(load16(prev, k + 2), q1)
+    v = vmin(vmin(vmin(a, b), c), h)
+    return vsub(vadd(cv, v), pm)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _pair_step(c, o, ap, ac, am, bp, bc, bm, p1, p2a, p2b, accumulate, blocks):
+    """Paths a and b at one pixel: rows into ``ac``, ``bc`` (from index 1), their sum
+    into ``o`` (added to it with ``accumulate``); returns both minima."""
+    q1 = splat16(p1)
+    ha = splat16(am + p2a)
+    pa = splat16(am)
+    hb = splat16(bm + p2b)
+    pb = splat16(bm)
+    ma = splat16(0x7FFF)
+    mb = splat16(0x7FFF)
+    for j in range(blocks):
+        k = j * 16
+        cv = load16(c, k)
+        la = _lane_step(cv, ap, k, q1, ha, pa)
+        lb = _lane_step(cv, bp, k, q1, hb, pb)
+        store16(ac, k + 1, la)
+        store16(bc, k + 1, lb)
+        s = vadd(la, lb)
+        if accumulate:
+            s = vadd(load16(o, k), s)
+        store16(o, k, s)
+        ma = vmin(ma, la)
+        mb = vmin(mb, lb)
+    return hmin16(ma), hmin16(mb)
+
+
+@nb.njit(cache=True, nogil=True)
+def aggregate_pass_lanes(cost, p1, p2, eight, reverse, out, grey, p2_grad):
+    """:func:`slitcli.stereo._sgm.aggregate_pass` (same arguments and result) in
+    16-lane vectors; D a multiple of 16."""
+    height, width, num = cost.shape
+    blocks = num // 16
+    stride = num + 2
+    p1 = np.int32(p1)
+    p2 = np.int32(p2)
+    g = np.float32(p2_grad)
+    adapt = g > 0
+    zero = np.zeros(stride, np.int16)
+    zero[0] = SENTINEL
+    zero[stride - 1] = SENTINEL
+    hbuf = np.full((2, stride), SENTINEL, np.int16)
+    vbuf = np.full((2, width, stride), SENTINEL, np.int16)
+    dbuf = np.full((2, width, stride), SENTINEL, np.int16)
+    ebuf = np.full((2, width, stride), SENTINEL, np.int16)
+    cost16 = cost.view(np.int16)
+    out16 = out.view(np.int16)
+    vmin_ = np.zeros((2, width), np.int32)
+    dmin = np.zeros((2, width), np.int32)
+    emin = np.zeros((2, width), np.int32)
+    p_zero = ptr(zero)
+    for y in range(height):
+        yy = height - 1 - y if reverse else y
+        ys = yy + 1 if reverse else yy - 1
+        src = y & 1
+        dst = 1 - src
+        hmin = np.int32(0)
+        p_cost = ptr(cost16)
+        p_out = ptr(out16)
+        p_h = ptr(hbuf)
+        p_v = ptr(vbuf)
+        p_d = ptr(dbuf)
+        p_e = ptr(ebuf)
+        for x in range(width):
+            xx = width - 1 - x if reverse else x
+            xs = xx + 1 if reverse else xx - 1
+            hs = x & 1
+            c = offset(p_cost, (yy * width + xx) * num)
+            o = offset(p_out, (yy * width + xx) * num)
+            hp = p_zero if x == 0 else offset(p_h, hs * stride)
+            vp = p_zero if y == 0 else offset(p_v, (src * width + x) * stride)
+            vm = np.int32(0) if y == 0 else vmin_[src, x]
+            p2h = p2
+            p2v = p2
+            if adapt:
+                if x > 0:
+                    p2h = _p2(p1, p2, g, grey[yy, xx], grey[yy, xs])
+                if y > 0:
+                    p2v = _p2(p1, p2, g, grey[yy, xx], grey[ys, xx])
+            hc = offset(p_h, (1 - hs) * stride)
+            vc = offset(p_v, (dst * width + x) * stride)
+            hmin, vmin_[dst, x] = _pair_step(c, o, hp, hc, hmin, vp, vc, vm, p1, p2h, p2v,
+                                             False, blocks)
+            if eight:
+                first = y == 0 or x == 0
+                last = y == 0 or x == width - 1
+                dp = p_zero if first else offset(p_d, (src * width + x - 1) * stride)
+                ep = p_zero if last else offset(p_e, (src * width + x + 1) * stride)
+                dm = np.int32(0) if first else dmin[src, x - 1]
+                em = np.int32(0) if last else emin[src, x + 1]
+                p2d = p2
+                p2e = p2
+                if adapt:
+                    if not first:
+                        p2d = _p2(p1, p2, g, grey[yy, xx], grey[ys, xs])
+                    if not last:
+                        p2e = _p2(p1, p2, g, grey[yy, xx], grey[ys, 2 * xx - xs])
+                dc = offset(p_d, (dst * width + x) * stride)
+                ec = offset(p_e, (dst * width + x) * stride)
+                dmin[dst, x], emin[dst, x] = _pair_step(c, o, dp, dc, dm, ep, ec, em, p1, p2d,
+                                                        p2e, True, blocks)
+
+
+# ---- winner step in lanes: the sums s_a + s_b (int16), 0x7FFF where the cost is
+# ``top`` (no partner, no energy); the scalar kernel's keys ``s << 9 | i`` order the
+# same way as (sum, index), so the lanes keep each lane's smallest sum and, among
+# equal sums, its first (smallest) index.
+
+NO_SUM = 0x7FFF
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _pixel_sums(sa, sb, c, sums, rsum, ridx, top, blocks):
+    """Sums of one pixel into ``sums`` (NO_SUM where the cost is ``top``), the right
+    view's best sums ``rsum`` and their indices ``ridx`` lowered (strictly: among equal
+    sums the first pixel, i.e. the smallest index, stays); returns the best sum and
+    its smallest index."""
+    none = splat16(NO_SUM)
+    t = splat16(top)
+    best = none
+    bidx = none
+    for j in range(blocks):
+        k = j * 16
+        s = where_lt(load16(c, k), t, vadd(load16(sa, k), load16(sb, k)), none)
+        store16(sums, k, s)
+        idx = iota16(k)
+        bidx = where_lt(s, best, idx, bidx)
+        best = vmin(best, s)
+        r = load16(rsum, k)
+        store16(ridx, k, where_lt(s, r, idx, load16(ridx, k)))
+        store16(rsum, k, vmin(s, r))
+    bv = hmin16(best)
+    return bv, hmin16(where_eq(best, splat16(bv), bidx, none))
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _second_sum(sums, lo, hi, blocks):
+    """Smallest sum outside indices lo..hi."""
+    none = splat16(NO_SUM)
+    vlo = splat16(lo)
+    vhi = splat16(hi)
+    m = none
+    for j in range(blocks):
+        k = j * 16
+        idx = iota16(k)
+        s = load16(sums, k)
+        m = vmin(m, where_lt(idx, vlo, s, where_lt(vhi, idx, s, none)))
+    return hmin16(m)
+
+
+@nb.njit(cache=True, nogil=True)
+def winners_rows_lanes(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy_min,
+                       top, scale, y0, y1, disp_out, cost_out, reason_out, rdisp_out):
+    """:func:`slitcli.stereo._sgm.winners_rows` (same arguments, same results bit for
+    bit) in 16-lane vectors; D a multiple of 16."""
+    _, width, num = s_a.shape
+    blocks = num // 16
+    sums = np.empty(num, np.int16)
+    pad = num + abs(dmin) + 1
+    rsum = np.empty(width + 2 * pad, np.int16)
+    ridx = np.zeros(width + 2 * pad, np.int16)
+    best_i = np.empty(width, np.int32)
+    sa16 = s_a.view(np.int16)
+    sb16 = s_b.view(np.int16)
+    c16 = cost.view(np.int16)
+    top16 = np.int32(top)
+    for y in range(y0, y1):
+        rsum[:] = NO_SUM
+        p_sa = ptr(sa16)
+        p_sb = ptr(sb16)
+        p_c = ptr(c16)
+        p_s = ptr(sums)
+        p_rs = ptr(rsum)
+        p_ri = ptr(ridx)
+        for x in range(width):
+            base = (y * width + x) * num
+            r0 = pad + width - 1 - x + dmin
+            bv, bi = _pixel_sums(offset(p_sa, base), offset(p_sb, base), offset(p_c, base),
+                                 p_s, offset(p_rs, r0), offset(p_ri, r0), top16, blocks)
+            if bv == NO_SUM:
+                best_i[x] = -1
+                disp_out[y, x] = np.nan
+                cost_out[y, x] = np.inf
+                reason_out[y, x] = REASON_NO_CANDIDATE
+                continue
+            best_i[x] = bi
+            bvf = np.float32(bv)
+            delta = np.float32(0.0)
+            if subpixel and 0 < bi < num - 1:
+                sm = sums[bi - 1]
+                sp = sums[bi + 1]
+                if sm != NO_SUM and sp != NO_SUM:
+                    cm = np.float32(sm)
+                    cp = np.float32(sp)
+                    den = cm - np.float32(2.0) * bvf + cp
+                    if den > 0:
+                        delta = np.float32(0.5) * (cm - cp) / den
+            disp_out[y, x] = np.float32(dmin + bi) + delta
+            cost_out[y, x] = np.float32(cost[y, x, bi]) / np.float32(scale)
+            code = REASON_VALID
+            if (energy_min > 0) and (el[y, x] < energy_min * count[y, x]):
+                code = REASON_TEXTURE
+            if uniq > 0:
+                sk = _second_sum(p_s, bi - 1, bi + 1, blocks)
+                if sk != NO_SUM and np.float32(sk) < bvf * (np.float32(1.0) + uniq):
+                    code = REASON_UNIQUENESS + 100
+            reason_out[y, x] = code
+        for xr in range(width):
+            j = pad + width - 1 - xr
+            rdisp_out[y, xr] = np.float32(dmin + ridx[j]) if rsum[j] != NO_SUM else np.nan
+        for x in range(width):
+            bi = best_i[x]
+            if bi < 0:
+                continue
+            code = reason_out[y, x]
+            if code >= 100:
+                reason_out[y, x] = code - 100
+                continue
+            if lr_tol >= 0:
+                xr = x - dmin - bi
+                ok = (xr >= 0) and (xr < width)
+                if ok:
+                    j = pad + width - 1 - xr
+                    ok = rsum[j] != NO_SUM and abs(ridx[j] - bi) <= lr_tol
+                if not ok:
+                    reason_out[y, x] = REASON_LEFT_RIGHT
