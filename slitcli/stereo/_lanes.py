@@ -148,6 +148,70 @@ def hmin16(typingctx, v):
     return types.int32(v), codegen
 
 
+@intrinsic
+def loadf8(typingctx, p, k):
+    """8 float32 from ``p + k`` (unaligned)."""
+    if not (isinstance(p, types.CPointer) and p.dtype is types.float32):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.load(_vec_ptr(builder, args[0], args[1], _LLVM["f32x8"]), align=4)
+
+    return F32x8(p, k), codegen
+
+
+@intrinsic
+def storef8(typingctx, p, k, v):
+    """Store 8 float32 at ``p + k``."""
+    if not (isinstance(p, types.CPointer) and v is F32x8):
+        return None
+
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _vec_ptr(builder, args[0], args[1], _LLVM["f32x8"]), align=4)
+        return context.get_dummy_value()
+
+    return types.void(p, k, v), codegen
+
+
+@intrinsic
+def splatf8(typingctx, x):
+    """8 lanes of the float32 ``x``."""
+    if x is not types.float32:
+        return None
+
+    def codegen(context, builder, sig, args):
+        vec = ir.Constant(_LLVM["f32x8"], ir.Undefined)
+        vec = builder.insert_element(vec, args[0], ir.Constant(ir.IntType(32), 0))
+        return builder.shuffle_vector(vec, vec,
+                                      ir.Constant(ir.VectorType(ir.IntType(32), 8), [0] * 8))
+
+    return F32x8(x), codegen
+
+
+@intrinsic
+def store_u16_where_positive(typingctx, p, k, q, w, top):
+    """Store 8 uint16 at ``p + k``: ``uint16(int32(q))`` where ``w > 0``, else ``top``
+    (the scalar ``np.uint16(np.int32(q)) if w > 0 else top``)."""
+    if not (isinstance(p, types.CPointer) and q is F32x8 and w is F32x8):
+        return None
+
+    def codegen(context, builder, sig, args):
+        i16 = ir.IntType(16)
+        v16 = ir.VectorType(i16, 8)
+        qi = builder.trunc(builder.fptosi(args[2], ir.VectorType(ir.IntType(32), 8)), v16)
+        t = builder.trunc(args[4], i16) if top.bitwidth > 16 else args[4]
+        tv = builder.insert_element(ir.Constant(v16, ir.Undefined), t,
+                                    ir.Constant(ir.IntType(32), 0))
+        tv = builder.shuffle_vector(tv, tv, ir.Constant(ir.VectorType(ir.IntType(32), 8),
+                                                        [0] * 8))
+        pos = builder.fcmp_ordered(">", args[3], ir.Constant(_LLVM["f32x8"], [0.0] * 8))
+        builder.store(builder.select(pos, qi, tv), _vec_ptr(builder, args[0], args[1], v16),
+                      align=2)
+        return context.get_dummy_value()
+
+    return types.void(p, k, q, w, top), codegen
+
+
 def _where(pred):
     @intrinsic
     def fn(typingctx, a, b, x, y):
@@ -198,8 +262,12 @@ __all__ = [
     "hmin16",
     "iota16",
     "load16",
+    "loadf8",
     "splat16",
+    "splatf8",
     "store16",
+    "store_u16_where_positive",
+    "storef8",
     "vadd",
     "vmax",
     "vmin",

@@ -17,10 +17,16 @@ from slitcli.stereo._lanes import (
     hmin16,
     iota16,
     load16,
+    loadf8,
     splat16,
+    splatf8,
     store16,
+    store_u16_where_positive,
+    storef8,
     vadd,
+    vmax,
     vmin,
+    vmul,
     vsub,
     where_eq,
     where_lt,
@@ -274,3 +280,94 @@ def winners_rows_lanes(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, 
                     ok = rsum[j] != NO_SUM and abs(ridx[j] - bi) <= lr_tol
                 if not ok:
                     reason_out[y, x] = REASON_LEFT_RIGHT
+
+
+# ---- Eq. 10 costs in 8-lane float32 vectors: slitcli.stereo._sgm.cost_rows with the
+# same operations in the same order (no contraction), so the same quantised costs.
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _column_slide_lanes(col, ra, rs, a, b, blocks):
+    va = splatf8(a)
+    vb = splatf8(b)
+    for j in range(blocks):
+        k = j * 8
+        storef8(col, k, vadd(loadf8(col, k), vsub(vmul(va, loadf8(ra, k)),
+                                                  vmul(vb, loadf8(rs, k)))))
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _pixel_costs_lanes(hs, col_in, col_out, wa, ws, e1, r1, err, irr, top, scale, c_max, out,
+                       blocks):
+    vwa = splatf8(wa)
+    vws = splatf8(ws)
+    ve1 = splatf8(e1)
+    vr1 = splatf8(r1)
+    two = splatf8(np.float32(2.0))
+    zero = splatf8(np.float32(0.0))
+    cm = splatf8(c_max)
+    sc = splatf8(scale)
+    half = splatf8(np.float32(0.5))
+    for j in range(blocks):
+        k = j * 8
+        x = vsub(vadd(loadf8(hs, k), vmul(vwa, loadf8(col_in, k))),
+                 vmul(vws, loadf8(col_out, k)))
+        storef8(hs, k, x)
+        w = vmul(vr1, loadf8(irr, k))
+        c = vmul(vsub(vadd(ve1, loadf8(err, k)), vmul(two, x)), w)
+        q = vadd(vmul(vmin(vmax(c, zero), cm), sc), half)
+        store_u16_where_positive(out, k, q, w, top)
+
+
+@nb.njit(cache=True, nogil=True)
+def cost_rows_lanes(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
+                    y0, y1, out):
+    """:func:`slitcli.stereo._sgm.cost_rows` (same arguments, same costs bit for bit)
+    in 8-lane vectors; ``num`` a multiple of 8."""
+    height, width = pl.shape
+    blocks = num // 8
+    stride = prr_pad.shape[1]
+    col = np.zeros((width + 1, num), np.float32)   # row 0: the zero column
+    hs = np.zeros(num, np.float32)
+    top = np.int32(round(c_max * scale))
+    sc = np.float32(scale)
+    cm = np.float32(c_max)
+    out16 = out.view(np.int16)
+    p_col = ptr(col)
+    p_r = ptr(prr_pad)
+    p_hs = ptr(hs)
+    p_i = ptr(irr_pad)
+    p_e = ptr(err_pad)
+    p_o = ptr(out16)
+    for yy in range(max(0, y0 - 1 - n), min(height, y0 + n)):
+        for x in range(width):
+            ra = offset(p_r, yy * stride + pad + width - 1 - x + dmin)
+            _column_slide_lanes(offset(p_col, (x + 1) * num), ra, ra, pl[yy, x],
+                                np.float32(0.0), blocks)
+    for y in range(y0, y1):
+        ya = y + n
+        ys = y - n - 1
+        if ya < height or ys >= 0:
+            for x in range(width):
+                base = pad + width - 1 - x + dmin
+                a = pl[ya, x] if ya < height else np.float32(0.0)
+                b = pl[ys, x] if ys >= 0 else np.float32(0.0)
+                ra = offset(p_r, min(ya, height - 1) * stride + base)
+                rs = offset(p_r, max(ys, 0) * stride + base)
+                _column_slide_lanes(offset(p_col, (x + 1) * num), ra, rs, a, b, blocks)
+        hs[:] = 0.0
+        for xx in range(0, min(m, width)):
+            for i in range(num):
+                hs[i] += col[xx + 1, i]
+        for x in range(width):
+            xa = x + m
+            xs = x - m - 1
+            wa = np.float32(1.0) if xa < width else np.float32(0.0)
+            ws = np.float32(1.0) if xs >= 0 else np.float32(0.0)
+            e1 = el[y, x]
+            r1 = np.float32(1.0) / np.sqrt(e1) if e1 > 0 else np.float32(0.0)
+            k = y * stride + pad + width - 1 - x + dmin
+            _pixel_costs_lanes(p_hs, offset(p_col, (min(xa, width - 1) + 1) * num),
+                               offset(p_col, (max(xs, -1) + 1) * num), wa, ws, e1, r1,
+                               offset(p_e, k), offset(p_i, k), top, sc, cm,
+                               offset(p_o, (y * width + x) * num), blocks)

@@ -64,7 +64,8 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Quantised Eq. 10 costs (H, W, D) uint16 of prefiltered images, with the left
     window energies and pixel counts (H, W) float32 (for the texture test)."""
-    from slitcli.stereo import _sgm
+    from slitcli.stereo import _sgm, _sgm_lanes
+    from slitcli.stereo._lanes import LANES32
 
     h, w = pl.shape
     m, n = params.window_w_px // 2, params.window_h_px // 2
@@ -81,7 +82,9 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
                            .astype(np.float32), pad)
     err = _reversed_padded(er, pad)
     cost = np.empty((h, w, num), np.uint16)
-    run_row_bands(lambda y0, y1: _sgm.cost_rows(pl, prr, el, err, irr, pad, dmin, num, m, n,
+    # explicit 8-lane kernel where D allows (same costs bit for bit)
+    kernel = _sgm_lanes.cost_rows_lanes if num % LANES32 == 0 else _sgm.cost_rows
+    run_row_bands(lambda y0, y1: kernel(pl, prr, el, err, irr, pad, dmin, num, m, n,
                                                 COST_MAX, COST_SCALE, y0, y1, cost),
                   h, pool, threads, min_rows=2 * n + 1)
     return cost, el, count
