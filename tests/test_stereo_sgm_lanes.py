@@ -81,3 +81,27 @@ def test_fused_passes_equal_the_scalar_stages(seed, kw):
     assert (want[2] == 0).sum() > 500 and (want[2] != 0).sum() > 50
     for a, b in zip(want, got, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("kw", [{}, {"sgm_paths": 8, "min_disparity_px": -2}])
+def test_two_thread_phases_equal_one_thread(seed, kw):
+    """The three phases over two threads (split at the middle row) against the fused
+    passes on one thread, on an odd height."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    left, right = plane_pair(7.6, width=80, height=51, noise_dn=2.0, seed=seed,
+                             plain_cols=(30, 50))
+    p = MatcherParams(num_disparities=32, aggregation="sgm", **kw)
+    pl, pr = prefilter_image(left, p), prefilter_image(right, p)
+    tests = (int(p.min_disparity_px), np.float32(p.uniqueness_ratio), float(p.lr_max_diff_px),
+             True, np.float32((p.texture_min_dn * 4.0) ** 2),
+             np.uint16(round(COST_MAX * COST_SCALE)), np.float32(COST_SCALE))
+    kinds = (np.float32, np.float32, np.uint8, np.float32)
+    one = [np.empty((51, 80), t) for t in kinds]
+    two = [np.empty((51, 80), t) for t in kinds]
+    _match_fused(pl, pr, p, left, tests, tuple(one))
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        _match_fused(pl, pr, p, left, tests, tuple(two), pool, 2)
+    for a, b in zip(one, two, strict=True):
+        np.testing.assert_array_equal(a, b)

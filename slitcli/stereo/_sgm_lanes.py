@@ -444,6 +444,27 @@ def cost_rows_lanes(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_m
 
 
 @nb.njit(cache=True, nogil=True)
+def first_sweep_rows(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
+                     p1, p2, eight, grey, p2_grad, cost, s_a, y0, y1, with_cost, col, hs, bufs,
+                     mins):
+    """Rows y0..y1-1 of the top-down sweep into ``s_a``, each row's costs first (with
+    ``with_cost``; the column sums ``col`` at row y0 - 1, :func:`_cost_start`) or read
+    from ``cost`` (computed by another thread). ``bufs``, ``mins``: the sweep's state
+    (:func:`_sweep_state`), carried from the rows before."""
+    width = pl.shape[1]
+    c16 = cost.view(np.int16)
+    a16 = s_a.view(np.int16)
+    for y in range(y0, y1):
+        k = y * width * num
+        c_row = offset(ptr(c16), k)
+        if with_cost:
+            _cost_row(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale, y,
+                      col, hs, c_row)
+        _sweep_row(c_row, offset(ptr(a16), k), grey, y, y, y - 1, False, np.int32(p1),
+                   np.int32(p2), np.float32(p2_grad), eight, num // 16, bufs, mins)
+
+
+@nb.njit(cache=True, nogil=True)
 def cost_and_first_sweep(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max,
                          scale, p1, p2, eight, grey, p2_grad, cost, s_a):
     """Costs (H, W, D) uint16 into ``cost`` and the top-down sweep's sums into ``s_a``
@@ -453,16 +474,36 @@ def cost_and_first_sweep(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n
     col = np.zeros((width + 1, num), np.float32)
     hs = np.zeros(num, np.float32)
     bufs, mins = _sweep_state(width, num)
+    _cost_start(pl, prr_pad, pad, dmin, num, n, 0, col)
+    first_sweep_rows(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
+                     p1, p2, eight, grey, p2_grad, cost, s_a, 0, height, True, col, hs, bufs,
+                     mins)
+
+
+@nb.njit(cache=True, nogil=True)
+def second_sweep_rows(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq, lr_tol,
+                      subpixel, energy_min, top, scale, disp_out, cost_out, reason_out,
+                      rdisp_out, v0, v1, winners, s_b, bufs, mins):
+    """Visits v0..v1-1 of the bottom-up sweep (image row H - 1 - v), state ``bufs``,
+    ``mins`` carried from the visits before. ``winners``: each row's winner step over
+    ``s_a`` + the row's sums (:func:`winners_rows_lanes`); else the sums into ``s_b``."""
+    height, width, num = cost.shape
+    sums, rsum, ridx, best_i = _winner_state(width, num, dmin)
+    row = np.empty(width * num, np.int16)
     c16 = cost.view(np.int16)
     a16 = s_a.view(np.int16)
-    _cost_start(pl, prr_pad, pad, dmin, num, n, 0, col)
-    for y in range(height):
-        k = y * width * num
+    b16 = s_b.view(np.int16)
+    for y in range(v0, v1):
+        yy = height - 1 - y
+        k = yy * width * num
         c_row = offset(ptr(c16), k)
-        _cost_row(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale, y,
-                  col, hs, c_row)
-        _sweep_row(c_row, offset(ptr(a16), k), grey, y, y, y - 1, False, np.int32(p1),
-                   np.int32(p2), np.float32(p2_grad), eight, num // 16, bufs, mins)
+        o_row = ptr(row) if winners else offset(ptr(b16), k)
+        _sweep_row(c_row, o_row, grey, y, yy, yy + 1, True, np.int32(p1), np.int32(p2),
+                   np.float32(p2_grad), eight, num // 16, bufs, mins)
+        if winners:
+            _winner_row(offset(ptr(a16), k), ptr(row), c_row, el[yy], count[yy], dmin, uniq,
+                        lr_tol, subpixel, energy_min, np.int32(top), scale, sums, rsum, ridx,
+                        best_i, disp_out[yy], cost_out[yy], reason_out[yy], rdisp_out[yy])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -473,16 +514,6 @@ def second_sweep_winners(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmi
     the winner step over ``s_a`` + its sums (:func:`winners_rows_lanes`)."""
     height, width, num = cost.shape
     bufs, mins = _sweep_state(width, num)
-    sums, rsum, ridx, best_i = _winner_state(width, num, dmin)
-    row = np.empty(width * num, np.int16)
-    c16 = cost.view(np.int16)
-    a16 = s_a.view(np.int16)
-    for y in range(height):
-        yy = height - 1 - y
-        k = yy * width * num
-        c_row = offset(ptr(c16), k)
-        _sweep_row(c_row, ptr(row), grey, y, yy, yy + 1, True, np.int32(p1), np.int32(p2),
-                   np.float32(p2_grad), eight, num // 16, bufs, mins)
-        _winner_row(offset(ptr(a16), k), ptr(row), c_row, el[yy], count[yy], dmin, uniq,
-                    lr_tol, subpixel, energy_min, np.int32(top), scale, sums, rsum, ridx,
-                    best_i, disp_out[yy], cost_out[yy], reason_out[yy], rdisp_out[yy])
+    second_sweep_rows(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq, lr_tol,
+                      subpixel, energy_min, top, scale, disp_out, cost_out, reason_out,
+                      rdisp_out, 0, height, True, cost, bufs, mins)

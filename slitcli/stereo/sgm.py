@@ -19,11 +19,12 @@ a pixel whose own neighbourhood does not carry the match is kept where valid pix
 on both sides of it agree with each other and with it.
 
 Cost: with D a multiple of 16 (slitcli.stereo._sgm_lanes, explicit 16-lane vectors)
-two fused passes on one thread: the costs of each row with the top-down sweep over
-them, then the bottom-up sweep with each row's winner step; two volumes of H x W x D
-uint16 (20 MB at 320 x 240 x 64). Other D: the scalar kernels (slitcli.stereo._sgm),
-cost and winner in bands of rows over the frame's threads, the two sweeps on two
-threads, three volumes. Both give the same disparities bit for bit.
+two fused passes: the costs of each row with the top-down sweep over them, then the
+bottom-up sweep with each row's winner step; two volumes of H x W x D uint16 (20 MB at
+320 x 240 x 64; with a second thread three phases and a third volume, _match_fused).
+Other D: the scalar kernels (slitcli.stereo._sgm), cost and winner in bands of rows
+over the frame's threads, the two sweeps on two threads, three volumes. Both give
+the same disparities bit for bit.
 """
 
 from __future__ import annotations
@@ -164,7 +165,8 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
 
 
 def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np.ndarray,
-                 tests: tuple, outputs: tuple) -> None:
+                 tests: tuple, outputs: tuple, pool: ThreadPoolExecutor | None = None,
+                 threads: int = 1) -> None:
     """Cost, SGM and the winner step in two fused passes over the rows (D a multiple of
     16; slitcli.stereo._sgm_lanes): the costs of each row and the top-down sweep over
     them while they are in cache; then the bottom-up sweep with each row's winner step,
@@ -172,23 +174,51 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     once more instead of three times: in a frame the volumes do not stay in cache,
     and memory, not arithmetic, set the separate stages' times (measured: the
     stages took 1.5-2.3 times as long in the frame as each alone on hot data).
-    One thread: the passes are sequential (each row of the second needs the first's
-    row)."""
+
+    With a second thread, three phases split at the middle row: (1) this thread the
+    top half's costs and sweep, the other the bottom half's costs; (2) this thread the
+    top-down sweep over the bottom half, the other the bottom-up sweep over it (sums
+    into a third volume); (3) this thread the bottom half's winners, the other the
+    bottom-up sweep and winners of the top half. The same results bit for bit."""
     from slitcli.stereo import _sgm_lanes
 
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
-    cost = np.empty((h, w, c["num"]), np.uint16)
+    num = c["num"]
+    cost = np.empty((h, w, num), np.uint16)
     s_a = np.empty_like(cost)
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
     eight = params.sgm_paths == 8
     g = float(params.sgm_p2_edge_dn)
-    _sgm_lanes.cost_and_first_sweep(c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"],
-                                    c["dmin"], c["num"], c["m"], c["n"], COST_MAX, COST_SCALE,
-                                    p1, p2, eight, grey, g, cost, s_a)
-    _sgm_lanes.second_sweep_winners(cost, s_a, p1, p2, eight, grey, g, c["el"], c["count"],
-                                    *tests, *outputs)
+    cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
+             c["n"], COST_MAX, COST_SCALE)
+    bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
+    if pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1):
+        _sgm_lanes.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
+        _sgm_lanes.second_sweep_winners(cost, s_a, *bargs)
+        return
+    half = h // 2
+    col = np.zeros((w + 1, num), np.float32)
+    hs = np.zeros(num, np.float32)
+    state_a = _sgm_lanes._sweep_state(w, num)
+    state_b = _sgm_lanes._sweep_state(w, num)
+    s_b = np.empty_like(cost)
+    job = pool.submit(_sgm_lanes.cost_rows_lanes, *cargs, half, h, cost)
+    _sgm_lanes._cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
+    _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
+                                hs, *state_a)
+    job.result()
+    job = pool.submit(_sgm_lanes.second_sweep_rows, cost, s_a, *bargs, 0, h - half, False, s_b,
+                      *state_b)
+    _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, half, h, False, col,
+                                hs, *state_a)
+    job.result()
+    job = pool.submit(_sgm_lanes.second_sweep_rows, cost, s_a, *bargs, h - half, h, True, s_b,
+                      *state_b)
+    _sgm_lanes.winners_rows_lanes(s_a, s_b, cost, c["el"], c["count"], *tests, half, h,
+                                  *outputs)
+    job.result()
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -228,7 +258,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
                  np.float32(energy_min), top, np.float32(COST_SCALE))
         grey = np.ascontiguousarray(left_grey)
         if params.num_disparities % LANES16 == 0:
-            _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp))
+            _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
+                         threads)
         else:
             cost, el, count = cost_volume(pl, pr, params, pool, threads)
             s_a, s_b = aggregate(cost, params, pool, grey)
