@@ -56,7 +56,9 @@ orig_c, orig_l, orig_i = (dispatcher.Dispatcher._compile_for_args,
 def c(self, *a, **k):
     t = T(); r = orig_c(self, *a, **k); outer.append(T() - t); return r
 def l(self, *a, **k):
-    t = T(); r = orig_l(self, *a, **k); loads.append((self._name, T() - t)); return r
+    t = T(); r = orig_l(self, *a, **k)
+    f = self._py_func
+    loads.append((f.__module__ + '.' + f.__qualname__, T() - t)); return r
 def i(self, *a, **k):
     t = T(); r = orig_i(self, *a, **k); inner.append(T() - t); return r
 dispatcher.Dispatcher._compile_for_args = c
