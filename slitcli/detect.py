@@ -9,11 +9,13 @@ a sequence folder or a ROS bag), resumably and in parallel, and writes ``ranges.
 
 from __future__ import annotations
 
+import csv
 import json
 import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
+from operator import itemgetter
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -45,7 +47,6 @@ from slitcli.io.frames import (
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
 from slitcli.io.progress import Progress, RunSummary, no_laser_note
-from slitcli.laser.batch import laser_table
 from slitcli.laser.frame import (
     EdgeParams,
     LaserFrame,
@@ -313,9 +314,12 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
                          ("mask", encode_mask_png(res.stereo.obstacle_mask)), *previews):
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
+        # pandas (laser_table's DataFrame) only with --save-images
+        from slitcli.laser.batch import laser_table
+
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
     # the rows part goes last: its presence marks the frame as finished
-    write_text_atomic(batch.part_path(i), csv_rows(res.table(i, task.info.time_s)))
+    write_text_atomic(batch.part_path(i), res.ranges.csv_rows(i, task.info.time_s))
     return i
 
 
@@ -415,16 +419,33 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if save_images:
         batch.assemble(n, "laser", batch.out / LASER.file, LASER.header)
         outputs += (batch.out / LASER.file,)
-    import pandas as pd
-
-    rows = pd.read_csv(table, usecols=["frame", "laser_range_m", "fused_source"])
-    counts = rows["fused_source"].value_counts()
-    lit = rows.groupby("frame")["laser_range_m"].count()
-    notes += no_laser_note(int((lit == 0).sum()), len(lit))
+    counts, n_with_rows, n_unlit = _table_counts(table)
+    notes += no_laser_note(n_unlit, n_with_rows)
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
-                      MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
-                                        "stereo_bins": int(counts.get("stereo", 0)),
+                      MappingProxyType({"laser_bins": counts.get("laser", 0),
+                                        "stereo_bins": counts.get("stereo", 0),
                                         "skipped_frames": skipped}), notes)
+
+
+def _table_counts(table: Path) -> tuple[dict[str, int], int, int]:
+    """From a finished ``ranges.csv``: rows per ``fused_source`` value, the number of
+    frames with rows, and of those the number without any laser range.
+
+    Read with the csv module, not pandas: a one-frame run would spend a third of its
+    start-up importing pandas for these counts. The table is the one this run just
+    assembled (:data:`slitcli.ranges.RANGES` columns; an empty cell is no return).
+    """
+    with open(table, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        rows = list(reader)
+    frame, laser, source = (np.array(list(map(itemgetter(header.index(c)), rows)), dtype=str)
+                            for c in ("frame", "laser_range_m", "fused_source"))
+    names, per_name = np.unique(source, return_counts=True)
+    frames, row_frame = np.unique(frame, return_inverse=True)
+    lit = np.bincount(row_frame, weights=laser != "", minlength=frames.size)
+    return (dict(zip(names.tolist(), per_name.tolist(), strict=True)), int(frames.size),
+            int((lit == 0).sum()))
 
 
 def summary_line(summary: RunSummary) -> str:
