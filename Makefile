@@ -4,10 +4,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 # numba kernels compiled for this machine (slitcli warm-up, docs/install.md); redone when
-# a file with kernels (a line starting @njit / @nb.njit / @jit ...) changes, since numba's
-# cache entries are keyed on the file's modification time
+# a file with kernels or with what kernels inline (@njit, @intrinsic, @register_jitable,
+# @overload) changes. numba keys a cache entry on its own file's modification time only,
+# so a changed intrinsic would leave its callers' entries stale: every entry goes first
 KERNELS := $(VENV)/.kernels
-KERNEL_SOURCES := $(shell grep -rlE --include='*.py' '^\s*@(\w+\.)?n?jit\b' slitcli 2>/dev/null)
+KERNEL_SOURCES := $(shell grep -rlE --include='*.py' \
+	'^\s*@(\w+\.)?(n?jit|intrinsic|register_jitable|overload)\b' slitcli 2>/dev/null)
 
 .PHONY: venv reproduce-figures test bench lint clean
 
@@ -20,6 +22,7 @@ $(STAMP): pyproject.toml
 
 $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 	@echo "set-up: compiling the numba kernels for this machine (one line per job)"
+	find slitcli -name '*.nbi' -delete -o -name '*.nbc' -delete
 	$(VENV)/bin/slitcli warm-up
 	touch $(KERNELS)
 
@@ -28,9 +31,11 @@ venv: $(KERNELS)
 reproduce-figures: $(KERNELS)
 	$(PY) -m slitcli.reproduce
 
+# the suite on every core (at most 4 workers: its tests are single-threaded, and each
+# worker holds its own module fixtures); `pytest tests/x.py` alone stays serial
 test: $(KERNELS)
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/pytest
+	$(VENV)/bin/pytest -n auto --maxprocesses 4
 
 bench: $(KERNELS)
 	$(PY) bench/run.py

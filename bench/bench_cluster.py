@@ -119,7 +119,7 @@ def bench(timer: object = None, folder: Path | None = None) -> list[dict]:
         s, c = min(t["serial"]), min(t["cluster"])
         rows.append({"name": "200 frames: local:2 chunks of 50 vs --jobs 1",
                      "serial_s": s, "cluster_s": c, "ratio": s / c, "identical": same,
-                     "per_frame_serial_s": s / 200, "runs": t})
+                     "per_frame_serial_s": s / 200, "runs": 2, "times_s": t})
         rows.append({"name": "scheduler overhead per task, local:2",
                      "overhead_s": _task_overhead_s()})
         rows.append({"name": "kill the client mid-run, re-run",

@@ -1,59 +1,91 @@
 """Start-up of the command line: `slitcli --help` and a warm one-frame `slitcli detect`.
 
-Prints the median wall and CPU (user + sys) time of each over N runs, then the CPU
-breakdown of one warm detect measured inside the process (numpy, numba's import, the
-first kernel call, which loads numba's registries, the other kernels' cache loads,
-pandas, OpenCV, the rest). Run after the set-up (the kernels warmed up):
+Measures, after the set-up (the kernels warmed up), each over N runs (default 21):
 
-    .venv/bin/python bench/bench_startup.py [SEQ] [--runs 7]
+- wall and CPU time (user + sys of the child process) of `python -c pass` (the
+  interpreter alone), `slitcli --help` and a warm `slitcli detect` of a one-frame
+  sequence (the first frame of SEQ);
+- the CPU breakdown of that detect measured inside the process: numpy, numba (with
+  SciPy's version check), OpenCV, numba's registries (loaded on the first kernel call),
+  each kernel's cache load, numba's dispatch around the loads, and the rest (slitcli's
+  modules, reading, the frame's work, writing); which heavy modules were imported;
+- `python -X importtime -c "import slitcli.detect"`: cumulative import time of the
+  largest packages.
 
-SEQ is a sequence folder whose first frame is used (default: the bundled corridor).
-Wall times depend on the machine's load; CPU times much less (docs/notes/startup.md).
+Medians over the runs. Wall times follow the machine's load (docs/notes/startup.md: the
+project's machine is shared); CPU times much less. Run directly for a table and JSON:
+
+    .venv/bin/python bench/bench_startup.py [SEQ] [--runs 21] [--json out.json]
+
+`make bench` calls :func:`bench` (rows for bench/results.json).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SLITCLI = Path(sys.executable).parent / "slitcli"
+CORRIDOR = ROOT / "sample_data" / "sequences" / "corridor"
+HEAVY = ("pandas", "scipy.linalg", "matplotlib", "skimage")
 
+# One warm detect, timed from inside: the parts of its CPU time (process_time).
 _BREAKDOWN = r'''
-import sys, time
+import json, sys, time
 T = time.process_time
+t_start = T()
 t0 = T(); import numpy; t_numpy = T() - t0
-t0 = T(); import numba; t_numba = T() - t0
-from numba.core import dispatcher
-orig = dispatcher.Dispatcher._compile_for_args
-spent = [0.0, 0.0, 0]
-def timed(self, *a, **k):
-    t = T(); r = orig(self, *a, **k); spent[0 if spent[2] == 0 else 1] += T() - t; spent[2] += 1
-    return r
-dispatcher.Dispatcher._compile_for_args = timed
-t0 = T(); import pandas; t_pandas = T() - t0
 t0 = T(); import cv2; t_cv2 = T() - t0
+from slitcli.cli import main   # installs the compile notice (and numba's import hooks)
+t0 = T(); import numba; t_numba = T() - t0
+from numba.core import caching, dispatcher
+loads, outer, inner = [], [], []
+orig_c, orig_l, orig_i = (dispatcher.Dispatcher._compile_for_args,
+                          caching.Cache.load_overload, caching.Cache._load_overload)
+def c(self, *a, **k):
+    t = T(); r = orig_c(self, *a, **k); outer.append(T() - t); return r
+def l(self, *a, **k):
+    t = T(); r = orig_l(self, *a, **k)
+    f = self._py_func
+    loads.append((f.__module__ + '.' + f.__qualname__, T() - t)); return r
+def i(self, *a, **k):
+    t = T(); r = orig_i(self, *a, **k); inner.append(T() - t); return r
+dispatcher.Dispatcher._compile_for_args = c
+caching.Cache.load_overload = l
+caching.Cache._load_overload = i
 sys.argv = ["slitcli", "detect", sys.argv[1], "-o", sys.argv[2]]
-from slitcli.cli import main
 t0 = T()
 try:
     main()
 except SystemExit:
     pass
 t_cmd = T() - t0
-rest = t_cmd - spent[0] - spent[1]
-print(f"{t_numpy} {t_numba} {spent[0]} {spent[2] - 1} {spent[1]} {t_pandas} {t_cv2} {rest}")
-'''
+print(json.dumps({
+    "numpy": t_numpy, "cv2": t_cv2, "numba": t_numba,
+    "registries": loads[0][1] - inner[0] if loads else 0.0,
+    "cache_loads": sum(inner), "n_kernels": len(inner),
+    "dispatch": sum(outer) - sum(t for _, t in loads),
+    "rest": t_cmd - sum(outer), "total": T() - t_start,
+    "kernels": [[name, t] for (name, _), t in zip(loads, inner)],
+    "heavy": [m for m in HEAVY if m in sys.modules]}))
+'''.replace("HEAVY", repr(HEAVY))
+
+PARTS = ("numpy", "cv2", "numba", "registries", "cache_loads", "dispatch", "rest", "total")
+IMPORTS = ("numpy", "numba", "scipy", "cv2", "yaml", "click", "pandas", "matplotlib")
 
 
-def _one_frame(seq: Path, where: Path) -> Path:
+def one_frame(seq: Path, where: Path) -> Path:
     """A copy of the first frame of ``seq`` as a one-frame sequence folder."""
     one = where / "one"
     for side in ("left", "right"):
@@ -67,45 +99,116 @@ def _one_frame(seq: Path, where: Path) -> Path:
 
 
 def _timed(cmd: list[str]) -> tuple[float, float]:
+    """Wall and CPU (user + sys) seconds of one child process."""
     before = os.times()
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - t0
     after = os.times()
-    cpu = (after.children_user - before.children_user
-           + after.children_system - before.children_system)
-    return wall, cpu
+    return wall, (after.children_user - before.children_user
+                  + after.children_system - before.children_system)
+
+
+def _importtime() -> dict[str, float]:
+    """Cumulative import time (s) of :data:`IMPORTS` and all of slitcli.detect, one run."""
+    res = subprocess.run([sys.executable, "-X", "importtime", "-c", "import slitcli.detect"],
+                         check=True, capture_output=True, text=True)
+    out = dict.fromkeys((*IMPORTS, "slitcli.detect"), 0.0)  # 0: not imported
+    for line in res.stderr.splitlines():  # each module is listed once, when first imported
+        m = re.match(r"import time:\s+\d+ \|\s+(\d+) \| *(\S+)$", line)
+        if m and m.group(2) in out:
+            out[m.group(2)] = int(m.group(1)) * 1e-6
+    return out
+
+
+def measure(seq: Path = CORRIDOR, runs: int = 21,
+            say: Callable[[str], None] = lambda _line: None) -> dict:
+    """Every start-up measurement, medians over ``runs`` (see the module docstring)."""
+    result: dict = {"runs": runs, "load_before": os.getloadavg()[0], "cases": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        one = one_frame(seq, Path(tmp))
+        cases = {"python -c pass": lambda i: [sys.executable, "-c", "pass"],
+                 "slitcli --help": lambda i: [str(SLITCLI), "--help"],
+                 "slitcli detect (1 frame, warm)":
+                     lambda i: [str(SLITCLI), "detect", str(one), "-o", f"{tmp}/out{i}"]}
+        for name, make in cases.items():
+            say(f"{name} x {runs}")
+            _timed(make(-1))  # fills the OS's file cache
+            walls, cpus = zip(*(_timed(make(i)) for i in range(runs)), strict=True)
+            result["cases"][name] = {
+                "wall_median_s": statistics.median(walls), "wall_min_s": min(walls),
+                "cpu_median_s": statistics.median(cpus), "cpu_min_s": min(cpus)}
+        say(f"breakdown x {runs}")
+        rows = [json.loads(subprocess.run(
+            [sys.executable, "-c", _BREAKDOWN, str(one), f"{tmp}/bd{i}"], check=True,
+            capture_output=True, text=True).stdout.splitlines()[-1]) for i in range(runs)]
+    result["breakdown_cpu_s"] = {k: statistics.median(r[k] for r in rows) for k in PARTS}
+    result["kernels_loaded"] = statistics.median(r["n_kernels"] for r in rows)
+    names = [n for n, _ in rows[0]["kernels"]]
+    result["kernel_load_cpu_s"] = {
+        n: statistics.median(r["kernels"][k][1] for r in rows if len(r["kernels"]) > k)
+        for k, n in enumerate(names)}
+    result["heavy_modules_imported"] = rows[0]["heavy"]
+    say(f"importtime x {runs}")
+    imports = [_importtime() for _ in range(runs)]
+    result["importtime_s"] = {k: statistics.median(r[k] for r in imports)
+                              for k in (*IMPORTS, "slitcli.detect")}
+    result["load_after"] = os.getloadavg()[0]
+    return result
+
+
+def table(result: dict) -> str:
+    """The measurements as Markdown tables."""
+    lines = [f"runs: {result['runs']} (medians); load average {result['load_before']:.1f} "
+             f"before, {result['load_after']:.1f} after", "",
+             "| what | wall median | wall min | CPU median | CPU min |", "|---|---|---|---|---|"]
+    for name, c in result["cases"].items():
+        lines.append(f"| `{name}` | {c['wall_median_s']:.3f} s | {c['wall_min_s']:.3f} s | "
+                     f"{c['cpu_median_s']:.3f} s | {c['cpu_min_s']:.3f} s |")
+    b = result["breakdown_cpu_s"]
+    lines += ["", "| warm detect, CPU inside the process | s |", "|---|---|"]
+    labels = {"numpy": "numpy import", "cv2": "OpenCV import",
+              "numba": "numba import (with SciPy's version check)",
+              "registries": "numba's registries, on the first kernel call",
+              "cache_loads": f"{result['kernels_loaded']:.0f} kernels loaded from the cache",
+              "dispatch": "numba's dispatch around the loads",
+              "rest": "the rest: slitcli's modules, reading, the frame's work, writing",
+              "total": "total"}
+    lines += [f"| {labels[k]} | {b[k]:.3f} |" for k in PARTS]
+    lines += ["", "heavy modules imported: " + (", ".join(result["heavy_modules_imported"])
+                                                or "none of " + ", ".join(HEAVY)), "",
+              "| `import slitcli.detect`: cumulative import time | s |", "|---|---|"]
+    lines += [f"| {k} | {v:.3f} |" for k, v in result["importtime_s"].items()]
+    return "\n".join(lines)
+
+
+def bench(timer: object) -> list[dict]:
+    """Rows for `make bench` (bench/run.py): wall medians, with the CPU medians in the note."""
+    result = measure(runs=21, say=lambda line: print(f"  {line}", file=sys.stderr, flush=True))
+    rows = [{"name": f"startup: {name}", "median_s": c["wall_median_s"],
+             "min_s": c["wall_min_s"], "runs": result["runs"], "cpu_median_s": c["cpu_median_s"],
+             "note": f"CPU median {c['cpu_median_s']:.3f} s"}
+            for name, c in result["cases"].items()]
+    b = result["breakdown_cpu_s"]
+    rows.append({"name": "startup: warm detect CPU breakdown", "runs": result["runs"],
+                 "breakdown_cpu_s": b, "kernels_loaded": result["kernels_loaded"],
+                 "heavy_modules_imported": result["heavy_modules_imported"],
+                 "note": ", ".join(f"{k} {v:.3f} s" for k, v in b.items())})
+    return rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("seq", nargs="?", type=Path,
-                    default=ROOT / "sample_data" / "sequences" / "corridor")
-    ap.add_argument("--runs", type=int, default=7)
+    ap.add_argument("seq", nargs="?", type=Path, default=CORRIDOR)
+    ap.add_argument("--runs", type=int, default=21)
+    ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        one = _one_frame(args.seq, Path(tmp))
-        cases = {"slitcli --help": lambda i: [str(SLITCLI), "--help"],
-                 "slitcli detect (1 frame, warm)":
-                     lambda i: [str(SLITCLI), "detect", str(one), "-o", f"{tmp}/out{i}"]}
-        for name, make in cases.items():
-            _timed(make(-1))  # a first run fills the OS's file cache
-            runs = [_timed(make(i)) for i in range(args.runs)]
-            print(f"{name:32s} wall median {statistics.median(w for w, _ in runs):.3f} s, "
-                  f"CPU median {statistics.median(c for _, c in runs):.3f} s "
-                  f"({args.runs} runs)")
-        rows = []
-        for i in range(3):
-            out = subprocess.run([sys.executable, "-c", _BREAKDOWN, str(one), f"{tmp}/bd{i}"],
-                                 check=True, capture_output=True, text=True).stdout
-            rows.append([float(x) for x in out.split()[-8:]])
-    med = [statistics.median(r[k] for r in rows) for k in range(8)]
-    print(f"warm detect CPU breakdown (median of 3): numpy {med[0]:.3f} s, numba import "
-          f"{med[1]:.3f} s, first kernel call (numba's registries + its cache load) "
-          f"{med[2]:.3f} s, {med[3]:.0f} more cache loads {med[4]:.3f} s, pandas "
-          f"{med[5]:.3f} s, cv2 {med[6]:.3f} s, the rest (slitcli modules, I/O, the frame's "
-          f"work) {med[7]:.3f} s")
+    result = measure(args.seq, args.runs, say=lambda line: print(line, file=sys.stderr,
+                                                                     flush=True))
+    print(table(result))
+    if args.json is not None:
+        args.json.write_text(json.dumps(result, indent=2) + "\n")
 
 
 if __name__ == "__main__":

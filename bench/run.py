@@ -72,10 +72,7 @@ def main() -> int:
     for r in rows:
         med = f"{1e3 * r['median_s']:10.3f}" if "median_s" in r else f"{'':>10}"
         mn = f"{1e3 * r['min_s']:9.3f}" if "min_s" in r else f"{'':>9}"
-        # a module may keep its own per-setting run counts under "runs" (a mapping)
-        runs = r.get("runs", "")
-        runs = runs if isinstance(runs, int) else ""
-        print(f"{r['name']:<{w}}  {med}  {mn}  {runs:>4}  {r.get('note', '')}")
+        print(f"{r['name']:<{w}}  {med}  {mn}  {r.get('runs', ''):>4}  {r.get('note', '')}")
     result = {
         "machine": {"platform": platform.platform(), "processor": platform.processor(),
                     "cpu_count": os.cpu_count(), "python": platform.python_version()},

@@ -9,11 +9,13 @@ a sequence folder or a ROS bag), resumably and in parallel, and writes ``ranges.
 
 from __future__ import annotations
 
+import csv
 import json
 import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
+from operator import itemgetter
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -41,11 +43,11 @@ from slitcli.io.frames import (
     DEFAULT_RIGHT_TOPIC,
     BadFrame,
     FrameInfo,
+    FrameSource,
     open_frames,
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
 from slitcli.io.progress import Progress, RunSummary
-from slitcli.laser.batch import grey_frames, laser_table
 from slitcli.laser.diagnose import absence_notes
 from slitcli.laser.frame import (
     EdgeParams,
@@ -314,9 +316,12 @@ def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task)
                          ("mask", encode_mask_png(res.stereo.obstacle_mask)), *previews):
             target = batch.out / sub / name
             write_bytes_atomic(target, png_bytes(target, img))
+        # pandas (laser_table's DataFrame) only with --save-images
+        from slitcli.laser.batch import laser_table
+
         write_text_atomic(batch.part_path(i, "laser"), csv_rows(laser_table(i, res.laser)))
     # the rows part goes last: its presence marks the frame as finished
-    write_text_atomic(batch.part_path(i), csv_rows(res.table(i, task.info.time_s)))
+    write_text_atomic(batch.part_path(i), res.ranges.csv_rows(i, task.info.time_s))
     return i
 
 
@@ -416,19 +421,42 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if save_images:
         batch.assemble(n, "laser", batch.out / LASER.file, LASER.header)
         outputs += (batch.out / LASER.file,)
-    import pandas as pd
-
-    rows = pd.read_csv(table, usecols=["frame", "laser_range_m", "fused_source"])
-    counts = rows["fused_source"].value_counts()
-    lit = rows.groupby("frame")["laser_range_m"].count()
+    counts, frame_ids, lit = _table_counts(table)
     # most frames without a laser bin: say so, and why where the images tell
-    idx = lit.index.to_numpy()
-    notes += absence_notes(lit.to_numpy(), lambda pos: grey_frames(src, [int(idx[p]) for p in pos]),
+    notes += absence_notes(lit, lambda pos: _grey_frames(src, [int(frame_ids[p]) for p in pos]),
                            search=params.laser.search)
     return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
-                      MappingProxyType({"laser_bins": int(counts.get("laser", 0)),
-                                        "stereo_bins": int(counts.get("stereo", 0)),
+                      MappingProxyType({"laser_bins": counts.get("laser", 0),
+                                        "stereo_bins": counts.get("stereo", 0),
                                         "skipped_frames": skipped}), notes)
+
+
+def _table_counts(table: Path) -> tuple[dict[str, int], np.ndarray, np.ndarray]:
+    """From a finished ``ranges.csv``: rows per ``fused_source`` value, and per frame with
+    rows (ascending frame number) its number and its count of laser ranges.
+
+    Read with the csv module, not pandas: a one-frame run would spend a third of its
+    start-up importing pandas for these counts. The table is the one this run just
+    assembled (:data:`slitcli.ranges.RANGES` columns; an empty cell is no return).
+    """
+    with open(table, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        rows = list(reader)
+    frame, laser, source = (np.array(list(map(itemgetter(header.index(c)), rows)), dtype=str)
+                            for c in ("frame", "laser_range_m", "fused_source"))
+    names, per_name = np.unique(source, return_counts=True)
+    frame_ids, row_frame = np.unique(frame.astype(np.int64), return_inverse=True)
+    lit = np.bincount(row_frame, weights=laser != "", minlength=frame_ids.size).astype(np.int64)
+    return dict(zip(names.tolist(), per_name.tolist(), strict=True)), frame_ids, lit
+
+
+def _grey_frames(src: FrameSource, indices: list[int]) -> list[bool]:
+    """:func:`slitcli.laser.batch.grey_frames`, imported only when a warning needs it
+    (``laser.batch`` brings pandas)."""
+    from slitcli.laser.batch import grey_frames
+
+    return grey_frames(src, indices)
 
 
 def summary_line(summary: RunSummary) -> str:

@@ -22,7 +22,7 @@ from slitcli.dwa import DwaParams, plan_step
 from slitcli.errors import SlitcliError
 from slitcli.io.atomic import check_output_file, write_csv_atomic
 from slitcli.local_map import to_robot, unicycle
-from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS, format_time_s
+from slitcli.ranges import DWA_COMMANDS, RANGE_VALUE_COLUMNS, times_as_text
 from slitcli.world_model import MEMORY_MODES, WorldModel, WorldModelParams, moving_to_robot
 
 CMDS_COLUMNS = DWA_COMMANDS.columns
@@ -193,5 +193,5 @@ def dwa_offline(ranges_csv: str | Path, goal_xy_m: tuple[float, float], out_csv:
     cmds = plan_range_table(table, goal_xy_m, params, forward_m=forward_m, memory_s=memory_s,
                             memory_cell_m=memory_cell_m, memory=memory, free_m=free_m)
     # times keep every digit of their stamps (a wall-clock 1.7e9 s with %.6g loses them)
-    write_csv_atomic(out_csv, cmds.assign(time_s=[format_time_s(t) for t in cmds["time_s"]]))
+    write_csv_atomic(out_csv, times_as_text(cmds, ("time_s",)))
     return cmds

@@ -17,7 +17,9 @@ tool writes (docs/detect.md and the other pages document them).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import csv
+import io
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -183,6 +185,18 @@ class RangeTable:
             "fused_range_m": self.fused_range_m, "fused_source": self.fused_source,
         }, columns=list(RANGES.columns))
 
+    def csv_rows(self, frame: int, time_s: float) -> str:
+        """The ``ranges.csv`` rows of this frame as CSV text without header: the bytes of
+        ``csv_rows(self.rows(frame, time_s))``, without importing pandas (a one-frame
+        ``slitcli detect`` would spend a third of its start-up importing it)."""
+        n = len(self)
+        return format_csv_rows((
+            np.full(n, frame, dtype=np.int64), np.full(n, format_time_s(time_s), dtype=object),
+            np.asarray(self.bearing_deg), np.asarray(self.laser_range_m),
+            np.asarray(self.stereo_range_m),
+            np.asarray(self.stereo_has_features).astype(np.int64),
+            np.asarray(self.fused_range_m), np.asarray(self.fused_source)))
+
 
 # ------------------------------------------------------------------ table schemas
 @dataclass(frozen=True)
@@ -248,14 +262,51 @@ def format_time_s(time_s: float) -> str:
     return np.format_float_positional(t, precision=9, unique=True, trim="-")
 
 
+TIME_COLUMNS = ("time_s", "t_s", "time_to_goal_s")
+
+
+def times_as_text(table: pd.DataFrame, columns: tuple[str, ...] = TIME_COLUMNS) -> pd.DataFrame:
+    """A copy of ``table`` whose time columns (those of ``columns`` it has) are text at
+    full precision (:func:`format_time_s`), for writing with a float format that would
+    round them."""
+    out = table.copy()
+    for col in columns:
+        if col in out.columns:
+            out[col] = [format_time_s(t) for t in out[col].to_numpy(dtype=float)]
+    return out
+
+
 def csv_rows(table: pd.DataFrame) -> str:
     """Rows of a table as CSV text without header (``FLOAT_FORMAT``, empty for NaN)."""
     return table.to_csv(header=False, index=False, float_format=FLOAT_FORMAT, na_rep="",
                         lineterminator="\n")
 
 
+def _cells(values: np.ndarray) -> list[str]:
+    """One column's cells as pandas' ``to_csv`` writes them with ``FLOAT_FORMAT`` and an
+    empty ``na_rep``: floats through the format (NaN empty, inf as ``inf``), integers
+    and booleans as Python prints them, other objects with ``str`` (None and NaN empty)."""
+    a = np.asarray(values).ravel()
+    if a.dtype.kind == "f":
+        return ["" if v != v else FLOAT_FORMAT % v for v in a.tolist()]
+    if a.dtype.kind in "iub":
+        return [str(v) for v in a.tolist()]
+    return ["" if v is None or (isinstance(v, float) and v != v) else str(v)
+            for v in a.tolist()]
+
+
+def format_csv_rows(columns: Sequence[np.ndarray]) -> str:
+    """Rows of equal-length columns as CSV text without header, the same bytes as
+    :func:`csv_rows` of a DataFrame of those columns (``FLOAT_FORMAT``, empty for NaN,
+    ``\\n`` line ends, fields quoted only where the text needs it), without pandas."""
+    cells = [_cells(c) for c in columns]
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(zip(*cells, strict=True))
+    return buf.getvalue()
+
+
 __all__ = ["DWA_COMMANDS", "FLOAT_FORMAT", "FUSED_SOURCES", "LASER", "RANGES",
            "RANGE_VALUE_COLUMNS", "SIM_METRICS", "SIM_TRAJECTORY", "STEREO_RANGES", "TABLES",
            "TIMES", "TRUTH_LASER", "TRUTH_LASER_RANGES", "TRUTH_POSES", "TRUTH_RANGES",
            "BearingBins", "RangeTable", "TableSchema", "absolute_bin", "bin_count", "bin_min",
-           "boundary_deg", "csv_rows", "format_time_s"]
+           "boundary_deg", "csv_rows", "format_csv_rows", "format_time_s", "times_as_text"]

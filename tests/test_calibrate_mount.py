@@ -23,14 +23,22 @@ from slitcli.sim.targets import (
 HEIGHT_M, TILT_DEG, ROLL_DEG = 0.65, 20.0, 1.5
 
 
-def _floor_view(seed: int) -> dict:
-    """A rendered floor pair (floor texture seed ``3 + 10 seed``, camera noise seeds after
-    it) with the truth in the rig frame."""
+@pytest.fixture(scope="module")
+def cameras():
+    """The demo rig's raw calibration and a renderer per camera (their per-pixel rays take
+    seconds to build, so every test of the module shares them)."""
     raw = demo_raw_calibration()
     lc, rc = stereo_cameras(raw)
+    return raw, TargetRenderer(lc), TargetRenderer(rc)
+
+
+def _floor_view(cameras, seed: int) -> dict:
+    """A rendered floor pair (floor texture seed ``3 + 10 seed``, camera noise seeds after
+    it) with the truth in the rig frame."""
+    raw, left_cam, right_cam = cameras
     floor = floor_for_mount(HEIGHT_M, TILT_DEG, ROLL_DEG, seed=3 + 10 * seed)
-    left = TargetRenderer(lc).render_floor(floor, seed=1 + 10 * seed)
-    right = TargetRenderer(rc).render_floor(floor, seed=2 + 10 * seed)
+    left = left_cam.render_floor(floor, seed=1 + 10 * seed)
+    right = right_cam.render_floor(floor, seed=2 + 10 * seed)
     rig = rig_with_raw(raw)
     # truth in the rig's (rectified left) frame: the floor normal rotated by R1
     n = raw.array("R1") @ -np.asarray(floor.up_left)
@@ -40,13 +48,13 @@ def _floor_view(seed: int) -> dict:
 
 
 @pytest.fixture(scope="module")
-def floor_view():
-    return _floor_view(0)
+def floor_view(cameras):
+    return _floor_view(cameras, 0)
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_mount_from_rendered_floor(floor_view, seed):
-    floor_view = floor_view if seed == 0 else _floor_view(seed)
+def test_mount_from_rendered_floor(cameras, floor_view, seed):
+    floor_view = floor_view if seed == 0 else _floor_view(cameras, seed)
     res = calibrate_mount_frames(["f0"], [(floor_view["left"], floor_view["right"])],
                                  floor_view["rig"], MountParams())
     m, t = res.rig.mount, floor_view["truth"]
@@ -149,11 +157,10 @@ def test_floor_check_accepts_model_noise_and_refuses_a_scatter(seed):
         floor_plane_check(plane, MountParams())
 
 
-def _render_pairs(floors, seed):
-    raw = demo_raw_calibration()
-    lc, rc = stereo_cameras(raw)
-    return [(TargetRenderer(lc).render_floor(f, seed=seed + 2 * i),
-             TargetRenderer(rc).render_floor(f, seed=seed + 2 * i + 1))
+def _render_pairs(cameras, floors, seed):
+    raw, left_cam, right_cam = cameras
+    return [(left_cam.render_floor(f, seed=seed + 2 * i),
+             right_cam.render_floor(f, seed=seed + 2 * i + 1))
             for i, f in enumerate(floors)], rig_with_raw(raw)
 
 
@@ -166,7 +173,7 @@ def _write_seq(root, pairs):
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_cli_refuses_views_without_a_floor(tmp_path, seed):
+def test_cli_refuses_views_without_a_floor(cameras, tmp_path, seed):
     from slitcli.sim.targets import Floor
 
     rng = np.random.default_rng(seed)
@@ -177,7 +184,7 @@ def test_cli_refuses_views_without_a_floor(tmp_path, seed):
     # a wall: no floor-like RANSAC candidate at all, or a candidate that refines to the wall
     for name, floors, why in (("rooms", rooms, ("lie on the best floor plane",)),
                               ("wall", wall, ("not the floor", "no floor-like plane"))):
-        pairs, rig = _render_pairs(floors, seed)
+        pairs, rig = _render_pairs(cameras, floors, seed)
         _write_seq(tmp_path / name, pairs)
         rig_path, out = tmp_path / f"{name}_rig.yaml", tmp_path / f"{name}_out.yaml"
         save_rig(rig, rig_path)

@@ -31,11 +31,18 @@ SPEC = BoardSpec(9, 6, 0.025)
 N_CAL, N_HELD = 10, 3
 
 
-def _render_views(seed: int) -> dict:
+@pytest.fixture(scope="module")
+def cameras():
+    """The demo rig's raw calibration and a renderer per camera, shared by every pose draw
+    (their per-sample rays take seconds to build)."""
     raw = demo_raw_calibration()
     lc, rc = stereo_cameras(raw)
     params = TargetRenderParams(supersample=3)
-    rl, rr = TargetRenderer(lc, params), TargetRenderer(rc, params)
+    return raw, (lc, rc), (TargetRenderer(lc, params), TargetRenderer(rc, params))
+
+
+def _render_views(cameras, seed: int) -> dict:
+    raw, (lc, rc), (rl, rr) = cameras
     poses = random_board_poses((lc, rc), BOARD, N_CAL + N_HELD, distance_m=(0.3, 0.55),
                                seed=seed)
     left = [rl.render_board(BOARD, p, seed=2 * i) for i, p in enumerate(poses)]
@@ -48,16 +55,16 @@ def _render_views(seed: int) -> dict:
 
 
 @pytest.fixture(scope="module")
-def views():
+def views(cameras):
     """One set of views for the command-line and refusal tests: they check plumbing (exit
     status, files, messages), which no pose draw changes, so one seed suffices."""
-    return _render_views(11)
+    return _render_views(cameras, 11)
 
 
 @pytest.fixture(scope="module", params=[11, 12, 13, 14, 15])
-def seeded_views(request):
+def seeded_views(request, cameras):
     """Views from five pose draws, for the accuracy properties."""
-    return _render_views(request.param)
+    return _render_views(cameras, request.param)
 
 
 @pytest.fixture(scope="module")

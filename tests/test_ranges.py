@@ -17,6 +17,7 @@ from slitcli.ranges import (
     bin_min,
     boundary_deg,
     format_time_s,
+    times_as_text,
 )
 from slitcli.rig import paper_rig
 
@@ -137,3 +138,16 @@ def test_time_keeps_its_steps(stamp_ns):
     back = pd.read_csv(pd.io.common.StringIO(f"t\n{format_time_s(t0)}\n{format_time_s(t1)}\n"))
     assert abs(float(np.diff(back["t"].to_numpy())[0]) - 0.2) < 1e-6
     assert format_time_s(float("nan")) == ""
+
+
+def test_written_times_keep_full_precision():
+    """Trajectory, metrics, DWA command and range-table times are written like every table's
+    (format_time_s: every digit to the nanosecond), not cut to six significant digits:
+    at 12345.675 s, %.6g would write 12345.7 and merge neighbouring 10 ms steps."""
+    t_s = np.array([12345.67, 12345.68, 1.76e9 + 0.123456789, np.nan])
+    table = pd.DataFrame({"t_s": t_s, "x_m": [1.0, 2.0, 3.0, 4.0]})
+    out = times_as_text(table)
+    back = pd.to_numeric(out["t_s"].replace("", np.nan))
+    np.testing.assert_allclose(back[:3], t_s[:3], rtol=0, atol=1e-9)
+    assert back.iloc[0] != back.iloc[1] and math.isnan(back.iloc[3])
+    assert table["t_s"].dtype == float  # the input is left alone

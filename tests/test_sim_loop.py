@@ -413,18 +413,3 @@ def test_recovery_backs_up_the_way_it_came_then_goes_on():
     # without recovery (the default 20 s is longer than this 12 s turn) it never backs up
     plain = run_world(w, perfect_sensor(w.scene, RIG, 0.6), DwaParams(), SimParams())
     assert (plain.trajectory["status"] != "recover").all()
-
-
-def test_written_times_keep_full_precision():
-    """Trajectory, metrics and range-table times are written like every other table's
-    (format_time_s: every digit to the nanosecond), not cut to six significant digits:
-    at 12345.675 s, %.6g would write 12345.7 and merge neighbouring 10 ms steps."""
-    from slitcli.sim.loop import _full_times
-
-    t_s = np.array([12345.67, 12345.68, 1.76e9 + 0.123456789, np.nan])
-    table = pd.DataFrame({"t_s": t_s, "x_m": [1.0, 2.0, 3.0, 4.0]})
-    out = _full_times(table)
-    back = pd.to_numeric(out["t_s"].replace("", np.nan))
-    np.testing.assert_allclose(back[:3], t_s[:3], rtol=0, atol=1e-9)
-    assert back.iloc[0] != back.iloc[1] and math.isnan(back.iloc[3])
-    assert table["t_s"].dtype == float  # the input is left alone

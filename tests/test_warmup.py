@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from slitcli.warmup import JOBS, kernel_inventory, warm_up
+from slitcli.warmup import JOBS, compile_bytecode, kernel_inventory, warm_up
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTICE = "slitcli: compiling numba kernels"
@@ -226,3 +226,34 @@ def test_a_worker_announces_only_when_its_parent_asked(tmp_path, asked):
     assert res.returncode == 0, res.stderr
     assert res.stdout.split() == ["1.5"]
     assert res.stderr.count(NOTICE) == (1 if asked else 0)
+
+
+def test_bytecode_is_written_where_python_would_not(tmp_path):
+    """compile_bytecode writes a .pyc per module that Python accepts (its header holds the
+    source's modification time and size), and an import with PYTHONDONTWRITEBYTECODE
+    then reads it instead of compiling the source."""
+    import importlib.util
+
+    pkg = tmp_path / "pkg"
+    _write(pkg / "__init__.py", "")
+    _write(pkg / "sub" / "__init__.py", "")
+    _write(pkg / "sub" / "mod.py", "X = 41 + 1\n")
+    assert compile_bytecode(pkg)
+    for src in pkg.rglob("*.py"):
+        header = Path(importlib.util.cache_from_source(str(src))).read_bytes()[:16]
+        st = src.stat()
+        assert header[:4] == importlib.util.MAGIC_NUMBER
+        assert int.from_bytes(header[8:12], "little") == int(st.st_mtime) & 0xFFFFFFFF
+        assert int.from_bytes(header[12:16], "little") == st.st_size & 0xFFFFFFFF
+    code = ("import importlib._bootstrap_external as b, sys\n"
+            "seen = []\n"
+            "orig = b.SourceLoader.source_to_code\n"
+            "b.SourceLoader.source_to_code = lambda self, *a, **k: seen.append(a[1]) or "
+            "orig(self, *a, **k)\n"
+            "import pkg.sub.mod\n"
+            "print(pkg.sub.mod.X, len(seen))\n")
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPATH": str(tmp_path)}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == ["42", "0"]

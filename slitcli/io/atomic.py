@@ -23,12 +23,15 @@ import secrets
 import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import pandas as pd
 
 from slitcli.errors import SlitcliError
+
+if TYPE_CHECKING:  # callers pass their DataFrame; detect's path never imports pandas
+    import pandas as pd
 
 OWNED_LIST = ".slitcli-outputs"
 """File in an output folder naming, one a line, the entries slitcli wrote there."""

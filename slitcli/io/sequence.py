@@ -8,13 +8,13 @@ that order; that index is the ``frame`` column of every table.
 
 from __future__ import annotations
 
+import csv
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from slitcli.errors import SlitcliError
 from slitcli.io.yamlfile import brief
@@ -168,26 +168,35 @@ def _read_times(path: Path, n: int) -> np.ndarray:
         raise SlitcliError(f"{path}: is not a file; times.csv must be a CSV file with columns "
                            "frame,time_s (or absent)")
     try:
-        t = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, OSError):
-        raise SlitcliError(f"{path}: not a CSV with columns frame,time_s; fix or delete it") \
-            from None
-    if list(t.columns) != ["frame", "time_s"]:
-        raise SlitcliError(f"{path}: columns are {brief(list(t.columns))}, expected "
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            # blank lines are no rows (as in pandas.read_csv, which read this file before)
+            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
+    except (csv.Error, UnicodeDecodeError, OSError):
+        rows = []
+    if not rows:
+        raise SlitcliError(f"{path}: not a CSV with columns frame,time_s; fix or delete it")
+    if rows[0] != ["frame", "time_s"]:
+        raise SlitcliError(f"{path}: columns are {brief(rows[0])}, expected "
                            "frame,time_s; fix the header or delete the file")
-    frame_num = pd.to_numeric(t["frame"], errors="coerce").to_numpy(dtype=float)
-    time_num = pd.to_numeric(t["time_s"], errors="coerce").to_numpy(dtype=float)
+    long = next((i for i, r in enumerate(rows) if len(r) > 2), None)
+    if long is not None:
+        raise SlitcliError(f"{path}: line {long + 1}: {len(rows[long])} cells, expected 2 "
+                           "(frame,time_s); fix the file")
+    # a short row's missing cell is empty, and so not a number
+    frame_txt = [r[0] for r in rows[1:]]
+    time_txt = [r[1] if len(r) > 1 else "" for r in rows[1:]]
+    frame_num, time_num = _numbers(frame_txt), _numbers(time_txt)
     bad = ~np.isfinite(frame_num) | (frame_num != np.round(frame_num)) | (frame_num < 0) \
         | (frame_num >= n)
     if bad.any():
         line = int(np.flatnonzero(bad)[0]) + 2
-        raise SlitcliError(f"{path}: line {line}: frame {brief(t['frame'].iloc[line - 2])} is "
+        raise SlitcliError(f"{path}: line {line}: frame {brief(frame_txt[line - 2])} is "
                            f"not a whole number 0..{n - 1} (one per image pair, in name "
                            "order); fix the file")
     bad = ~np.isfinite(time_num)
     if bad.any():
         line = int(np.flatnonzero(bad)[0]) + 2
-        raise SlitcliError(f"{path}: line {line}: time_s {brief(t['time_s'].iloc[line - 2])} "
+        raise SlitcliError(f"{path}: line {line}: time_s {brief(time_txt[line - 2])} "
                            "is not a number of seconds; fix the file")
     frames = frame_num.astype(np.int64)
     dup = np.flatnonzero(np.bincount(frames, minlength=n) > 1)
@@ -197,3 +206,16 @@ def _read_times(path: Path, n: int) -> np.ndarray:
     times = np.full(n, np.nan)
     times[frames] = time_num
     return times
+
+
+# a decimal number, optionally signed, with an optional exponent, spaces around allowed;
+# what pandas.to_numeric read from this file before (hexadecimal, "1_000" and words are
+# not numbers; "inf" and "nan" are refused as not finite either way)
+_NUMBER = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\s*")
+
+
+def _numbers(cells: list[str]) -> np.ndarray:
+    """The cells as float64 (correctly rounded, as Python reads them), NaN where a cell
+    is not a decimal number."""
+    return np.array([float(c) if _NUMBER.fullmatch(c) else np.nan for c in cells],
+                    dtype=np.float64)

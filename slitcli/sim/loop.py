@@ -36,7 +36,7 @@ from slitcli.io.atomic import (
 from slitcli.io.progress import progress_bar
 from slitcli.local_map import to_robot, unicycle
 from slitcli.prediction import MovingDiscs
-from slitcli.ranges import RANGES, SIM_METRICS, SIM_TRAJECTORY, format_time_s
+from slitcli.ranges import RANGES, SIM_METRICS, SIM_TRAJECTORY, times_as_text
 from slitcli.rig import Rig
 from slitcli.sim.clearance import clearance_m, obstacle_geometry
 from slitcli.sim.scene import Pose2D, Scene
@@ -507,16 +507,6 @@ def simulate_dwa(out_dir: str | Path, rig: Rig, dwa: DwaParams, sim: SimParams, 
                               inputs=[world_path, *inputs])
 
 
-def _full_times(table: pd.DataFrame) -> pd.DataFrame:
-    """A copy whose time columns (``t_s``, ``time_s``, ``time_to_goal_s``) are text at full
-    precision (:func:`slitcli.ranges.format_time_s`, as every other table), not ``%.6g``."""
-    out = table.copy()
-    for col in ("t_s", "time_s", "time_to_goal_s"):
-        if col in out.columns:
-            out[col] = [format_time_s(t) for t in out[col].to_numpy(dtype=float)]
-    return out
-
-
 def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa: DwaParams,
                        sim: SimParams, *, sensing: str = "perfect", overwrite: bool = False,
                        bin_deg: float = 1.0, save_ranges: bool = False,
@@ -537,12 +527,12 @@ def simulate_to_folder(cases: Sequence[Case], out_dir: str | Path, rig: Rig, dwa
     with atomic_directory(out_dir, overwrite=overwrite, inputs=inputs) as tmp:
         for name, res in trajs.items():
             write_csv_atomic(tmp / f"trajectory_{name}.csv",
-                             _full_times(res.trajectory[list(TRAJECTORY_COLUMNS)]))
+                             times_as_text(res.trajectory[list(TRAJECTORY_COLUMNS)]))
             if save_ranges:
                 # ten digits: a replay with `slitcli dwa` then makes the same choices
-                write_csv_atomic(tmp / f"ranges_{name}.csv", _full_times(res.ranges),
+                write_csv_atomic(tmp / f"ranges_{name}.csv", times_as_text(res.ranges),
                                  float_format="%.10g")
-        out = _full_times(metrics)
+        out = times_as_text(metrics)
         out["reached_goal"] = out["reached_goal"].astype(int)
         out["collided"] = out["collided"].astype(int)
         write_csv_atomic(tmp / "metrics.csv", out)
