@@ -31,7 +31,7 @@ import numpy as np
 
 from slitcli.calibrate.board import BoardSpec, View, find_corners, list_views
 from slitcli.calibrate.board_pose import BoardPoseEstimate, board_pose_left, board_pose_stereo
-from slitcli.calibrate.rectify import rectify_pair, rectify_points
+from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.io.sequence import read_image
 from slitcli.rig import Rig, load_rig, save_rig
