@@ -34,12 +34,9 @@ def test_signal_mid_render_cleans_up(tmp_path, sig, code, word):
                             text=True)
     try:
         _wait_for_temp_folder(proc, tmp_path)
-        # a signal during numba's first compilation is lost in llvmlite's ctypes callback
-        # (cli/main.py raises from the handler): wait until a first frame is staged
-        deadline = time.monotonic() + 120
-        while not list(tmp_path.glob(".slitcli-render-*/left/*.png")) \
-                and time.monotonic() < deadline:
-            time.sleep(0.05)
+        # early in the run: with a cold numba cache the signal lands in the compiler,
+        # where an exception raised by the handler used to be swallowed (the run went
+        # on); it is now raised at the next frame boundary (io/progress.on_signal)
         time.sleep(0.5)
         os.kill(proc.pid, sig)
         _, err = proc.communicate(timeout=60)
@@ -47,7 +44,9 @@ def test_signal_mid_render_cleans_up(tmp_path, sig, code, word):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == code, err[-2000:]
-    lines = [x for x in err.splitlines() if x.strip()]
+    # the one-time compile notice (a cold cache) is progress, not the outcome
+    lines = [x for x in err.splitlines()
+             if x.strip() and not x.startswith("slitcli: compiling numba kernels")]
     assert len(lines) == 1 and lines[0].startswith("slitcli: ") and word in lines[0], err
     # no temporary and no OUT; only the render's resumable staging (issue 26 item 22)
     assert sorted(n for n in os.listdir(tmp_path) if not n.startswith(".slitcli-render-")) \
