@@ -7,17 +7,17 @@ camera is the left one moved by ``baseline_m`` along x, with the same ``K``.
 
 Two estimators:
 
-- :func:`board_pose_left` (one camera): :func:`cv2.solvePnP` + LM refinement on the
-  left corners. The board's distance and tilt then come only from perspective, i.e.
-  from how the corner grid shrinks across the board: for a board that spans ``w`` px
-  and corner noise ``sigma`` px, the tilt is known to about ``sigma / w`` times the
-  viewing distance over the board width, several tenths of a degree for a 0.3 m board
-  at 1.5 m.
+- :func:`board_pose_left` (one camera): :func:`cv2.solvePnP` + Gauss-Newton refinement
+  on the left corners. The board's distance and tilt then come only from perspective
+  (how the corner grid's size and shape change across the board): a std of 0.05-0.4
+  deg for the normal of a 0.3 m board at 1.0-1.5 m with 0.05-0.1 px corner noise.
 - :func:`board_pose_stereo` (both cameras): the corners are triangulated
   (``Z = f B / (u_l - u_r)``), a rigid pose is fitted to them (Kabsch), and the pose
   is refined by Gauss-Newton on the reprojection error in *both* rectified images
   (the maximum-likelihood pose under equal, isotropic corner noise). Disparity
-  measures depth directly, so the board plane is several times better determined.
+  measures depth directly: on rendered boards at 1.0-1.5 m (f = 380 px, baseline
+  88 mm) the std of the board normal was 0.6-0.8x, that of the plane's offset
+  0.5-0.6x the left camera's alone.
 """
 
 from __future__ import annotations

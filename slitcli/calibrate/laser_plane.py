@@ -292,7 +292,7 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
     right_images_bgr : the right camera's images of the same views (None entries, or
         None for all: left camera only). With both images a view's board pose comes
         from both cameras (:func:`~slitcli.calibrate.board_pose.board_pose_stereo`),
-        several times more accurate in depth and tilt than the left camera alone.
+        more accurate in depth and tilt than from the left camera alone.
     extractor : stripe rows per column of a rectified image within a mask; default
         :func:`extract_stripe_rows` (the laser module).
     source : named in errors.
