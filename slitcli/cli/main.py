@@ -20,6 +20,7 @@ import click
 
 from slitcli import __version__
 from slitcli.errors import SlitcliError
+from slitcli.io.progress import Terminated, on_signal, reset_signals
 
 # Library parameter names (SlitcliError.param) and the options that set them. One
 # table for every command: a parameter keeps its meaning, so its option keeps its name.
@@ -96,25 +97,23 @@ def echo_notes(notes: tuple[str, ...]) -> None:
         click.echo(f"slitcli: note: {to_flags(note)}", err=True)
 
 
-class Terminated(BaseException):
-    """SIGTERM arrived: unwinds like Ctrl-C, so temporary outputs are removed."""
-
-
-def _on_sigterm(signum: int, frame: Any) -> None:
-    raise Terminated()
-
-
 @contextlib.contextmanager
 def _process_settings() -> Iterator[None]:
-    """For one command: SIGTERM unwinds like Ctrl-C, numpy's floating-point warnings hidden.
+    """For one command: SIGINT / SIGTERM handled between frames, numpy's floating-point
+    warnings hidden.
 
-    The warnings (overflow, invalid value, empty slices) arise on extreme but accepted
+    Signals: :func:`slitcli.io.progress.on_signal` records them and raises
+    ``KeyboardInterrupt`` / :class:`Terminated` at the next frame boundary (at once
+    outside a frame loop), so clean-up and the one stderr line always happen. The
+    warnings (overflow, invalid value, empty slices) arise on extreme but accepted
     numbers whose results are handled (NaN = no return); they are not the user's
     business and must not interleave with progress and data.
     """
-    previous = None
+    reset_signals()
+    previous: dict[int, Any] = {}
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, on_signal)
     try:
         with warnings.catch_warnings():
             warnings.filterwarnings(
@@ -123,8 +122,9 @@ def _process_settings() -> Iterator[None]:
                         r"Mean of empty slice|All-NaN (slice|axis)|Degrees of freedom")
             yield
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
 
 def _load_config(ctx: click.Context, param: click.Parameter, value: Path | None) -> None:
     """``--config FILE``: option values from a YAML mapping become the command's defaults
