@@ -16,6 +16,10 @@ def _render(scene, out, *extra):
 
 
 def test_render_overwrite_keeps_unrelated_files_and_refuses_its_input(tmp_path):
+    """Plumbing of --overwrite; one seed pair suffices: seed 11 only has to differ
+    from the scene's seed 3, so that the replaced image has other bytes (the sensor
+    noise of a 1-frame render is drawn from the seed: two seeds giving equal PNGs
+    would need every one of the image's pixel noise draws to agree)."""
     out = tmp_path / "OUT"
     scene = write_yaml(tmp_path / "s.yaml", SCENE)
     assert _render(scene, out).exit_code == 0

@@ -1,10 +1,12 @@
 """``slitcli calibrate laser``: the laser plane from chessboard views crossed by the stripe.
 
-For each view of the left camera (DESIGN §9):
+For each view (a left image, and the right image of the same moment when there is one):
 
-1. the board's inner corners are found on the raw image, mapped to rectified pixels and
-   the board pose in the rig's (rectified left) camera frame is solved with
-   :func:`cv2.solvePnP`;
+1. the board's inner corners are found on the raw images, mapped to rectified pixels and
+   the board pose in the rig's (rectified left) camera frame is estimated from both
+   cameras (triangulated corners, refined on the reprojection error in both images:
+   :mod:`slitcli.calibrate.board_pose`), or from the left camera alone
+   (:func:`cv2.solvePnP`, less accurate in depth and tilt) when there is no right image;
 2. the stripe is extracted per image column on the rectified image (the laser module,
    paper Eqs. 1-4), giving subpixel rows ``v_px``;
 3. each stripe pixel's ray ``K^-1 (u, v, 1)`` is intersected with the board plane; points
@@ -28,7 +30,8 @@ import cv2
 import numpy as np
 
 from slitcli.calibrate.board import BoardSpec, View, find_corners, list_views
-from slitcli.calibrate.rectify import rectify_pair, rectify_points
+from slitcli.calibrate.board_pose import BoardPoseEstimate, board_pose_left, board_pose_stereo
+from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.io.sequence import read_image
 from slitcli.rig import Rig, load_rig, save_rig
@@ -163,15 +166,13 @@ def fit_plane_svd(points_xyz: np.ndarray, *, reject_sigma: float = 2.0,
 
 def board_pose_rectified(corners_raw_px: np.ndarray, rig: Rig,
                          board: BoardSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Board pose in the rig's camera frame from raw-image corners: ``X = R X_board + t``."""
-    uv = rectify_points(rig, corners_raw_px, camera="left")
-    ok, rvec, tvec = cv2.solvePnP(board.object_points().astype(np.float64), uv,
-                                  rig.left.K, None, flags=cv2.SOLVEPNP_ITERATIVE)
-    if not ok:
-        raise SlitcliError("solvePnP failed on a detected board; the view is unusable")
-    rvec, tvec = cv2.solvePnPRefineLM(board.object_points().astype(np.float64), uv, rig.left.K,
-                                      None, rvec, tvec)
-    return cv2.Rodrigues(rvec)[0], tvec.ravel()
+    """Board pose from the left camera alone: ``X = R X_board + t`` (rig camera frame).
+
+    See :func:`slitcli.calibrate.board_pose.board_pose_left`; kept for callers that
+    want ``(R, t)``.
+    """
+    est = board_pose_left(corners_raw_px, rig, board)
+    return est.R, est.t_m
 
 
 def stripe_points_on_board(v_px: np.ndarray, rig: Rig, R_board: np.ndarray,
@@ -209,13 +210,17 @@ def stripe_points_on_board(v_px: np.ndarray, rig: Rig, R_board: np.ndarray,
 
 @dataclass(frozen=True)
 class LaserViewReport:
-    """One view: used or skipped (reason), stripe points kept, its RMS residual (mm)."""
+    """One view: used or skipped (reason), stripe points kept, its RMS residual (mm),
+    and how its board pose was found (``pose``: ``stereo`` or ``left``, with the note
+    why a stereo view fell back to ``left``) with its reprojection RMS (px)."""
 
     name: str
     used: bool
     reason: str = ""
     points: int = 0
     residual_rms_mm: float = float("nan")
+    pose: str = ""
+    reprojection_rms_px: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -230,60 +235,95 @@ class LaserCalibration:
         n = self.fit.normal
         tilt = math.degrees(math.asin(max(-1.0, min(1.0, n[2]))))
         used = [v for v in self.views if v.used]
-        lines = [f"views: {len(used)} used of {len(self.views)}",
+        stereo = sum(v.pose == "stereo" for v in used)
+        lines = [f"views: {len(used)} used of {len(self.views)} (board pose from both cameras "
+                 f"in {stereo}, from the left camera alone in {len(used) - stereo})",
                  f"laser plane (rig camera frame): normal [{n[0]:.5f}, {n[1]:.5f}, {n[2]:.5f}]"
                  f", offset_m {self.fit.offset_m:.5f} (normal {tilt:.3f} deg from the image "
                  "plane)",
                  f"residual_std_mm: {1000 * self.fit.residual_std_m:.3f} over "
                  f"{self.fit.inliers} of {self.fit.points} points (2-sigma rejection); "
                  f"singular-value ratio {self.fit.spread_ratio:.3f}",
-                 "per view: points, residual_rms_mm"]
-        lines += [f"  {v.name}: {v.points} {v.residual_rms_mm:.3f}" for v in used]
+                 "per view: points, residual_rms_mm, pose, reprojection_rms_px"]
+        lines += [f"  {v.name}: {v.points} {v.residual_rms_mm:.3f} {v.pose} "
+                  f"{v.reprojection_rms_px:.3f}" for v in used]
         lines += [f"skipped {v.name}: {v.reason}" for v in self.views if not v.used]
         return lines
 
 
+def view_board_pose(left_bgr: np.ndarray, right_bgr: np.ndarray | None, rig: Rig,
+                    board: BoardSpec) -> tuple[BoardPoseEstimate | None, str]:
+    """The board pose of one view: from both cameras when it can, else from the left.
+
+    Returns
+    -------
+    pose, how : the pose (None: no board in the left image) and ``stereo``, ``left``,
+        or ``left (why the right image was not used)``.
+    """
+    corners = find_corners(left_bgr, board)
+    if corners is None:
+        return None, ""
+    if right_bgr is not None:
+        right = find_corners(right_bgr, board)
+        if right is None:
+            why = "no board in the right image"
+        else:
+            est = board_pose_stereo(corners, right, rig, board)
+            if est is not None:
+                return est, "stereo"
+            why = "left and right corners are not one pose for this rig"
+        return board_pose_left(corners, rig, board), f"left ({why})"
+    return board_pose_left(corners, rig, board), "left"
+
+
 def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: Rig,
                            params: LaserPlaneParams, *,
+                           right_images_bgr: list[np.ndarray | None] | None = None,
                            extractor: StripeExtractor | None = None,
                            source: str = "views") -> LaserCalibration:
-    """Fit the laser plane from left-camera board views (raw if ``rig.raw`` is set).
+    """Fit the laser plane from board views (raw if ``rig.raw`` is set).
 
     Parameters
     ----------
     names : view names for reports.
-    images_bgr : (H, W, 3) uint8 images of the left camera.
+    images_bgr : (H, W, 3) uint8 images of the left camera (the stripe is read here).
     rig : the stereo-calibrated rig; its laser plane is replaced.
     params : LaserPlaneParams
+    right_images_bgr : the right camera's images of the same views (None entries, or
+        None for all: left camera only). With both images a view's board pose comes
+        from both cameras (:func:`~slitcli.calibrate.board_pose.board_pose_stereo`),
+        more accurate in depth and tilt than from the left camera alone.
     extractor : stripe rows per column of a rectified image within a mask; default
         :func:`extract_stripe_rows` (the laser module).
     source : named in errors.
     """
     extract = extractor if extractor is not None else extract_stripe_rows
     board = params.board
+    rights = list(right_images_bgr) if right_images_bgr is not None else [None] * len(names)
     want = rig.raw.image_size_px if rig.raw is not None else rig.image_size_px
     reports: list[LaserViewReport] = []
     per_view: list[np.ndarray] = []
-    for name, img in zip(names, images_bgr, strict=True):
-        if (img.shape[1], img.shape[0]) != tuple(want):
-            raise SlitcliError(f"{source}/{name}: size {img.shape[1]}x{img.shape[0]} does not "
-                               f"match the rig's {want[0]}x{want[1]}; use the rig of this "
-                               "camera (`rig`)", param="rig")
-        corners = find_corners(img, board)
-        if corners is None:
+    for name, img, right in zip(names, images_bgr, rights, strict=True):
+        for side, im in (("", img), ("right ", right)):
+            if im is not None and (im.shape[1], im.shape[0]) != tuple(want):
+                raise SlitcliError(f"{source}/{name}: {side}size {im.shape[1]}x{im.shape[0]} "
+                                   f"does not match the rig's {want[0]}x{want[1]}; use the rig "
+                                   "of this camera (`rig`)", param="rig")
+        est, how = view_board_pose(img, right, rig, board)
+        if est is None:
             reports.append(LaserViewReport(name, False, f"no {board.cols}x{board.rows} board "
                                            "found"))
             continue
-        R_b, t_b = board_pose_rectified(corners, rig, board)
         rect, _ = rectify_pair(rig, img)
-        v = extract(rect, board_mask(rig, R_b, t_b, board))
-        pts = stripe_points_on_board(v, rig, R_b, t_b, board,
+        v = extract(rect, board_mask(rig, est.R, est.t_m, board))
+        pts = stripe_points_on_board(v, rig, est.R, est.t_m, board,
                                      inset_m=params.inset_squares * board.square_m)
         if pts.shape[0] < params.min_points_per_view:
             reports.append(LaserViewReport(name, False, f"only {pts.shape[0]} stripe points on "
                                            "the board (laser off, or the stripe misses it)"))
             continue
-        reports.append(LaserViewReport(name, True, points=int(pts.shape[0])))
+        reports.append(LaserViewReport(name, True, points=int(pts.shape[0]), pose=how,
+                                       reprojection_rms_px=est.reprojection_rms_px))
         per_view.append(pts)
     if not per_view:
         detail = "; ".join(f"{r.name}: {r.reason}" for r in reports[:3])
@@ -312,22 +352,38 @@ def calibrate_laser_images(names: list[str], images_bgr: list[np.ndarray], rig: 
     return LaserCalibration(rig=replace(rig, laser=laser), fit=fit, views=tuple(final))
 
 
-def laser_views(images_dir: str | Path) -> list[View]:
-    """The left-camera views: ``images_dir/left/`` if it exists, else ``images_dir``."""
+def laser_views(images_dir: str | Path, *,
+                use_right: bool = True) -> list[tuple[View, Path | None]]:
+    """The views: left images and, where there is one, the right image of the same name.
+
+    ``images_dir/left/`` (and ``images_dir/right/``) if it exists, else ``images_dir``
+    alone (left camera only). Right images pair with left ones by file stem; a left view
+    without a right partner (or ``use_right=False``) gets None.
+    """
     d = Path(images_dir)
-    return list_views(d / "left" if (d / "left").is_dir() else d, "laser views")
+    if not (d / "left").is_dir():
+        return [(v, None) for v in list_views(d, "laser views")]
+    left = list_views(d / "left", "laser views (left)")
+    right: dict[str, Path] = {}
+    if use_right and (d / "right").is_dir():
+        right = {v.name: v.path for v in list_views(d / "right", "laser views (right)")}
+    return [(v, right.get(v.name)) for v in left]
 
 
 def run_calibrate_laser(rig_path: str | Path, images_dir: str | Path, params: LaserPlaneParams,
-                        *, out_rig: str | Path | None = None) -> LaserCalibration:
+                        *, out_rig: str | Path | None = None,
+                        use_right: bool = True) -> LaserCalibration:
     """``slitcli calibrate laser``: fit the plane and write it into the rig (atomically).
 
     ``out_rig`` defaults to ``rig_path`` (updated in place). Nothing is written on error.
+    ``use_right=False`` ignores ``images_dir/right/`` (board poses from the left camera
+    alone, less accurate).
     """
     rig = load_rig(rig_path)
-    views = laser_views(images_dir)
-    images = [read_image(v.path) for v in views]
-    result = calibrate_laser_images([v.name for v in views], images, rig, params,
-                                    source=str(images_dir))
+    views = laser_views(images_dir, use_right=use_right)
+    images = [read_image(v.path) for v, _ in views]
+    rights = [None if r is None else read_image(r) for _, r in views]
+    result = calibrate_laser_images([v.name for v, _ in views], images, rig, params,
+                                    right_images_bgr=rights, source=str(images_dir))
     save_rig(result.rig, out_rig if out_rig is not None else rig_path)
     return result

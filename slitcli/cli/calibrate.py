@@ -83,14 +83,21 @@ def calibrate_stereo_cmd(left_dir: Path, right_dir: Path, board: str, square_m: 
               default=None, help="Rig file to write [default: update --rig in place].")
 @click.option("--min-views", type=click.IntRange(min=2), default=2, show_default=True,
               help="Board poses with the stripe on the board required.")
+@click.option("--left-only", is_flag=True, default=False,
+              help="Ignore IMAGES_DIR/right/: board poses from the left camera alone "
+                   "(less accurate in depth and tilt).")
 def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: float,
-                        out: Path | None, min_views: int) -> None:
-    """Laser plane from left-camera views of a chessboard crossed by the laser stripe.
+                        out: Path | None, min_views: int, left_only: bool) -> None:
+    """Laser plane from views of a chessboard crossed by the laser stripe.
 
-    IMAGES_DIR holds the left camera's images (or has a left/ subfolder), raw if the
-    rig has a `raw` calibration. Use at least 3 board poses at different distances
-    (0.6-1.2 m); a single pose is refused (its stripe is a line). Prints the plane
-    (n . X = offset_m, metres, rectified left camera frame) and the residual std (mm).
+    IMAGES_DIR has left/ and right/ subfolders (images paired by file name), raw if the
+    rig has a `raw` calibration; the stripe is read in the left image and each board
+    pose is measured by both cameras. A folder of left images alone (or a left/ without
+    right/) also works, with board poses from the left camera only: less accurate, the
+    board's tilt and distance then come from perspective alone. Use at least 3 board
+    poses at different distances (0.6-1.2 m); a single pose is refused (its stripe is a
+    line). Prints the plane (n . X = offset_m, metres, rectified left camera frame), the
+    residual std (mm) and per view how the pose was found.
 
     Example: slitcli calibrate laser --rig rig.yaml laser_views/ --board 9x6 --square-m 0.025
     """
@@ -98,7 +105,8 @@ def calibrate_laser_cmd(images_dir: Path, rig_path: Path, board: str, square_m: 
     from slitcli.calibrate.laser_plane import LaserPlaneParams, run_calibrate_laser
 
     params = LaserPlaneParams(board=BoardSpec.parse(board, square_m), min_views=min_views)
-    result = run_calibrate_laser(rig_path, images_dir, params, out_rig=out)
+    result = run_calibrate_laser(rig_path, images_dir, params, out_rig=out,
+                                 use_right=not left_only)
     for line in result.report_lines():
         click.echo(line)
     click.echo(f"wrote {out or rig_path}")
