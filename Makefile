@@ -22,7 +22,7 @@ $(STAMP): pyproject.toml
 
 $(KERNELS): $(STAMP) $(KERNEL_SOURCES)
 	@echo "set-up: compiling the numba kernels for this machine (one line per job)"
-	find slitcli -name '*.nbi' -delete -o -name '*.nbc' -delete
+	$(if $(filter slitcli/%,$?),find slitcli -name '*.nbi' -delete -o -name '*.nbc' -delete)
 	$(VENV)/bin/slitcli warm-up
 	touch $(KERNELS)
 

@@ -65,8 +65,6 @@ dispatcher.Dispatcher._compile_for_args = c
 caching.Cache.load_overload = l
 caching.Cache._load_overload = i
 sys.argv = ["slitcli", "detect", sys.argv[1], "-o", sys.argv[2]]
-# main() ends the process once done (cli/main.py _exit_now): return here instead
-sys.modules["slitcli.cli.main"]._exit_now = lambda code: None
 t0 = T()
 try:
     main()

@@ -1,5 +1,5 @@
 """``python -m slitcli``: the command line."""
 
-from slitcli.cli import main
+from slitcli.cli import run
 
-main()
+run()

@@ -386,8 +386,16 @@ def main() -> None:
     from slitcli.compile_notice import announce_compiles
 
     announce_compiles(lambda line: click.echo(line, err=True))
+    cli.main()
+
+
+def run() -> None:
+    """The ``slitcli`` program (console script and ``python -m slitcli``): :func:`main`,
+    then the process ends without the interpreter's teardown once numba is loaded
+    (:func:`_exit_now`). Code that calls the command line in its own process and goes on
+    afterwards calls :func:`main`, which raises ``SystemExit`` as usual."""
     try:
-        cli.main()
+        main()
     except SystemExit as done:
         if "numba" not in sys.modules:
             raise
