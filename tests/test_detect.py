@@ -453,7 +453,7 @@ def test_edges_range_more_obstacle_bins(seed):
                    "the edges): clutter 10-12 px off a steep faint limb stripe linked across "
                    "a gap (seed 7), a fading-limb reach of a whole column at a box corner "
                    "(seed 5); 21 such bins over seeds 5-9 before the own-light and "
-                   "laser-share tests, 8 now", strict=False)
+                   "laser-share tests, 8 now", strict=True)
 @pytest.mark.parametrize("seed", [5, 6, 7, 8, 9])
 def test_edges_range_no_bin_too_near(seed):
     _, _, too_near = _plain_objects_bins(seed)

@@ -34,7 +34,7 @@ GREY = (0.7, 0.68, 0.62)
 def regression(cause: str) -> pytest.MarkDecorator:
     """Expected failure of a rendered case, with its measured cause."""
     return pytest.mark.xfail(reason=f"issue 19 re-layering, docs/laser.md Limits: {cause}",
-                             strict=False)
+                             strict=True)
 
 
 RED = (0.85, 0.12, 0.1)

@@ -60,7 +60,7 @@ def _corridor(power_dn):
 
 
 @pytest.mark.xfail(reason="issue 19 re-layering: regression on this rendered frame, "
-                   "docs/laser.md Limits", strict=False)
+                   "docs/laser.md Limits", strict=True)
 @pytest.mark.parametrize(("d", "frame"), [
     # the sample corridor, ninth frame: the stripe on the textured box 1.45 m ahead is
     # faint (expected peak under 20 DN) over 30 columns; in one of them the box's
