@@ -305,10 +305,11 @@ def test_band_flag_and_out_of_band_points_kept(seed):
     assert f.in_band[f.found & centre].all()
 
 
-def test_bearing_bins_nearest_range():
+@pytest.mark.parametrize("seed", range(5))
+def test_bearing_bins_nearest_range(seed):
     centres = bearing_bin_centres_deg(RIG)
     np.testing.assert_array_equal(centres, np.arange(-32.0, 33.0))
-    s = make_frame(RIG, forward_m=0.8, seed=3)
+    s = make_frame(RIG, forward_m=0.8, seed=seed)
     f = detect_laser(s.bgr, RIG, PARAMS, geometry=GEOM)
     bins = nearest_range_per_bin(f, RIG, boundary_jump_m=None)  # column centres only
     # independent reduction with pandas
