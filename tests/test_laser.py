@@ -99,6 +99,7 @@ def test_laser_evidence_cancels_white_light_and_grey_texture():
 
 
 def test_chromaticity_on_evidence_pixels_is_eq1():
+    # an identity on every pixel value: any random image tests it, one seed suffices
     rng = np.random.default_rng(7)
     img = rng.integers(0, 256, (60, 40, 3)).astype(np.uint8)
     c = chromaticity(img)
@@ -173,10 +174,11 @@ def test_sheet_thickness_rejects_a_thick_red_band():
     assert loose.found[185:295].mean() >= 0.9  # without the test the band is taken
 
 
-def test_rows_are_smoothed_along_a_segment():
+@pytest.mark.parametrize("seed", range(5))
+def test_rows_are_smoothed_along_a_segment(seed):
     # independent noise on the rows of a straight segment: the weighted quadratic
     # halves it; a corner (slope change) is not rounded
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     u = np.arange(120, dtype=float)
     line = np.where(u < 60, 150.0 + 0.2 * u, 162.0 - 0.5 * (u - 60))
     noisy = line + rng.normal(0.0, 0.1, u.size)
@@ -379,7 +381,7 @@ def test_wall_rows_helper_is_the_rig_line():
 def test_background_opening_on_one_channel_view_is_per_channel():
     # extract_stripe opens the (rows, 3 W) one-channel view of the image: a vertical
     # window mixes no channels, so it must equal the opening of each channel
-    rng = np.random.default_rng(6)
+    rng = np.random.default_rng(6)  # an equality for any image: one seed suffices
     img = cv2.GaussianBlur(rng.integers(0, 256, (90, 40, 3), dtype=np.uint8), (5, 5), 0)
     win = background_window_px(PARAMS, 90)
     k = np.ones((win, 1), np.uint8)
