@@ -235,7 +235,7 @@ ABLATIONS = {
 
 def ablation_extractors(search: str = "full") -> dict:
     """One extractor per entry of ``ABLATIONS`` (each sets its switch while it runs)."""
-    from slitcli.laser import LaserParams, choose, extract_stripe
+    from slitcli.laser import LaserParams, choose, extract_stripe, judge
 
     ex = {}
     for name, over in ABLATIONS.items():
@@ -244,14 +244,16 @@ def ablation_extractors(search: str = "full") -> dict:
             kw = {k: v for k, v in over.items() if not k.isupper()}
             if "max_width_share" in kw:
                 kw["max_width_share"] = 8.0 / bgr.shape[0]
-            keep = {k: getattr(choose, k) for k in consts}
+            # each constant lives in the module whose step it tunes
+            home = {k: judge if hasattr(judge, k) else choose for k in consts}
+            keep = {k: getattr(home[k], k) for k in consts}
             for k, v in consts.items():
-                setattr(choose, k, v)
+                setattr(home[k], k, v)
             try:
                 return extract_stripe(bgr, LaserParams(search=search, **kw)).v_px
             finally:
                 for k, v in keep.items():
-                    setattr(choose, k, v)
+                    setattr(home[k], k, v)
         ex[name] = run
     return ex
 

@@ -24,7 +24,7 @@ _WHERE = {
     "nearest_range_per_bin": "bins", "triangulate_stripe": "geometry",
     "draw_overlay": "overlay", "LaserParams": "params",
 }
-_SUBMODULES = ("candidates", "choose", "evidence", "paper", "profile")
+_SUBMODULES = ("candidates", "choose", "evidence", "judge", "paper", "profile")
 
 
 def __getattr__(name: str) -> Any:

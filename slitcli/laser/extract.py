@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slitcli.laser import candidates, choose, evidence, paper
+from slitcli.laser import candidates, choose, evidence, judge, paper
 from slitcli.laser.params import LaserParams
 from slitcli.laser.profile import N_FIELDS
 
@@ -183,7 +183,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
     seed = params.seed_z * noise_avg
-    s_max = max_w / choose.EQ_WIDTH
+    s_max = max_w / judge.EQ_WIDTH
     cand = np.empty((w, K_BEST, N_FIELDS))
     candidates.column_candidates(img_t, bg_t, y, y_avg, clipped, mask_t, sigma_y, sigma_avg,
                                  seed, STRONG_SHARE * params.min_z,
@@ -195,14 +195,14 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         g = np.asarray(px_per_m, dtype=np.float64)
         rr = np.clip(np.rint(np.nan_to_num(cand[..., 0], nan=0.0)).astype(int), 0, h - 1)
         sheet_px = g[rr, np.arange(w)[:, None]] * params.sheet_sigma_mm * 1e-3
-    ok, laser = choose.valid_candidates(
+    ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
         colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w))
-    ok &= choose.surface_continues(cand, img_t, r0, float(np.median(chan)))
-    ok &= choose.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
+    ok &= judge.surface_continues(cand, img_t, r0, float(np.median(chan)))
+    ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
                                       params.shape_error)
     v = np.empty(w)
     amp = np.empty(w)
@@ -245,8 +245,8 @@ def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
     candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
                         sigma_avg, GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, out)
     own = np.empty(cols.size, bool)  # the gap column's own light, as a candidate's
-    choose.own_light(y, y_avg, clipped, mask_t, cols.astype(np.int64), out, widths, sigma_y,
-                     params.shape_error, choose.OWN_Z, own)
+    judge.own_light(y, y_avg, clipped, mask_t, cols.astype(np.int64), out, widths, sigma_y,
+                    params.shape_error, judge.OWN_Z, own)
     ok = np.isfinite(out) & own
     v[cols[ok]] = out[ok] + r0
     amp[cols[ok]] = np.nan_to_num(amp[left[ok]])
