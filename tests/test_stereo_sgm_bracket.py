@@ -67,9 +67,13 @@ def test_bracket_kernel_equals_reference(seed):
 def test_narrow_plain_strip_on_a_plane_is_matched(seed):
     # a 24 px wide uniform strip on a textured plane: its 16 central columns see no
     # texture in a 9 x 9 window; SGM carries the plane's disparity into it and the
-    # bracket keeps the pixels whose disparity lies within 1 px (sgm_bracket_tol_px)
-    # of their textured borders', which are within 0.5 px of the truth (the textured
-    # plane's 99th percentile, test_stereo_sgm.py): no kept pixel is off by > 1.5 px.
+    # bracket keeps the pixels whose disparity lies within tol = 1 px
+    # (sgm_bracket_tol_px) of two valid brackets that agree within span = 1 px
+    # (sgm_bracket_span_px). A bracket is within e = 0.5 px of the truth but for the 1 %
+    # beyond the textured plane's 99th percentile (test_stereo_sgm.py), so a kept pixel
+    # is off by at most tol + e unless one of its two brackets is an outlier (~2 % of
+    # the rows: the 95th percentile stays within tol + e), and by at most tol + span + e
+    # unless both are (~1e-4).
     d = 9.4
     left, right = plane_pair(d, noise_dn=1.0, plain_cols=(150, 174), seed=seed)
     strip = (slice(10, 230), slice(154, 170))
@@ -80,7 +84,11 @@ def test_narrow_plain_strip_on_a_plane_is_matched(seed):
         got[reach] = res.disparity_px[strip]
     ok = np.isfinite(got[32])
     assert ok.mean() >= np.isfinite(got[0]).mean() + 0.1
-    assert np.abs(got[32][ok] - d).max() <= 1.5
+    p = MatcherParams()
+    tol, span, e = p.sgm_bracket_tol_px, p.sgm_bracket_span_px, 0.5
+    err = np.abs(got[32][ok] - d)
+    assert np.percentile(err, 95) <= tol + e
+    assert err.max() <= tol + span + e
 
 
 @pytest.fixture(scope="module", params=[11, 12, 13, 14, 15])

@@ -57,8 +57,8 @@ def test_lane_costs_equal_the_scalar_costs(seed, dmin):
                                  "subpixel": "none"}])
 def test_fused_passes_equal_the_scalar_stages(seed, kw):
     """Costs, both sweeps and the winner step: the fused lane kernels against the
-    separate scalar stages, on a noisy textured plane with a plain patch (ties,
-    uniqueness and left-right failures all occur)."""
+    separate scalar stages, on a noisy textured plane with a plain patch (ties, and
+    uniqueness and left-right failures where those tests are on, occur)."""
     left, right = plane_pair(9.3, width=96, height=40, noise_dn=2.0, seed=seed,
                              plain_cols=(40, 60))
     p = MatcherParams(num_disparities=32, aggregation="sgm", **kw)
@@ -78,7 +78,12 @@ def test_fused_passes_equal_the_scalar_stages(seed, kw):
     _sgm.winners_rows(s_a, s_b, cost, c["el"], c["count"], *tests, 0, 40, *want)
     got = [np.empty_like(a) for a in want]
     _match_fused(pl, pr, p, left, tests, tuple(got))
-    assert (want[2] == 0).sum() > 500 and (want[2] != 0).sum() > 50
+    # both kinds of pixel are compared: the plain patch and the left border give
+    # invalid ones (with uniqueness and left-right off only those: 7-197 px over eight
+    # seeds), uniqueness and left-right failures add > 200 when on
+    assert (want[2] == 0).sum() > 500 and (want[2] != 0).any()
+    if kw.get("lr_max_diff_px", 0) >= 0:
+        assert (want[2] != 0).sum() > 50
     for a, b in zip(want, got, strict=True):
         np.testing.assert_array_equal(a, b)
 
