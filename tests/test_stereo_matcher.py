@@ -470,6 +470,7 @@ def test_impossible_parameters_are_one_line_errors(kwargs, fragment):
 
 
 def test_sizes_checked_against_the_images():
+    # size errors, raised before any pixel is read: one seed suffices
     left, right = plane_pair(5.0, width=64, height=48)
     with pytest.raises(SlitcliError, match="wider than the image"):
         compute_disparity(left, right, MatcherParams(window_w_px=65, num_disparities=8))

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
-from stereo_synth import plane_pair, quantise, texture
+from stereo_synth import draw_seeds, plane_pair, quantise, texture
 
 from slitcli.errors import SlitcliError
 from slitcli.stereo.matcher import MatcherParams, compute_disparity, prefilter_image
@@ -139,25 +140,46 @@ def test_textured_plane_subpixel(d, seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_slanted_plane_is_followed_row_by_row(seed):
-    # a plane whose disparity grows 0.35 px per row (a floor seen by a wide-baseline
-    # rig; the paper rig's floor: 0.135): a 9-row window spans 3 px of disparity, so
-    # the local matcher's uniqueness and left-right tests drop ~5 % of it; SGM's
-    # 1-px steps (P1) follow it. Bound: a 9 x 9 window averaging a linear ramp is
-    # centred on the truth (bias 0); its spread shows as subpixel noise < 0.2 px.
+    """A plane whose disparity grows 0.35 px per row (a floor seen by a wide-baseline
+    rig; the paper rig's floor: 0.135): a 9-row window spans 3 px of disparity.
+
+    Bounds, derived: (1) the window's estimate is the disparity at the centroid of its
+    horizontal-gradient energy (the SSD of a shifted texture weighs each row by its
+    (d I / d x)^2), so the error is 0.35 px x that centroid's row offset, predicted here
+    from the prefiltered left image (``pred``), plus the matcher's subpixel noise, whose
+    median on a fronto-parallel plane is <= 0.1 px
+    (test_matcher's textured-plane test): median |err| <= median |pred| + 0.1. (2) The
+    window is centred, so the offsets cancel on average: |median err| <= 0.05 px. (3) An
+    offset never exceeds half the window, so no error exceeds 0.35 x 4 = 1.4 px plus
+    noise; errors over 1 px need the centroid past 2.9 rows: <= 0.1 %. (4) SGM's 1-px
+    steps (P1) follow the ramp where the local matcher's uniqueness and left-right
+    tests drop it (5-50 % over ten texture seeds): SGM keeps at least as many pixels.
+    """
     u, v = np.meshgrid(np.arange(320, dtype=float), np.arange(240, dtype=float))
-    d = 8.0 + 0.35 * v
-    rng = np.random.default_rng(seed)
-    left = quantise(texture(u, v), 1.0, rng)
-    right = quantise(texture(u + d, v), 1.0, rng)
+    slope = 0.35
+    d = 8.0 + slope * v
+    tex_seed, noise_seed = draw_seeds(seed, 2)
+    rng = np.random.default_rng(noise_seed)
+    left = quantise(texture(u, v, seed=tex_seed), 1.0, rng)
+    right = quantise(texture(u + d, v, seed=tex_seed), 1.0, rng)
     reg = (slice(10, 230), slice(100, 310))
-    sgm = compute_disparity(left, right, MatcherParams(num_disparities=96, aggregation="sgm"))
-    got = sgm.disparity_px[reg]
+    p = MatcherParams(num_disparities=96, aggregation="sgm")
+    # the energy centroid's row offset in each 9 x 9 window (rows -4 .. 4)
+    grad2 = np.gradient(prefilter_image(left, p).astype(np.float64), axis=1) ** 2
+    row_energy = cv2.boxFilter(grad2, -1, (p.window_w_px, 1), normalize=False,
+                               borderType=cv2.BORDER_REFLECT_101)
+    half = p.window_h_px // 2
+    offsets = np.arange(-half, half + 1, dtype=float)
+    stack = np.stack([np.roll(row_energy, -k, axis=0) for k in range(-half, half + 1)])
+    pred = slope * np.tensordot(offsets, stack, axes=1) / np.maximum(stack.sum(axis=0), 1e-9)
+    got = compute_disparity(left, right, p).disparity_px[reg]
     ok = np.isfinite(got)
-    assert ok.mean() >= 0.99
     err = got[ok] - d[reg][ok]
-    assert np.median(np.abs(err)) <= 0.2
+    assert np.median(np.abs(err)) <= np.median(np.abs(pred[reg][ok])) + 0.1
     assert abs(np.median(err)) <= 0.05
     assert (np.abs(err) > 1.0).mean() <= 0.001
+    local = compute_disparity(left, right, MatcherParams(num_disparities=96)).disparity_px
+    assert ok.mean() >= np.isfinite(local[reg]).mean()
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -190,10 +212,11 @@ def test_sgm_parameters_are_checked():
         MatcherParams(aggregation="sgm", sgm_p2_edge_dn=-2.0)
 
 
+@pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("dmin", [-4, 0, 2])
-def test_disparity_range_offsets(dmin):
+def test_disparity_range_offsets(dmin, seed):
     # the same plane found whatever the range's start (negative ranges included)
-    left, right = plane_pair(5.3, noise_dn=1.0)
+    left, right = plane_pair(5.3, noise_dn=1.0, seed=seed)
     res = compute_disparity(left, right, MatcherParams(num_disparities=16, min_disparity_px=dmin,
                                                        aggregation="sgm"))
     valid = np.isfinite(res.disparity_px)
