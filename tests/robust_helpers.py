@@ -80,7 +80,9 @@ def rig_dict() -> dict:
 
 
 def scene_dict() -> dict:
-    """A small valid scene: one box ahead, two frames."""
+    """A small valid scene: one box ahead, two frames. The tests that use it check
+    plumbing (exit status, files, messages), which no draw of its seed changes, so one
+    seed suffices."""
     return {"slitcli_scene": 1, "name": "probe", "seed": 3,
             "objects": [{"type": "box", "centre_xy_m": [1.5, 0.0], "size_m": [0.3, 0.4, 0.5]}],
             "robot": {"frames": 2}}

@@ -91,6 +91,7 @@ def _marked(mark: str) -> list[psutil.Process]:
 
 
 def test_kill_the_client_then_rerun_keeps_finished_chunks(tmp_path):
+    # chunk bookkeeping after a kill: the frames' content (seed 0) does not enter it
     seq = _sequence(tmp_path / "long", 48, 0)
     full = tmp_path / "full"
     run_detect(seq, full)

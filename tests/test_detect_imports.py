@@ -88,7 +88,7 @@ def test_numba_dot_uses_the_preloaded_blas():
         @numba.njit(cache=False)
         def dot(a, b):
             return np.dot(a, b)
-        rng = np.random.default_rng(3)
+        rng = np.random.default_rng(3)  # an equality for any matrices: one seed
         a, b = rng.normal(size=(5, 7)), rng.normal(size=(7, 3))
         print(json.dumps({"preloaded": "scipy.linalg.cython_blas" in sys.modules,
                           "linalg": "scipy.linalg" in sys.modules,

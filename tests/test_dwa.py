@@ -211,7 +211,7 @@ def test_local_minimum_rotates_away_from_the_nearest_point():
 
 
 # ---------------------------------------------------------------- array vs loop
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", range(5))
 def test_array_step_matches_python_loop_reference(seed):
     rng = np.random.default_rng(seed)
     pts = rng.uniform([-0.5, -2.0], [3.0, 2.0], size=(60, 2))

@@ -19,6 +19,8 @@ from fault_helpers import debris, new_tag, small_sequence, start, tagged_pids, t
 
 from slitcli.cli import cli
 
+# fault handling (signals, partial outputs, exit status) does not depend on the pixels
+# the seed draws: one seed suffices
 SCENE = {"slitcli_scene": 1, "name": "probe", "seed": 3,
          "objects": [{"type": "box", "centre_xy_m": [1.5, 0.0], "size_m": [0.3, 0.4, 0.5]}],
          "robot": {"frames": 4, "motion": "straight", "speed_mps": 0.2}}

@@ -29,6 +29,9 @@ def _png_claiming(width: int, height: int) -> bytes:
 
 
 def _image(seed: int) -> np.ndarray:
+    """A random colour image of random size. Tests of the file handling (channels,
+    limits, corrupt data, messages) use one: no pixel value changes how a file is read
+    or refused, so one seed suffices."""
     rng = np.random.default_rng(seed)
     h, w = rng.integers(8, 64, size=2)
     return rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
