@@ -45,11 +45,14 @@ def _render_views(cameras, seed: int) -> dict:
     raw, (lc, rc), (rl, rr) = cameras
     poses = random_board_poses((lc, rc), BOARD, N_CAL + N_HELD, distance_m=(0.3, 0.55),
                                seed=seed)
-    left = [rl.render_board(BOARD, p, seed=2 * i) for i, p in enumerate(poses)]
-    right = [rr.render_board(BOARD, p, seed=2 * i + 1) for i, p in enumerate(poses)]
+    # the images' noise follows the pose draw's seed too
+    left = [rl.render_board(BOARD, p, seed=1000 * seed + 2 * i) for i, p in enumerate(poses)]
+    right = [rr.render_board(BOARD, p, seed=1000 * seed + 2 * i + 1)
+             for i, p in enumerate(poses)]
     # a view with no board at all: the camera looks at a textured floor
     floor = Floor(up_left=(0.0, -1.0, 0.0), height_m=0.5)
-    empty = (rl.render_floor(floor, seed=91), rr.render_floor(floor, seed=92))
+    empty = (rl.render_floor(floor, seed=1000 * seed + 991),
+             rr.render_floor(floor, seed=1000 * seed + 992))
     return {"raw": raw, "cams": (lc, rc), "poses": poses, "left": left, "right": right,
             "empty": empty}
 
