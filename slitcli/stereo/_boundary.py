@@ -49,6 +49,7 @@ import numba as nb
 import numpy as np
 
 from slitcli.stereo._simd import offset, ptr
+from slitcli.stereo._zncc import zncc_blocks
 from slitcli.stereo.reasons import Reason
 
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}
@@ -95,46 +96,6 @@ def _column_residual_right(gl, gr, y, xr, d, hh):
     return s / np.float32(y1 - y0)
 
 
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _zncc_block(gl, gr, y, xc, d, rx, ry):
-    """Zero-mean normalised correlation of the left block centred at (xc, y), (2rx+1)
-    x (2ry+1) clipped to the image, with the right image at xc - d (linear in x);
-    0 where a block is flat or too small."""
-    height, width = gl.shape
-    # every sample of the block shares the fractional shift: right column xx + off
-    # and xx + off + 1 with weights 1 - t, t; the columns are clipped once
-    off = int(np.floor(-d))
-    t = -d - np.float32(off)
-    c0 = max(xc - rx, 0, -off)
-    c1 = min(xc + rx, width - 1, width - 2 - off)
-    r0 = max(0, y - ry)
-    r1 = min(height, y + ry + 1)
-    cnt = (c1 - c0 + 1) * (r1 - r0)
-    if c1 < c0 or cnt < 2:
-        return np.float32(0.0)
-    u = np.float32(1.0) - t
-    sa = np.float32(0.0)
-    sb = np.float32(0.0)
-    saa = np.float32(0.0)
-    sbb = np.float32(0.0)
-    sab = np.float32(0.0)
-    for yy in range(r0, r1):
-        for xx in range(c0, c1 + 1):
-            a = gl[yy, xx]
-            b = u * gr[yy, xx + off] + t * gr[yy, xx + off + 1]
-            sa += a
-            sb += b
-            saa += a * a
-            sbb += b * b
-            sab += a * b
-    n = np.float32(cnt)
-    va = saa - sa * sa / n
-    vb = sbb - sb * sb / n
-    cov = sab - sa * sb / n
-    den = np.sqrt(max(va, np.float32(0.0)) * max(vb, np.float32(0.0)))
-    return cov / den if den > 1e-3 else np.float32(0.0)
-
-
 # Neighbours on one surface have nearly the same disparity: a candidate within this of
 # one already tried on the same side would give nearly the same residual.
 _SAME_PX = np.float32(0.25)
@@ -179,42 +140,81 @@ def _right_candidates(gl, gr, cand, y, xr, lim, radius, hh, bound):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
-def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes):
+def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes, req):
     """One-sided support of row y (module notes; its centred correlations are
     ``zncc[zy]``): failing valid pixels of ``codes`` get REASON_SUPPORT. A pixel's test
-    reads its own code only."""
+    reads its own code only, so the row's blocks are correlated together
+    (slitcli.stereo._zncc.zncc_blocks; ``req``: :func:`_requests`)."""
     width = gl.shape[1]
+    who, yc, xc, dd, res = req
+    n = 0
     for x in range(width):
         if codes[x] != 0:
             continue
-        d = disp[y, x]
         for side in (-1, 1):
             xx = x + side
             if xx < 0 or xx >= width or zncc[zy, xx] >= side_min:
                 continue
-            if _zncc_block(gl, gr, y, xx, d, rx, ry) < side_min:
-                codes[x] = REASON_SUPPORT
-                break
+            who[n] = x
+            yc[n] = y
+            xc[n] = xx
+            dd[n] = disp[y, x]
+            n += 1
+    zncc_blocks(gl, gr, yc, xc, dd, n, rx, ry, res)
+    for i in range(n):
+        if res[i] < side_min:
+            codes[who[i]] = REASON_SUPPORT
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes):
+def _cross_pairs(disp, y, k, vertical, codes, zrow, strong, req, n_in, keep):
+    """The two blocks of one axis (above and below for ``vertical``, else left and
+    right) of the pixels ``keep[:n_in]`` or, with ``n_in`` < 0, of the row's valid
+    pixels below ``strong``, into ``req``; returns the number of blocks."""
+    who, yc, xc, dd, res = req
+    n = 0
+    for i in range(codes.shape[0] if n_in < 0 else n_in):
+        x = i if n_in < 0 else keep[i]
+        if n_in < 0 and (codes[x] != 0 or zrow[x] >= strong):
+            continue
+        for side in (-1, 1):
+            who[n] = x
+            yc[n] = y + side * k if vertical else y
+            xc[n] = x if vertical else x + side * k
+            dd[n] = disp[y, x]
+            n += 1
+    return n
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes, req, keep):
     """Cross support of row y (module notes; ``zrow``: its centred correlations): valid
     pixels of ``codes`` below ``strong`` and supported on neither axis get
-    REASON_SUPPORT. A pixel's test reads its own code only."""
-    width = gl.shape[1]
+    REASON_SUPPORT. A pixel's test reads its own code only, so the blocks of one axis
+    are correlated together for the row (slitcli.stereo._zncc.zncc_blocks); the
+    pixels failing on the vertical axis (``keep``) are then tried on the other."""
     k = 2 * r + 1
-    for x in range(width):
-        if codes[x] != 0 or zrow[x] >= strong:
-            continue
-        d = disp[y, x]
-        if (_zncc_block(gl, gr, y - k, x, d, r, r) >= cross_min
-                and _zncc_block(gl, gr, y + k, x, d, r, r) >= cross_min):
-            continue
-        if (_zncc_block(gl, gr, y, x - k, d, r, r) >= cross_min
-                and _zncc_block(gl, gr, y, x + k, d, r, r) >= cross_min):
-            continue
-        codes[x] = REASON_SUPPORT
+    who, yc, xc, dd, res = req
+    n_left = -1
+    for vertical in (True, False):
+        n = _cross_pairs(disp, y, k, vertical, codes, zrow, strong, req, n_left, keep)
+        zncc_blocks(gl, gr, yc, xc, dd, n, r, r, res)
+        n_left = 0
+        for i in range(0, n, 2):
+            if not (res[i] >= cross_min and res[i + 1] >= cross_min):
+                keep[n_left] = who[i]
+                n_left += 1
+    for i in range(n_left):
+        codes[keep[i]] = REASON_SUPPORT
+
+
+@nb.njit(cache=True)
+def _requests(width):
+    """Work arrays of a row's block requests (at most two per pixel): pixel, block
+    centre row and column, disparity, correlation."""
+    return (np.empty(2 * width, np.int64), np.empty(2 * width, np.int64),
+            np.empty(2 * width, np.int64), np.empty(2 * width, np.float32),
+            np.empty(2 * width, np.float32))
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
@@ -419,6 +419,8 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
     right_min = np.empty(width, np.float32)
     pad = np.empty(width + 2 * radius, np.float32)
     tmp = np.empty(width + 2 * radius, np.float32)
+    req = _requests(width)
+    keep = np.empty(width, np.int64)
     support = smin != 0
     if support:
         for yy in range(max(0, y0 - r), min(height, y0 + r)):
@@ -431,9 +433,9 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
         _support_codes(offset(ptr(reason), y * width), ptr(zncc), smin, support, ptr(codes),
                        width)
         if support and side_min != 0:
-            _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
+            _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes, req)
         if support and cross_min != 0:
-            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes)
+            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes, req, keep)
         if ratio > 0:
             _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
                         tol, ptr(left_cand), ptr(right_cand), width)
