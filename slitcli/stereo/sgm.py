@@ -185,8 +185,14 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
     num = c["num"]
-    cost = np.empty((h, w, num), np.uint16)
-    s_a = np.empty_like(cost)
+    two = pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1)
+    # the volumes in one allocation: glibc (malloc's dynamic mmap threshold) then keeps
+    # its pages mapped from one frame to the next (two or three separate volumes freed
+    # together are returned to the system and faulted in again: measured 700-1200
+    # page faults, ~5 ms of a 320 x 240 frame)
+    volumes = np.empty((2 if two else 3, h, w, num), np.uint16)
+    cost = volumes[0]
+    s_a = volumes[1]
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
     eight = params.sgm_paths == 8
@@ -194,7 +200,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
              c["n"], COST_MAX, COST_SCALE)
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
-    if pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1):
+    if two:
         _sgm_lanes.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
         _sgm_lanes.second_sweep_winners(cost, s_a, *bargs)
         return
@@ -203,7 +209,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     hs = np.zeros(num, np.float32)
     state_a = _sgm_lanes._sweep_state(w, num)
     state_b = _sgm_lanes._sweep_state(w, num)
-    s_b = np.empty_like(cost)
+    s_b = volumes[2]
     job = pool.submit(_sgm_lanes.cost_rows_lanes, *cargs, half, h, cost)
     _sgm_lanes._cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
     _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
