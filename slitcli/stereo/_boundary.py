@@ -167,45 +167,59 @@ def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes, req):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _cross_pairs(disp, y, k, vertical, codes, zrow, strong, req, n_in, keep):
-    """The two blocks of one axis (above and below for ``vertical``, else left and
-    right) of the pixels ``keep[:n_in]`` or, with ``n_in`` < 0, of the row's valid
-    pixels below ``strong``, into ``req``; returns the number of blocks."""
-    who, yc, xc, dd, res = req
-    n = 0
-    for i in range(codes.shape[0] if n_in < 0 else n_in):
-        x = i if n_in < 0 else keep[i]
-        if n_in < 0 and (codes[x] != 0 or zrow[x] >= strong):
-            continue
-        for side in (-1, 1):
-            who[n] = x
-            yc[n] = y + side * k if vertical else y
-            xc[n] = x if vertical else x + side * k
-            dd[n] = disp[y, x]
-            n += 1
-    return n
+def _cross_stage(gl, gr, disp, y, dy, dx, r, cross_min, lst, m, req):
+    """Keep in ``lst[:m]`` (in place, in order) the pixels x whose (2r+1)^2 block
+    centred at (x + dx, y + dy) correlates with the right image at their own disparity
+    to at least ``cross_min``; returns their count."""
+    _, yc, xc, dd, res = req
+    for i in range(m):
+        x = lst[i]
+        yc[i] = y + dy
+        xc[i] = x + dx
+        dd[i] = disp[y, x]
+    zncc_blocks(gl, gr, yc, xc, dd, m, r, r, res)
+    j = 0
+    for i in range(m):
+        if res[i] >= cross_min:
+            lst[j] = lst[i]
+            j += 1
+    return j
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
-def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes, req, keep):
+def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes, req, lists, held):
     """Cross support of row y (module notes; ``zrow``: its centred correlations): valid
     pixels of ``codes`` below ``strong`` and supported on neither axis get
-    REASON_SUPPORT. A pixel's test reads its own code only, so the blocks of one axis
-    are correlated together for the row (slitcli.stereo._zncc.zncc_blocks); the
-    pixels failing on the vertical axis (``keep``) are then tried on the other."""
+    REASON_SUPPORT. A pixel's test reads its own code only, so the row's blocks are
+    correlated together, one side at a time (slitcli.stereo._zncc.zncc_blocks): the
+    blocks below for the pixels whose block above passed, and so on, as the scalar
+    test would have asked for them. ``lists`` (2, W) int64 and ``held`` (W,) bool are
+    work arrays."""
+    width = gl.shape[1]
     k = 2 * r + 1
-    who, yc, xc, dd, res = req
-    n_left = -1
+    cand = lists[0]
+    cur = lists[1]
+    n = 0
+    for x in range(width):
+        if codes[x] == 0 and zrow[x] < strong:
+            cand[n] = x
+            held[x] = False
+            n += 1
     for vertical in (True, False):
-        n = _cross_pairs(disp, y, k, vertical, codes, zrow, strong, req, n_left, keep)
-        zncc_blocks(gl, gr, yc, xc, dd, n, r, r, res)
-        n_left = 0
-        for i in range(0, n, 2):
-            if not (res[i] >= cross_min and res[i + 1] >= cross_min):
-                keep[n_left] = who[i]
-                n_left += 1
-    for i in range(n_left):
-        codes[keep[i]] = REASON_SUPPORT
+        m = 0
+        for i in range(n):
+            if not held[cand[i]]:
+                cur[m] = cand[i]
+                m += 1
+        dy = k if vertical else 0
+        dx = 0 if vertical else k
+        m = _cross_stage(gl, gr, disp, y, -dy, -dx, r, cross_min, cur, m, req)
+        m = _cross_stage(gl, gr, disp, y, dy, dx, r, cross_min, cur, m, req)
+        for i in range(m):
+            held[cur[i]] = True
+    for i in range(n):
+        if not held[cand[i]]:
+            codes[cand[i]] = REASON_SUPPORT
 
 
 @nb.njit(cache=True)
@@ -420,7 +434,8 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
     pad = np.empty(width + 2 * radius, np.float32)
     tmp = np.empty(width + 2 * radius, np.float32)
     req = _requests(width)
-    keep = np.empty(width, np.int64)
+    lists = np.empty((2, width), np.int64)
+    held = np.zeros(width, np.bool_)
     support = smin != 0
     if support:
         for yy in range(max(0, y0 - r), min(height, y0 + r)):
@@ -435,7 +450,8 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
         if support and side_min != 0:
             _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes, req)
         if support and cross_min != 0:
-            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes, req, keep)
+            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes, req, lists,
+                       held)
         if ratio > 0:
             _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
                         tol, ptr(left_cand), ptr(right_cand), width)
