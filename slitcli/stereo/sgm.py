@@ -33,7 +33,6 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from slitcli.stereo.bands import kernel_threads, run_row_bands
@@ -52,34 +51,25 @@ COST_SCALE = 256.0   # quantisation of the Eq. 10 cost (units per 1.0 of cost)
 COST_MAX = 2.0       # costs clip here: two uncorrelated windows of equal energy
 
 
-def _window_sum(a: np.ndarray, m: int, n: int) -> np.ndarray:
-    return cv2.boxFilter(a, cv2.CV_32F, (2 * m + 1, 2 * n + 1), normalize=False,
-                         borderType=cv2.BORDER_CONSTANT)
-
-
-def _reversed_padded(a: np.ndarray, pad: int) -> np.ndarray:
-    h, w = a.shape
-    out = np.zeros((h, w + 2 * pad), np.float32)
-    out[:, pad:pad + w] = a[:, ::-1]
-    return out
-
-
 def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
     """What the cost kernels read: the prefiltered images, window energies and counts,
     the right image's rows reversed and padded (see slitcli.stereo._sgm.cost_rows)."""
+    from slitcli.stereo import _sgm
+
     m, n = params.window_w_px // 2, params.window_h_px // 2
     num, dmin = int(params.num_disparities), int(params.min_disparity_px)
     pl = np.ascontiguousarray(pl, np.float32)
     pr = np.ascontiguousarray(pr, np.float32)
-    el = _window_sum(pl * pl, m, n)
-    er = _window_sum(pr * pr, m, n)
-    count = _window_sum(np.ones_like(pl), m, n)
+    h, w = pl.shape
     pad = num + abs(dmin) + 1
-    # inverse square roots of the right energies (0: no energy, or outside the image)
-    irr = _reversed_padded(np.where(er > 0, 1.0 / np.sqrt(np.maximum(er, 1e-30)), 0.0)
-                           .astype(np.float32), pad)
-    return {"pl": pl, "prr": _reversed_padded(pr, pad), "el": el, "err": _reversed_padded(er, pad),
-            "irr": irr, "pad": pad, "dmin": dmin, "num": num, "m": m, "n": n, "count": count}
+    el = np.empty((h, w), np.float32)
+    count = np.empty((h, w), np.float32)
+    # the right image's rows reversed, its energies and their inverse square roots
+    # (0: no energy, or outside the image), padded with zeros on both sides
+    prr, err, irr = np.zeros((3, h, w + 2 * pad), np.float32)
+    _sgm.window_inputs(pl, pr, m, n, pad, el, count, prr, err, irr)
+    return {"pl": pl, "prr": prr, "el": el, "err": err, "irr": irr, "pad": pad, "dmin": dmin,
+            "num": num, "m": m, "n": n, "count": count}
 
 
 def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
