@@ -244,8 +244,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+        right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
-        pr = prefilter_image(right_grey, params)
+        pr = right_job.result() if right_job else prefilter_image(right_grey, params)
         energy_min = ((params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none"
                       else 0.0)
         top = np.uint16(round(COST_MAX * COST_SCALE))
