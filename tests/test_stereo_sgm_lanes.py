@@ -91,7 +91,7 @@ def test_fused_passes_equal_the_scalar_stages(seed, kw):
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("kw", [{}, {"sgm_paths": 8, "min_disparity_px": -2}])
 def test_two_thread_phases_equal_one_thread(seed, kw):
-    """The three phases over two threads (split at the middle row) against the fused
+    """The three phases over two threads (split at 2/5 of the height) against the fused
     passes on one thread, on an odd height."""
     from concurrent.futures import ThreadPoolExecutor
 

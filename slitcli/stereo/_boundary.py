@@ -49,6 +49,7 @@ import numba as nb
 import numpy as np
 
 from slitcli.stereo._simd import offset, ptr
+from slitcli.stereo._zncc import zncc_blocks
 from slitcli.stereo.reasons import Reason
 
 _FASTMATH = {"nsz", "arcp", "contract", "afn"}
@@ -95,46 +96,6 @@ def _column_residual_right(gl, gr, y, xr, d, hh):
     return s / np.float32(y1 - y0)
 
 
-@nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _zncc_block(gl, gr, y, xc, d, rx, ry):
-    """Zero-mean normalised correlation of the left block centred at (xc, y), (2rx+1)
-    x (2ry+1) clipped to the image, with the right image at xc - d (linear in x);
-    0 where a block is flat or too small."""
-    height, width = gl.shape
-    # every sample of the block shares the fractional shift: right column xx + off
-    # and xx + off + 1 with weights 1 - t, t; the columns are clipped once
-    off = int(np.floor(-d))
-    t = -d - np.float32(off)
-    c0 = max(xc - rx, 0, -off)
-    c1 = min(xc + rx, width - 1, width - 2 - off)
-    r0 = max(0, y - ry)
-    r1 = min(height, y + ry + 1)
-    cnt = (c1 - c0 + 1) * (r1 - r0)
-    if c1 < c0 or cnt < 2:
-        return np.float32(0.0)
-    u = np.float32(1.0) - t
-    sa = np.float32(0.0)
-    sb = np.float32(0.0)
-    saa = np.float32(0.0)
-    sbb = np.float32(0.0)
-    sab = np.float32(0.0)
-    for yy in range(r0, r1):
-        for xx in range(c0, c1 + 1):
-            a = gl[yy, xx]
-            b = u * gr[yy, xx + off] + t * gr[yy, xx + off + 1]
-            sa += a
-            sb += b
-            saa += a * a
-            sbb += b * b
-            sab += a * b
-    n = np.float32(cnt)
-    va = saa - sa * sa / n
-    vb = sbb - sb * sb / n
-    cov = sab - sa * sb / n
-    den = np.sqrt(max(va, np.float32(0.0)) * max(vb, np.float32(0.0)))
-    return cov / den if den > 1e-3 else np.float32(0.0)
-
-
 # Neighbours on one surface have nearly the same disparity: a candidate within this of
 # one already tried on the same side would give nearly the same residual.
 _SAME_PX = np.float32(0.25)
@@ -179,42 +140,95 @@ def _right_candidates(gl, gr, cand, y, xr, lim, radius, hh, bound):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
-def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes):
+def _one_sided_row(gl, gr, disp, zncc, y, zy, side_min, rx, ry, codes, req):
     """One-sided support of row y (module notes; its centred correlations are
     ``zncc[zy]``): failing valid pixels of ``codes`` get REASON_SUPPORT. A pixel's test
-    reads its own code only."""
+    reads its own code only, so the row's blocks are correlated together
+    (slitcli.stereo._zncc.zncc_blocks; ``req``: :func:`_requests`)."""
     width = gl.shape[1]
+    who, yc, xc, dd, res = req
+    n = 0
     for x in range(width):
         if codes[x] != 0:
             continue
-        d = disp[y, x]
         for side in (-1, 1):
             xx = x + side
             if xx < 0 or xx >= width or zncc[zy, xx] >= side_min:
                 continue
-            if _zncc_block(gl, gr, y, xx, d, rx, ry) < side_min:
-                codes[x] = REASON_SUPPORT
-                break
+            who[n] = x
+            yc[n] = y
+            xc[n] = xx
+            dd[n] = disp[y, x]
+            n += 1
+    zncc_blocks(gl, gr, yc, xc, dd, n, rx, ry, res)
+    for i in range(n):
+        if res[i] < side_min:
+            codes[who[i]] = REASON_SUPPORT
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes):
+def _cross_stage(gl, gr, disp, y, dy, dx, r, cross_min, lst, m, req):
+    """Keep in ``lst[:m]`` (in place, in order) the pixels x whose (2r+1)^2 block
+    centred at (x + dx, y + dy) correlates with the right image at their own disparity
+    to at least ``cross_min``; returns their count."""
+    _, yc, xc, dd, res = req
+    for i in range(m):
+        x = lst[i]
+        yc[i] = y + dy
+        xc[i] = x + dx
+        dd[i] = disp[y, x]
+    zncc_blocks(gl, gr, yc, xc, dd, m, r, r, res)
+    j = 0
+    for i in range(m):
+        if res[i] >= cross_min:
+            lst[j] = lst[i]
+            j += 1
+    return j
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH)
+def _cross_row(gl, gr, disp, zrow, y, cross_min, strong, r, codes, req, lists, held):
     """Cross support of row y (module notes; ``zrow``: its centred correlations): valid
     pixels of ``codes`` below ``strong`` and supported on neither axis get
-    REASON_SUPPORT. A pixel's test reads its own code only."""
+    REASON_SUPPORT. A pixel's test reads its own code only, so the row's blocks are
+    correlated together, one side at a time (slitcli.stereo._zncc.zncc_blocks): the
+    blocks below for the pixels whose block above passed, and so on, as the scalar
+    test would have asked for them. ``lists`` (2, W) int64 and ``held`` (W,) bool are
+    work arrays."""
     width = gl.shape[1]
     k = 2 * r + 1
+    cand = lists[0]
+    cur = lists[1]
+    n = 0
     for x in range(width):
-        if codes[x] != 0 or zrow[x] >= strong:
-            continue
-        d = disp[y, x]
-        if (_zncc_block(gl, gr, y - k, x, d, r, r) >= cross_min
-                and _zncc_block(gl, gr, y + k, x, d, r, r) >= cross_min):
-            continue
-        if (_zncc_block(gl, gr, y, x - k, d, r, r) >= cross_min
-                and _zncc_block(gl, gr, y, x + k, d, r, r) >= cross_min):
-            continue
-        codes[x] = REASON_SUPPORT
+        if codes[x] == 0 and zrow[x] < strong:
+            cand[n] = x
+            held[x] = False
+            n += 1
+    for vertical in (True, False):
+        m = 0
+        for i in range(n):
+            if not held[cand[i]]:
+                cur[m] = cand[i]
+                m += 1
+        dy = k if vertical else 0
+        dx = 0 if vertical else k
+        m = _cross_stage(gl, gr, disp, y, -dy, -dx, r, cross_min, cur, m, req)
+        m = _cross_stage(gl, gr, disp, y, dy, dx, r, cross_min, cur, m, req)
+        for i in range(m):
+            held[cur[i]] = True
+    for i in range(n):
+        if not held[cand[i]]:
+            codes[cand[i]] = REASON_SUPPORT
+
+
+@nb.njit(cache=True)
+def _requests(width):
+    """Work arrays of a row's block requests (at most two per pixel): pixel, block
+    centre row and column, disparity, correlation."""
+    return (np.empty(2 * width, np.int64), np.empty(2 * width, np.int64),
+            np.empty(2 * width, np.int64), np.empty(2 * width, np.float32),
+            np.empty(2 * width, np.float32))
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH)
@@ -419,6 +433,9 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
     right_min = np.empty(width, np.float32)
     pad = np.empty(width + 2 * radius, np.float32)
     tmp = np.empty(width + 2 * radius, np.float32)
+    req = _requests(width)
+    lists = np.empty((2, width), np.int64)
+    held = np.zeros(width, np.bool_)
     support = smin != 0
     if support:
         for yy in range(max(0, y0 - r), min(height, y0 + r)):
@@ -431,9 +448,10 @@ def post_rows(gl, gr, disp, rdisp, smin, side_min, cross_min, strong, r, ry, tol
         _support_codes(offset(ptr(reason), y * width), ptr(zncc), smin, support, ptr(codes),
                        width)
         if support and side_min != 0:
-            _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes)
+            _one_sided_row(gl, gr, disp, zncc, y, 0, side_min, r, ry, codes, req)
         if support and cross_min != 0:
-            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes)
+            _cross_row(gl, gr, disp, zncc[0], y, cross_min, strong, r, codes, req, lists,
+                       held)
         if ratio > 0:
             _candidates(ptr(codes), offset(ptr(disp), y * width), offset(ptr(rdisp), y * width),
                         tol, ptr(left_cand), ptr(right_cand), width)

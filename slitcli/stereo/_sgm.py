@@ -386,3 +386,62 @@ def winners_rows(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, subpixel, energy
                     ok = k != NO_KEY and abs((k & imask) - bi) <= lr_tol
                 if not ok:
                     reason_out[y, x] = REASON_LEFT_RIGHT
+
+
+@nb.njit(cache=True, nogil=True)
+def window_inputs(pl, pr, m, n, pad, el, count, prr_pad, err_pad, irr_pad):
+    """The cost kernels' inputs in one pass: window energies and pixel counts of the
+    left image (``el``, ``count``, (H, W)), and the right image's rows reversed into
+    the padded rows of ``prr_pad`` with its window energies ``err_pad`` and their
+    inverse square roots ``irr_pad`` (0 where no energy); padding left untouched.
+
+    The (2m+1) x (2n+1) window sums (zeros outside the image) run in float64 and are
+    rounded to float32 once, as ``cv2.boxFilter`` does for float32 images: the
+    prefiltered images hold whole numbers (quarter DN), so the running sums are exact
+    and the energies equal the box filter's bit for bit."""
+    height, width = pl.shape
+    cl = np.zeros(width, np.float64)
+    cr = np.zeros(width, np.float64)
+    for yy in range(min(n, height)):
+        for x in range(width):
+            a = np.float64(pl[yy, x])
+            b = np.float64(pr[yy, x])
+            cl[x] += a * a
+            cr[x] += b * b
+    for y in range(height):
+        ya = y + n
+        ys = y - n - 1
+        if ya < height:
+            for x in range(width):
+                a = np.float64(pl[ya, x])
+                b = np.float64(pr[ya, x])
+                cl[x] += a * a
+                cr[x] += b * b
+        if ys >= 0:
+            for x in range(width):
+                a = np.float64(pl[ys, x])
+                b = np.float64(pr[ys, x])
+                cl[x] -= a * a
+                cr[x] -= b * b
+        rows = min(height - 1, ya) - max(0, y - n) + 1
+        sl = 0.0
+        sr = 0.0
+        for x in range(min(m, width)):
+            sl += cl[x]
+            sr += cr[x]
+        for x in range(width):
+            xa = x + m
+            xs = x - m - 1
+            if xa < width:
+                sl += cl[xa]
+                sr += cr[xa]
+            if xs >= 0:
+                sl -= cl[xs]
+                sr -= cr[xs]
+            el[y, x] = np.float32(sl)
+            count[y, x] = np.float32(rows * (min(width - 1, xa) - max(0, x - m) + 1))
+            e = np.float32(sr)
+            j = pad + width - 1 - x
+            prr_pad[y, j] = pr[y, x]
+            err_pad[y, j] = e
+            irr_pad[y, j] = np.float32(1.0) / np.sqrt(e) if e > 0 else np.float32(0.0)

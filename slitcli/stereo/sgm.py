@@ -33,7 +33,6 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from slitcli.stereo.bands import kernel_threads, run_row_bands
@@ -52,34 +51,25 @@ COST_SCALE = 256.0   # quantisation of the Eq. 10 cost (units per 1.0 of cost)
 COST_MAX = 2.0       # costs clip here: two uncorrelated windows of equal energy
 
 
-def _window_sum(a: np.ndarray, m: int, n: int) -> np.ndarray:
-    return cv2.boxFilter(a, cv2.CV_32F, (2 * m + 1, 2 * n + 1), normalize=False,
-                         borderType=cv2.BORDER_CONSTANT)
-
-
-def _reversed_padded(a: np.ndarray, pad: int) -> np.ndarray:
-    h, w = a.shape
-    out = np.zeros((h, w + 2 * pad), np.float32)
-    out[:, pad:pad + w] = a[:, ::-1]
-    return out
-
-
 def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
     """What the cost kernels read: the prefiltered images, window energies and counts,
     the right image's rows reversed and padded (see slitcli.stereo._sgm.cost_rows)."""
+    from slitcli.stereo import _sgm
+
     m, n = params.window_w_px // 2, params.window_h_px // 2
     num, dmin = int(params.num_disparities), int(params.min_disparity_px)
     pl = np.ascontiguousarray(pl, np.float32)
     pr = np.ascontiguousarray(pr, np.float32)
-    el = _window_sum(pl * pl, m, n)
-    er = _window_sum(pr * pr, m, n)
-    count = _window_sum(np.ones_like(pl), m, n)
+    h, w = pl.shape
     pad = num + abs(dmin) + 1
-    # inverse square roots of the right energies (0: no energy, or outside the image)
-    irr = _reversed_padded(np.where(er > 0, 1.0 / np.sqrt(np.maximum(er, 1e-30)), 0.0)
-                           .astype(np.float32), pad)
-    return {"pl": pl, "prr": _reversed_padded(pr, pad), "el": el, "err": _reversed_padded(er, pad),
-            "irr": irr, "pad": pad, "dmin": dmin, "num": num, "m": m, "n": n, "count": count}
+    el = np.empty((h, w), np.float32)
+    count = np.empty((h, w), np.float32)
+    # the right image's rows reversed, its energies and their inverse square roots
+    # (0: no energy, or outside the image), padded with zeros on both sides
+    prr, err, irr = np.zeros((3, h, w + 2 * pad), np.float32)
+    _sgm.window_inputs(pl, pr, m, n, pad, el, count, prr, err, irr)
+    return {"pl": pl, "prr": prr, "el": el, "err": err, "irr": irr, "pad": pad, "dmin": dmin,
+            "num": num, "m": m, "n": n, "count": count}
 
 
 def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
@@ -175,18 +165,24 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     and memory, not arithmetic, set the separate stages' times (measured: the
     stages took 1.5-2.3 times as long in the frame as each alone on hot data).
 
-    With a second thread, three phases split at the middle row: (1) this thread the
-    top half's costs and sweep, the other the bottom half's costs; (2) this thread the
-    top-down sweep over the bottom half, the other the bottom-up sweep over it (sums
-    into a third volume); (3) this thread the bottom half's winners, the other the
-    bottom-up sweep and winners of the top half. The same results bit for bit."""
+    With a second thread, three phases split at 2/5 of the height: (1) this thread the
+    top part's costs and sweep, the other the bottom part's costs; (2) this thread the
+    top-down sweep over the bottom part, the other the bottom-up sweep over it (sums
+    into a third volume); (3) this thread the bottom part's winners, the other the
+    bottom-up sweep and winners of the top part. The same results bit for bit."""
     from slitcli.stereo import _sgm_lanes
 
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
     num = c["num"]
-    cost = np.empty((h, w, num), np.uint16)
-    s_a = np.empty_like(cost)
+    two = pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1)
+    # the volumes in one allocation: glibc (malloc's dynamic mmap threshold) then keeps
+    # its pages mapped from one frame to the next (two or three separate volumes freed
+    # together are returned to the system and faulted in again: measured 700-1200
+    # page faults, ~5 ms of a 320 x 240 frame)
+    volumes = np.empty((2 if two else 3, h, w, num), np.uint16)
+    cost = volumes[0]
+    s_a = volumes[1]
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
     eight = params.sgm_paths == 8
@@ -194,16 +190,20 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
              c["n"], COST_MAX, COST_SCALE)
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
-    if pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1):
+    if two:
         _sgm_lanes.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
         _sgm_lanes.second_sweep_winners(cost, s_a, *bargs)
         return
-    half = h // 2
+    # the split row balances the phases: this thread's top rows carry costs and the
+    # sweep, the other's bottom rows costs only; in phase 3 the other thread sweeps and
+    # picks the top rows' winners. Per-thread CPU time, summed over the phases' larger
+    # share (320 x 240 / 64 d): 5.7 ms split at the middle, 4.8 ms at 2/5
+    half = 2 * h // 5
     col = np.zeros((w + 1, num), np.float32)
     hs = np.zeros(num, np.float32)
     state_a = _sgm_lanes._sweep_state(w, num)
     state_b = _sgm_lanes._sweep_state(w, num)
-    s_b = np.empty_like(cost)
+    s_b = volumes[2]
     job = pool.submit(_sgm_lanes.cost_rows_lanes, *cargs, half, h, cost)
     _sgm_lanes._cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
     _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
@@ -248,8 +248,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+        right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
-        pr = prefilter_image(right_grey, params)
+        pr = right_job.result() if right_job else prefilter_image(right_grey, params)
         energy_min = ((params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none"
                       else 0.0)
         top = np.uint16(round(COST_MAX * COST_SCALE))
