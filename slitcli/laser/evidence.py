@@ -23,7 +23,9 @@ colour would cost more noise than texture it removes, and ``lam`` is smaller.
 The noise of every quantity is measured on the image itself, robustly: the median
 absolute lag-2 residual ``x(v) - (x(v - 2) + x(v + 2)) / 2`` down the columns (the
 stripe, edges and highlights are a small share of the pixels; a lag of two rows skips
-the correlation that demosaicing and compression leave between neighbours), floored by
+most of the correlation that demosaicing leaves between neighbours, not all of what
+JPEG's subsampled chroma leaves: there it reads low, so candidates are judged against
+the larger of it and the evidence's spread over the image), floored by
 ``noise_floor_dn`` (quantisation and compression).
 
 Images come transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row).
