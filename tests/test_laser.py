@@ -34,7 +34,7 @@ from slitcli.rig import paper_rig
 RIG = paper_rig()
 PARAMS = LaserParams()
 GEOM = LaserGeometry.from_rig(RIG, PARAMS)
-#: the share of the surface colour the evidence removes under the default parameters
+#: the largest share of the surface colour the evidence removes (the defaults)
 LAM = PARAMS.texture_share_range()[1]
 
 
@@ -175,9 +175,9 @@ def test_texture_share_from_the_image(seed, ratio):
     assert max(0.0, 1.0 - 1.5 / (1.0 + r2)) - 0.02 <= lam <= r2 / (1.0 + r2) + 0.02
 
 
-def test_texture_share_range_defaults_fix_the_share():
-    # default: both bounds 5, the share 25 / 26; the range is checked
-    assert PARAMS.texture_share_range() == (25.0 / 26.0, 25.0 / 26.0)
+def test_texture_share_range_from_the_ratios():
+    # ratios 2 and 5 (the defaults): shares 4 / 5 and 25 / 26; the range is checked
+    assert PARAMS.texture_share_range() == pytest.approx((0.8, 25.0 / 26.0), abs=1e-12)
     assert LaserParams(min_texture_ratio=0.0).texture_share_range()[0] == 0.0
     with pytest.raises(SlitcliError, match="min_texture_ratio"):
         LaserParams(min_texture_ratio=6.0)
