@@ -73,8 +73,8 @@ def laser_options(f: Any) -> Any:
         click.option("--min-texture-ratio", type=float, default=_LD["min_texture_ratio"],
                      show_default=True,
                      help="Least texture-to-noise ratio along the surface colour that the "
-                          "laser evidence assumes (unitless); below --max-texture-ratio the "
-                          "ratio is measured on each image (0: fully; noisy cameras)."),
+                          "laser evidence assumes (unitless); between it and "
+                          "--max-texture-ratio the ratio is measured on each image."),
         click.option("--max-texture-ratio", type=float, default=_LD["max_texture_ratio"],
                      show_default=True,
                      help="Largest texture-to-noise ratio along the surface colour that the "
