@@ -175,6 +175,18 @@ def test_texture_share_from_the_image(seed, ratio):
     assert max(0.0, 1.0 - 1.5 / (1.0 + r2)) - 0.02 <= lam <= r2 / (1.0 + r2) + 0.02
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_median_equals_numpy(seed):
+    # the histogram median is np.median's value: continuous values, odd and even
+    # counts, heavy ties (a quantised quantity, half its values equal), all equal
+    rng = np.random.default_rng(seed)
+    cases = [rng.normal(0.0, 3.0, 1001), rng.normal(0.0, 3.0, 1000),
+             np.concatenate([np.zeros(600), rng.normal(0.0, 3.0, 401)]),
+             np.rint(rng.normal(0.0, 1.0, 2000)) ** 2, np.full(7, 2.5)]
+    for v in cases:
+        assert evidence._median(v) == np.median(v)
+
+
 def test_texture_share_range_from_the_ratios():
     # ratios 2 and 5 (the defaults): shares 4 / 5 and 25 / 26; the range is checked
     assert PARAMS.texture_share_range() == pytest.approx((0.8, 25.0 / 26.0), abs=1e-12)

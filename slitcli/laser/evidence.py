@@ -231,6 +231,14 @@ def _median(v: np.ndarray) -> float:  # pragma: no cover
         if b1 <= b <= b2:
             sel[m] = v[t]
             m += 1
+    # many equal values (a quantised or clipped quantity) need no sort
+    s_lo = sel[0]
+    s_hi = sel[0]
+    for t in range(m):
+        s_lo = min(s_lo, sel[t])
+        s_hi = max(s_hi, sel[t])
+    if s_lo == s_hi:
+        return float(s_lo)
     sel.sort()
     return 0.5 * (float(sel[k1 - below]) + float(sel[k2 - below]))
 
