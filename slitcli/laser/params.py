@@ -62,7 +62,7 @@ class LaserParams:
         (texture along the surface colour against the noise across it); equal bounds fix
         it. The cap keeps the share below 1, which would amplify the noise without bound
         on surfaces of the laser's colour (5: 0.96). Default both 5 (fixed). Renders
-        without a camera model measure 9.5-12.7, noisy real cameras 0.4-1.9; a
+        without a camera model measure 9.5-12.7, the development set's robot photographs 0-0.8; a
         ``min_texture_ratio`` of 2 keeps the stripe of such cameras on surfaces of the
         laser's own colour under a tone curve (docs/laser.md, Ablation and Limits).
     noise_floor_dn : float
