@@ -220,6 +220,8 @@ def report(res: dict) -> dict:
 #: module constant of slitcli.laser.choose
 ABLATIONS = {
     "default": {},
+    "texture ratio measured, at least 2 (min_texture_ratio 2)": {"min_texture_ratio": 2.0},
+    "texture ratio as measured (min_texture_ratio 0)": {"min_texture_ratio": 0.0},
     "no one-sheet rule (min_stripe_share 0)": {"min_stripe_share": 0.0},
     "no segment length (min_segment_share 0)": {"min_segment_share": 0.0},
     "no shape test / flat tops (max_chi2 1e9)": {"max_chi2": 1e9},

@@ -34,6 +34,8 @@ from slitcli.rig import paper_rig
 RIG = paper_rig()
 PARAMS = LaserParams()
 GEOM = LaserGeometry.from_rig(RIG, PARAMS)
+#: the largest share of the surface colour the evidence removes (the defaults)
+LAM = PARAMS.texture_share_range()[1]
 
 
 def _errors(seeds, **kw):
@@ -72,7 +74,7 @@ def _evidence(img, win=21):
     evidence.vertical_opening(flat, win, opened)
     y = np.empty((w, h), np.float32)
     clipped = np.empty((w, h), bool)
-    evidence.laser_evidence(cv2.transpose(img), cv2.transpose(opened), 250, y, clipped)
+    evidence.laser_evidence(cv2.transpose(img), cv2.transpose(opened), 250, LAM, y, clipped)
     return y.T, clipped.T, opened.reshape(img.shape)
 
 
@@ -85,7 +87,7 @@ def test_laser_evidence_cancels_white_light_and_grey_texture():
     col[20, 0] = (120, 120, 120)  # white added
     col[30, 0] = (117, 117, 117)  # texture: brighter grey
     y, clipped, bg = _evidence(col)
-    q = evidence.LAM / 3.0 / (1.0 - evidence.LAM / 3.0)
+    q = LAM / 3.0 / (1.0 - LAM / 3.0)
     assert y[10, 0] == pytest.approx(40.0, abs=1e-3)
     assert y[20, 0] == pytest.approx(30.0 * (1.0 - 2.0 * q), abs=1e-3)
     assert abs(y[20, 0]) < 0.25 * 30.0 and abs(y[30, 0]) < 0.25 * 27.0
@@ -143,9 +145,58 @@ def test_noise_estimates_from_the_image(seed, noise_dn):
     chan = evidence.channel_sigma(cv2.transpose(s.bgr), 1)
     np.testing.assert_allclose(chan, noise_dn, rtol=0.15)
     y, _, _ = _evidence(s.bgr)
-    q = evidence.LAM / 3.0 / (1.0 - evidence.LAM / 3.0)
+    q = LAM / 3.0 / (1.0 - LAM / 3.0)
     est = evidence.robust_sigma(np.ascontiguousarray(y.T), np.ones(y.T.shape, bool), 1)
     assert est == pytest.approx(noise_dn * math.sqrt(1.0 + 2.0 * q * q), rel=0.15)
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("ratio", [0.0, 1.0, 2.0, 4.0])
+def test_texture_share_from_the_image(seed, ratio):
+    # a surface of colour k with texture blobs along k (std ratio x sigma) and noise sigma
+    # per channel: the share removed is r^2 / (r^2 + 1); the per-channel opening adds some
+    # noise across k (each channel's background is a different order statistic of its
+    # noise), at most half the noise variance, so the estimate lies in
+    # [1 - 1.5 / (1 + r^2), r^2 / (1 + r^2)] (0 without texture)
+    rng = np.random.default_rng(seed)
+    sigma = 3.0
+    k = np.array([60.0, 90.0, 120.0])  # BGR
+    tex = np.repeat(rng.standard_normal((40, 160)), 3, axis=0)[:120] * ratio * sigma \
+        / np.linalg.norm(k)
+    img = k * (1.0 + tex[..., None]) + rng.normal(0.0, sigma, (120, 160, 3))
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    h, w = img.shape[:2]
+    flat = np.ascontiguousarray(img.reshape(h, 3 * w))
+    opened = np.empty_like(flat)
+    evidence.vertical_opening(flat, 21, opened)
+    lam = evidence.texture_share(cv2.transpose(img), cv2.transpose(opened),
+                                 np.ones((w, h), bool), 250, 1, 0.999)
+    r2 = ratio * ratio
+    assert max(0.0, 1.0 - 1.5 / (1.0 + r2)) - 0.02 <= lam <= r2 / (1.0 + r2) + 0.02
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_median_equals_numpy(seed):
+    # the histogram median is np.median's value: continuous values, odd and even
+    # counts, heavy ties (a quantised quantity, half its values equal), all equal
+    rng = np.random.default_rng(seed)
+    cases = [rng.normal(0.0, 3.0, 1001), rng.normal(0.0, 3.0, 1000),
+             np.concatenate([np.zeros(600), rng.normal(0.0, 3.0, 401)]),
+             np.rint(rng.normal(0.0, 1.0, 2000)) ** 2, np.full(7, 2.5)]
+    for v in cases:
+        assert evidence._median(v) == np.median(v)
+
+
+def test_texture_share_range_from_the_ratios():
+    # default: both ratios 5, the share fixed at 25 / 26; ratios 2 and 5: 4 / 5 to 25 / 26;
+    # the range is checked
+    assert PARAMS.texture_share_range() == pytest.approx((25.0 / 26.0, 25.0 / 26.0),
+                                                         abs=1e-12)
+    assert LaserParams(min_texture_ratio=2.0).texture_share_range() == pytest.approx(
+        (0.8, 25.0 / 26.0), abs=1e-12)
+    assert LaserParams(min_texture_ratio=0.0).texture_share_range()[0] == 0.0
+    with pytest.raises(SlitcliError, match="min_texture_ratio"):
+        LaserParams(min_texture_ratio=6.0)
 
 
 def test_sheet_scale_paper_rig():

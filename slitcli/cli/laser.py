@@ -70,6 +70,15 @@ def laser_options(f: Any) -> Any:
         click.option("--colour-error", type=float, default=_LD["colour_error"], show_default=True,
                      help="Share by which a candidate's colour may leave the plane of the laser's "
                           "colour (measured on the frame) and the surface's (unitless)."),
+        click.option("--min-texture-ratio", type=float, default=_LD["min_texture_ratio"],
+                     show_default=True,
+                     help="Least texture-to-noise ratio along the surface colour that the "
+                          "laser evidence assumes (unitless); between it and "
+                          "--max-texture-ratio the ratio is measured on each image."),
+        click.option("--max-texture-ratio", type=float, default=_LD["max_texture_ratio"],
+                     show_default=True,
+                     help="Largest texture-to-noise ratio along the surface colour that the "
+                          "laser evidence assumes (unitless)."),
         click.option("--noise-floor-dn", type=float, default=_LD["noise_floor_dn"],
                      show_default=True,
                      help="Smallest noise sigma of the laser evidence (quantisation and "

@@ -11,14 +11,21 @@ reflected by any surface keeps its colour); ``n``: noise. The background under t
 stripe is a vertical morphological opening (:func:`vertical_opening`): every feature
 narrower than its window is "contrast" ``t = x - opening``. The laser evidence of a
 pixel is the red of ``t`` less what its green and blue explain along the surface's
-colour (generalised least squares with texture ``TEXTURE_RATIO`` times the noise along
-``k``): on a grey surface ``y = t_r - (t_g + t_b) / 2``, where white light and texture
-cancel; on a red surface (``k`` parallel to the red axis) ``y = t_r``, texture stays.
+colour (generalised least squares, texture of variance ``tau^2`` along ``k`` over noise of
+variance ``sigma^2`` per channel): the share of the surface colour removed is
+``lam = tau^2 / (tau^2 + sigma^2)``, measured on each image (:func:`texture_share`). With
+texture far above the noise (``lam`` near 1), on a grey surface ``y = t_r - (t_g + t_b)
+/ 2``, where white light and texture cancel; on a red surface (``k`` parallel to the red
+axis) ``y = t_r``, texture stays. Where the noise is as large as the texture that
+survives the opening (real cameras: dim rooms, demosaicing, JPEG), removing the surface
+colour would cost more noise than texture it removes, and ``lam`` is smaller.
 
 The noise of every quantity is measured on the image itself, robustly: the median
 absolute lag-2 residual ``x(v) - (x(v - 2) + x(v + 2)) / 2`` down the columns (the
 stripe, edges and highlights are a small share of the pixels; a lag of two rows skips
-the correlation that demosaicing and compression leave between neighbours), floored by
+most of the correlation that demosaicing leaves between neighbours, not all of what
+JPEG's subsampled chroma leaves: there it reads low, so candidates are judged against
+the larger of it and the evidence's spread over the image), floored by
 ``noise_floor_dn`` (quantisation and compression).
 
 Images come transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row).
@@ -31,12 +38,9 @@ import math
 import numpy as np
 from numba import njit
 
-#: texture standard deviation along the surface colour, in noise sigmas, that the
-#: evidence's weights assume: the share of the surface colour removed is
-#: TEXTURE_RATIO^2 / (TEXTURE_RATIO^2 + 1) = 0.99 (1 would amplify noise without bound on
-#: surfaces of the laser's colour)
-TEXTURE_RATIO = 5.0
-LAM = TEXTURE_RATIO ** 2 / (TEXTURE_RATIO ** 2 + 1.0)
+#: 2 ln 2: the median of |n|^2 for isotropic Gaussian noise n of variance sigma^2 per
+#: dimension in a plane is 2 ln 2 sigma^2 (chi-square with two degrees of freedom)
+CHI2_2_MEDIAN = 2.0 * math.log(2.0)
 #: a MAD of a Gaussian is 0.6745 sigma; the lag-2 residual has variance 1.5 sigma^2
 MAD_TO_SIGMA = 1.0 / (0.6745 * math.sqrt(1.5))
 #: every NOISE_STEP-th column enters the noise estimates
@@ -111,14 +115,61 @@ def vertical_opening(x: np.ndarray, k: int, out: np.ndarray) -> None:  # pragma:
 
 
 @njit(cache=True, nogil=True)
-def laser_evidence(img: np.ndarray, bg: np.ndarray, sat_dn: int, y: np.ndarray,
+def texture_share(img: np.ndarray, bg: np.ndarray, mask: np.ndarray, sat_dn: int,
+                  step: int, max_share: float) -> float:  # pragma: no cover
+    """Share ``lam = tau^2 / (tau^2 + sigma^2)`` of the surface colour that the evidence
+    removes (module notes), measured on the image: the contrast ``t = x - bg`` of every
+    ``step``-th column and every second row (a few thousand pixels fix the spreads to a
+    few per cent), split along the surface colour ``k`` and across it. Across ``k``
+    there is noise alone (and the few laser pixels): the median of its squared length is
+    ``2 ln 2 sigma^2``; along ``k`` texture and noise, of robust spread ``s``
+    (1.4826 MAD); so ``lam = 1 - sigma^2 / s^2``, clamped to ``[0, max_share]``.
+
+    ``img`` (W, H, 3) BGR, ``bg`` (3 W, H) as for :func:`laser_evidence`, ``mask`` (W, H)
+    the pixels to use (unclipped pixels of the searched rows).
+    """
+    n_cols, n = img.shape[0], img.shape[1]
+    cap = ((n_cols + step - 1) // step) * ((n + 1) // 2)
+    along = np.empty(cap)
+    across = np.empty(cap)
+    m = 0
+    for i in range(0, n_cols, step):
+        b_b, b_g, b_r = bg[3 * i], bg[3 * i + 1], bg[3 * i + 2]
+        xi = img[i]
+        for j in range(0, n, 2):
+            if not mask[i, j] or xi[j, 2] >= sat_dn or xi[j, 1] >= sat_dn or \
+                    xi[j, 0] >= sat_dn:
+                continue
+            kr = b_r[j] + 0.5
+            kg = b_g[j] + 0.5
+            kb = b_b[j] + 0.5
+            tr = float(xi[j, 2]) - b_r[j]
+            tg = float(xi[j, 1]) - b_g[j]
+            tb = float(xi[j, 0]) - b_b[j]
+            tk = (tr * kr + tg * kg + tb * kb) / math.sqrt(kr * kr + kg * kg + kb * kb)
+            along[m] = tk
+            across[m] = max(tr * tr + tg * tg + tb * tb - tk * tk, 0.0)
+            m += 1
+    if m < 16:
+        return max_share
+    a = along[:m]
+    s = 1.4826 * _median(np.abs(a - _median(a)))
+    var_n = _median(across[:m]) / CHI2_2_MEDIAN
+    if not s > 0.0:
+        return max_share
+    return min(max(1.0 - var_n / (s * s), 0.0), max_share)
+
+
+@njit(cache=True, nogil=True)
+def laser_evidence(img: np.ndarray, bg: np.ndarray, sat_dn: int, lam: float, y: np.ndarray,
                    clipped: np.ndarray) -> None:  # pragma: no cover
     """Laser evidence ``y`` (W, H) float32 of every pixel (module notes) and its clipped
     flag (red at or above ``sat_dn``).
 
     ``img`` (W, H, 3) BGR, ``bg`` the opening per channel as (3 W, H): row ``3 i + c``
-    holds channel ``c`` (b, g, r) of column ``i``. With ``k = bg + 1/2`` and the red axis
-    ``e_r``, ``w = (e_r - LAM k k_r / |k|^2) / (1 - LAM k_r^2 / |k|^2)`` (``w . e_r = 1``)
+    holds channel ``c`` (b, g, r) of column ``i``; ``lam`` the share of the surface
+    colour removed (:func:`texture_share`). With ``k = bg + 1/2`` and the red axis
+    ``e_r``, ``w = (e_r - lam k k_r / |k|^2) / (1 - lam k_r^2 / |k|^2)`` (``w . e_r = 1``)
     and ``y = w . (x - bg)``.
     """
     n_cols, n = img.shape[0], img.shape[1]
@@ -132,11 +183,11 @@ def laser_evidence(img: np.ndarray, bg: np.ndarray, sat_dn: int, y: np.ndarray,
             kg = b_g[j] + 0.5
             kb = b_b[j] + 0.5
             k2 = kr * kr + kg * kg + kb * kb
-            inv = 1.0 / (k2 - LAM * kr * kr)
+            inv = 1.0 / (k2 - lam * kr * kr)
             tr = float(xi[j, 2]) - b_r[j]
             tg = float(xi[j, 1]) - b_g[j]
             tb = float(xi[j, 0]) - b_b[j]
-            yi[j] = ((k2 - LAM * kr * kr) * tr - LAM * kr * (kg * tg + kb * tb)) * inv
+            yi[j] = ((k2 - lam * kr * kr) * tr - lam * kr * (kg * tg + kb * tb)) * inv
             ci[j] = xi[j, 2] >= sat_dn
 
 
@@ -180,6 +231,14 @@ def _median(v: np.ndarray) -> float:  # pragma: no cover
         if b1 <= b <= b2:
             sel[m] = v[t]
             m += 1
+    # many equal values (a quantised or clipped quantity) need no sort
+    s_lo = sel[0]
+    s_hi = sel[0]
+    for t in range(m):
+        s_lo = min(s_lo, sel[t])
+        s_hi = max(s_hi, sel[t])
+    if s_lo == s_hi:
+        return float(s_lo)
     sel.sort()
     return 0.5 * (float(sel[k1 - below]) + float(sel[k2 - below]))
 

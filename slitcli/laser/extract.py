@@ -164,7 +164,11 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     bg_t = cv2.transpose(opened)
     y = np.empty((w, sub.shape[0]), np.float32)
     clipped = np.empty((w, sub.shape[0]), bool)
-    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, y, clipped)
+    # the share of the surface colour to remove: texture against noise, on this image
+    lo, hi = params.texture_share_range()
+    lam = hi if lo >= hi else max(lo, evidence.texture_share(
+        img_t, bg_t, mask_t, params.saturation_dn, 2 * evidence.NOISE_STEP, hi))
+    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, lam, y, clipped)
     # the stripe runs along the image rows: the evidence averaged over five columns
     # (1, 4, 6, 4, 1) / 16 has about half the noise (its own is measured below)
     y_avg = cv2.filter2D(y, -1, AVG_KERNEL, borderType=cv2.BORDER_REPLICATE)

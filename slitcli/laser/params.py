@@ -55,6 +55,16 @@ class LaserParams:
         Relative error of the laser colour: the light a candidate adds may differ from
         the laser's colour (estimated on the frame) across it and the surface colour by
         this share of its size plus three noise sigmas.
+    min_texture_ratio, max_texture_ratio : float
+        Range of the texture-to-noise ratio ``r = tau / sigma`` along the surface colour
+        that the evidence assumes (unitless); it removes the share ``r^2 / (r^2 + 1)`` of
+        the surface colour. Within the range the ratio is measured on each image
+        (texture along the surface colour against the noise across it); equal bounds fix
+        it. The cap keeps the share below 1, which would amplify the noise without bound
+        on surfaces of the laser's colour (5: 0.96). Default both 5 (fixed). Renders
+        without a camera model measure 9.5-12.7, the development set's robot photographs 0-0.8; a
+        ``min_texture_ratio`` of 2 keeps the stripe of such cameras on surfaces of the
+        laser's own colour under a tone curve (docs/laser.md, Ablation and Limits).
     noise_floor_dn : float
         Smallest noise sigma of the laser evidence, DN: quantisation (0.35 DN for the
         evidence's weights) and compression leave at least this much.
@@ -97,6 +107,8 @@ class LaserParams:
     shape_error: float = 0.25
     max_chi2: float = 4.0
     colour_error: float = 0.2
+    min_texture_ratio: float = 5.0
+    max_texture_ratio: float = 5.0
     noise_floor_dn: float = 0.5
     saturation_dn: int = 250
     continuity_px: float = 2.0
@@ -123,6 +135,8 @@ class LaserParams:
             "shape_error": 0.0 <= self.shape_error < 1.0,
             "max_chi2": self.max_chi2 > 0.0,
             "colour_error": 0.0 <= self.colour_error < 1.0,
+            "min_texture_ratio": 0.0 <= self.min_texture_ratio <= self.max_texture_ratio,
+            "max_texture_ratio": 0.0 <= self.max_texture_ratio <= 100.0,
             "noise_floor_dn": self.noise_floor_dn > 0.0,
             "saturation_dn": 1 <= self.saturation_dn <= 255,
             "continuity_px": self.continuity_px > 0.0,
@@ -137,6 +151,12 @@ class LaserParams:
             if not ok:
                 raise SlitcliError(f"laser parameter {name} = {getattr(self, name)!r} is out of "
                                    f"range; {_RANGES[name]}")
+
+    def texture_share_range(self) -> tuple[float, float]:
+        """Smallest and largest share of the surface colour the evidence removes,
+        ``r^2 / (r^2 + 1)`` of ``min_texture_ratio`` and ``max_texture_ratio``."""
+        lo, hi = self.min_texture_ratio ** 2, self.max_texture_ratio ** 2
+        return lo / (lo + 1.0), hi / (hi + 1.0)
 
     def max_width_px(self, height_px: int) -> float:
         """Widest stripe's equivalent width in an image of ``height_px`` rows, pixels
@@ -167,6 +187,8 @@ _RANGES = {
     "shape_error": "give a relative error in [0, 1)",
     "max_chi2": "give a reduced chi-square > 0",
     "colour_error": "give a relative error in [0, 1)",
+    "min_texture_ratio": "give a ratio in [0, max_texture_ratio]",
+    "max_texture_ratio": "give a ratio in [0, 100]",
     "noise_floor_dn": "give a noise level > 0 DN",
     "saturation_dn": "give a level in 1..255 DN",
     "continuity_px": "give a scale > 0 px",
