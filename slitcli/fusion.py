@@ -14,7 +14,8 @@ Paper mode (Eq. 11 as read in DESIGN §7), per bin:
    evaluation renders; docs/detect.md). Without this, a textureless obstacle whose
    silhouette or laser stripe gives stereo a few matches takes the stereo range;
 3. no laser return -> the stereo range, but not closer than the laser's maximum range:
-   ``max(laser_max_range, stereo)``. This trusts the laser's negative reading, which is
+   ``max(laser_max_range, stereo)`` (here: not closer than the laser certifies the bin
+   free, at most its maximum range; below). This trusts the laser's negative reading, which is
    wrong for an obstacle that overhangs the laser sheet (a table top, a shelf): the
    robot then believes the obstacle is at least ``laser_max_range`` away.
 
@@ -44,7 +45,9 @@ shows it can see (:func:`laser_reach_m`):
 Silence then moves a stereo return out to ``min(reach, laser_max_range)`` only when it
 lies nearer than that; elsewhere stereo's range stands (the conservative choice where
 the laser cannot tell). A steeper ``p`` credits the laser with less reach: the error
-errs towards keeping stereo.
+errs towards keeping stereo. The certified range per bin is returned
+(:attr:`FusedRanges.laser_free_m`; ``ranges.csv``'s ``laser_free_m``).
+
 Two more cases where the paper's reading does not hold, and what this module does:
 
 * the stereo return lies nearer than the laser can see at that bearing (the stripe
