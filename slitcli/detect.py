@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.errors import SlitcliError
-from slitcli.fusion import FusedRanges, FusionParams, fuse
+from slitcli.fusion import FusedRanges, FusionParams, fuse, laser_reach_m
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
 from slitcli.io.batch import (
     FrameBatch,
@@ -281,10 +281,12 @@ class Detector:
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)
+        reach = laser_reach_m(self.bins.index(las.bearing_deg), las.range_m, las.strength_dn,
+                              las.threshold_dn, las.noise_sigma_dn, len(self.bins), self.fusion)
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
-                     laser_sight_m=self._laser_sight_m)
+                     laser_sight_m=self._laser_sight_m, laser_reach_m=reach)
         table = RangeTable(self.bins.centres_deg, lb.range_m, st.range_m, st.has_features,
-                           fused.range_m, fused.source)
+                           fused.range_m, fused.source, fused.laser_free_m)
         return FrameDetection(las, st, fused, table)
 
 
@@ -371,7 +373,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if todo.step != 1 or not 0 <= todo.start <= todo.stop <= n:
         raise SlitcliError(f"`frames` {todo} is not a sub-range of the input's {n} frames",
                            param="frames")
-    manifest = {"command": "detect", "format": 3, "input": src.manifest(), "rig": rig.to_dict(),
+    manifest = {"command": "detect", "format": 4, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": manifest_value(asdict(params)), "save_images": save_images}
     subs = ("disparity", "distance", "mask") if save_images else ()
     batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,

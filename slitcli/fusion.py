@@ -14,13 +14,41 @@ Paper mode (Eq. 11 as read in DESIGN §7), per bin:
    evaluation renders; docs/detect.md). Without this, a textureless obstacle whose
    silhouette or laser stripe gives stereo a few matches takes the stereo range;
 3. no laser return -> the stereo range, but not closer than the laser's maximum range:
-   ``max(laser_max_range, stereo)``. This trusts the laser's negative reading, which is
+   ``max(laser_max_range, stereo)`` (here: not closer than the laser certifies the bin
+   free, at most its maximum range; below). This trusts the laser's negative reading, which is
    wrong for an obstacle that overhangs the laser sheet (a table top, a shelf): the
    robot then believes the obstacle is at least ``laser_max_range`` away.
 
 Rule 3 reads the paper's "no laser return" (a return beyond the band counts as none:
 the stripe is too faint there to trust) as "the obstacle is beyond the laser's reach".
-Two cases where that reading does not hold, and what this module does:
+That reading needs a laser that could have been seen: with the laser off, blocked, too
+weak for the exposure, or a camera too noisy or grey, there is no return anywhere and
+silence means nothing. So the laser certifies free space only as far as this frame
+shows it can see (:func:`laser_reach_m`):
+
+* a stripe seen at range ``r`` with peak ``s`` (DN) would, on the same surface at range
+  ``r'``, peak at ``s (r / r')**p`` at least, ``p`` the steepest plausible fall-off of
+  the stripe's brightness with range (``falloff_exponent``; light spread along the fan
+  gives 1, an unresolved stripe's shrinking image width another 1, so 2 for a real
+  laser; the renderer uses 4). It is found with near certainty where that peak
+  exceeds the extractor's seed level by ``certain_z`` noise sigmas (``required``). So
+  the column certifies a reach ``r (s / required)**(1/p)``;
+* a bin takes the smaller of the largest reaches on either side of it, its own columns
+  included (one side at the edges of the view): the stripe was seen on both sides with
+  enough signal to be seen here. The largest, because a weak column (a segment's end,
+  a grazing or dark face) tells of its surface, not of the laser and the camera;
+* a bin's own return beyond the band shows directly that the sheet passed through to
+  that range;
+* no stripe in the frame (the extractor also drops frames whose longest stripe
+  segment is too short to be the laser's): nothing is certified.
+
+Silence then moves a stereo return out to ``min(reach, laser_max_range)`` only when it
+lies nearer than that; elsewhere stereo's range stands (the conservative choice where
+the laser cannot tell). A steeper ``p`` credits the laser with less reach: the error
+errs towards keeping stereo. The certified range per bin is returned
+(:attr:`FusedRanges.laser_free_m`; ``ranges.csv``'s ``laser_free_m``).
+
+Two more cases where the paper's reading does not hold, and what this module does:
 
 * the stereo return lies nearer than the laser can see at that bearing (the stripe
   of an obstacle there would fall below the image; ``laser_sight_m``): the laser's
@@ -39,6 +67,7 @@ from dataclasses import KW_ONLY, dataclass
 import numpy as np
 
 from slitcli.errors import SlitcliError
+from slitcli.ranges import bin_min
 
 FUSION_MODES = ("paper", "conservative")
 SOURCE_NONE, SOURCE_LASER, SOURCE_STEREO = "none", "laser", "stereo"
@@ -55,6 +84,12 @@ class FusionParams:
     ``focal_baseline_px_m`` is the rig's f x B (disparity = f B / range; the paper
     rig's 250 px x 0.088 m by default, :class:`slitcli.detect.Detector` sets it from
     the rig).
+
+    The laser's silence certifies free space only as far as the frame shows the
+    stripe can be seen (:func:`laser_reach_m`): ``falloff_exponent`` is the steepest
+    fall-off of the stripe's peak with range assumed (peak ~ range**-p; unitless),
+    ``certain_z`` how many noise sigmas above the extractor's seed level a stripe's
+    peak must be to be found with near certainty (unitless; 3: one miss in 740).
     """
 
     mode: str = "paper"
@@ -63,6 +98,8 @@ class FusionParams:
     _: KW_ONLY
     same_surface_px: float = 2.0
     focal_baseline_px_m: float = 22.0
+    falloff_exponent: float = 4.0
+    certain_z: float = 3.0
 
     def __post_init__(self) -> None:
         if self.mode not in FUSION_MODES:
@@ -74,20 +111,70 @@ class FusionParams:
         if not self.same_surface_px >= 0 or not self.focal_baseline_px_m > 0:
             raise SlitcliError("fusion needs same_surface_px >= 0 and a positive focal "
                                "length x baseline; check the rig's left.fx_px and baseline_m")
+        if not self.falloff_exponent > 0 or not self.certain_z >= 0:
+            raise SlitcliError(f"fusion needs falloff_exponent > 0 and certain_z >= 0, got "
+                               f"{self.falloff_exponent} and {self.certain_z}",
+                               param=("falloff_exponent", "certain_z"))
 
 
 @dataclass(frozen=True)
 class FusedRanges:
-    """Fused range per bin (metres, NaN = free) and where it came from
-    (``laser``, ``stereo`` or ``none``)."""
+    """Fused range per bin (metres, NaN = free), where it came from (``laser``,
+    ``stereo`` or ``none``) and how far the laser's silence certified free space in the
+    bin (``laser_free_m``, metres, at most the laser's maximum range; NaN: the laser
+    certified nothing there). All (B,)."""
 
     range_m: np.ndarray
     source: np.ndarray
+    laser_free_m: np.ndarray
+
+
+def laser_reach_m(column_bin: np.ndarray, column_range_m: np.ndarray,
+                  column_strength_dn: np.ndarray, threshold_dn: float, noise_sigma_dn: float,
+                  n_bins: int, params: FusionParams) -> np.ndarray:
+    """How far the laser could have seen an obstacle at each bearing bin in this frame.
+
+    A stripe column at range ``r`` with peak ``s`` certifies the reach
+    ``r (s / required)**(1/p)``, ``required = threshold_dn + certain_z noise_sigma_dn``
+    and ``p = falloff_exponent`` (module docstring): out to there a stripe on the same
+    surface would still be found. Each bin takes the smaller of the largest reaches of
+    the stripe columns on either side of it, its own included (the one side at the
+    edges of the view). No stripe column at all: NaN everywhere.
+
+    Parameters
+    ----------
+    column_bin : ndarray of int, shape (W,)
+        Table bin of each image column's stripe point (-1: none or outside the bins).
+    column_range_m, column_strength_dn : ndarray, shape (W,)
+        Stripe range (metres, sensor frame) and peak (DN) per column; NaN: no stripe.
+    threshold_dn, noise_sigma_dn : float
+        The extractor's seed level and noise of its evidence in this frame, DN.
+    n_bins : int
+    params : FusionParams
+
+    Returns
+    -------
+    ndarray, shape (n_bins,)
+        Reach per bin, metres (not capped at the laser's band); NaN: nothing seen.
+    """
+    rng = np.asarray(column_range_m, dtype=float)
+    strength = np.asarray(column_strength_dn, dtype=float)
+    required = float(threshold_dn) + params.certain_z * float(noise_sigma_dn)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        reach = rng * (np.maximum(strength, 0.0) / required) ** (1.0 / params.falloff_exponent)
+    # largest reach per bin: the smallest negative reach
+    own = -bin_min(column_bin, -reach, n_bins)
+    # the strongest evidence on each side (a weak column at a segment's end or on a
+    # grazing face says something about that surface, not about the laser and camera)
+    from_below = np.fmax.accumulate(own)
+    from_above = np.fmax.accumulate(own[::-1])[::-1]
+    return np.fmin(from_below, from_above)
 
 
 def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
          stereo_has_features: np.ndarray, params: FusionParams, *,
-         laser_sight_m: np.ndarray | None = None) -> FusedRanges:
+         laser_sight_m: np.ndarray | None = None,
+         laser_reach_m: np.ndarray | None = None) -> FusedRanges:
     """Combine laser and stereo ranges per bearing bin (paper Eq. 11).
 
     Parameters
@@ -101,6 +188,10 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     laser_sight_m : ndarray, shape (B,), optional
         Nearest range at which the laser stripe is inside the image at each bin's
         bearing (:func:`slitcli.laser.laser_sight_range_m`); None: everywhere.
+    laser_reach_m : ndarray, shape (B,), optional
+        How far the laser could have seen an obstacle in each bin this frame
+        (:func:`laser_reach_m`; NaN: not at all). None: to its maximum range in every
+        bin (the paper's reading, for callers without the stripe's evidence).
 
     Returns
     -------
@@ -113,9 +204,14 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     feat = np.asarray(stereo_has_features, dtype=bool) | np.isfinite(stereo)
     stereo = np.where(stereo <= params.stereo_max_range_m, stereo, np.nan)
     has_l, has_s = np.isfinite(laser), np.isfinite(stereo)
+    reach = (np.full_like(laser, params.laser_max_range_m) if laser_reach_m is None
+             else np.asarray(laser_reach_m, dtype=float))
+    # a bin's own return shows the sheet passed through to it; never beyond the band
+    seen = np.fmax(reach, laser)
+    free = np.where(np.isfinite(seen), np.minimum(seen, params.laser_max_range_m), np.nan)
     min_rng, min_src = _nearest(laser, stereo)
     if params.mode == "conservative":
-        return FusedRanges(min_rng, min_src)
+        return FusedRanges(min_rng, min_src, free)
     laser_in_band = has_l & (laser < params.laser_max_range_m)
     with np.errstate(divide="ignore", invalid="ignore"):
         stereo_nearer_px = params.focal_baseline_px_m * (1.0 / stereo - 1.0 / laser)
@@ -128,13 +224,13 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     beside_lit[1:] |= laser_in_band[:-1]
     beside_lit[:-1] |= laser_in_band[1:]
     with np.errstate(invalid="ignore"):
-        trust_silence = has_s & (stereo >= sight) & ~beside_lit
-    silent_rng = np.where(trust_silence, np.maximum(stereo, params.laser_max_range_m), stereo)
+        trust_silence = has_s & (stereo >= sight) & ~beside_lit & (stereo < free)
+    silent_rng = np.where(trust_silence, free, stereo)
     silent_src = np.where(has_s, SOURCE_STEREO, SOURCE_NONE)
     rng = np.where(~feat, laser, np.where(laser_in_band, band_rng, silent_rng))
     src = np.where(~feat, np.where(has_l, SOURCE_LASER, SOURCE_NONE),
                    np.where(laser_in_band, band_src, silent_src))
-    return FusedRanges(rng, src.astype(object))
+    return FusedRanges(rng, src.astype(object), free)
 
 
 def _nearest(laser: np.ndarray, stereo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

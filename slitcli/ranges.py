@@ -153,6 +153,10 @@ class RangeTable:
         speak (a stereo "no return" there means free space).
     fused_range_m : the fused range (Eq. 11).
     fused_source : str, which sensor gave it (``laser``, ``stereo`` or ``none``).
+    laser_free_m : how far the laser's silence certified the bin free of obstacles on
+        its sheet (at most its maximum range; :func:`slitcli.fusion.laser_reach_m`);
+        NaN: the laser certified nothing there (no stripe seen: laser off, too dim,
+        grey images). None: NaN everywhere.
     """
 
     bearing_deg: np.ndarray
@@ -161,11 +165,14 @@ class RangeTable:
     stereo_has_features: np.ndarray
     fused_range_m: np.ndarray
     fused_source: np.ndarray
+    laser_free_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = np.shape(self.bearing_deg)
+        if self.laser_free_m is None:
+            object.__setattr__(self, "laser_free_m", np.full(n, np.nan))
         for name in ("laser_range_m", "stereo_range_m", "stereo_has_features",
-                     "fused_range_m", "fused_source"):
+                     "fused_range_m", "fused_source", "laser_free_m"):
             if np.shape(getattr(self, name)) != n:
                 raise ValueError(f"RangeTable.{name} has shape {np.shape(getattr(self, name))},"
                                  f" bearing_deg {n}")
@@ -183,6 +190,7 @@ class RangeTable:
             "laser_range_m": self.laser_range_m, "stereo_range_m": self.stereo_range_m,
             "stereo_has_features": np.asarray(self.stereo_has_features).astype(np.int64),
             "fused_range_m": self.fused_range_m, "fused_source": self.fused_source,
+            "laser_free_m": self.laser_free_m,
         }, columns=list(RANGES.columns))
 
     def csv_rows(self, frame: int, time_s: float) -> str:
@@ -195,7 +203,8 @@ class RangeTable:
             np.asarray(self.bearing_deg), np.asarray(self.laser_range_m),
             np.asarray(self.stereo_range_m),
             np.asarray(self.stereo_has_features).astype(np.int64),
-            np.asarray(self.fused_range_m), np.asarray(self.fused_source)))
+            np.asarray(self.fused_range_m), np.asarray(self.fused_source),
+            np.asarray(self.laser_free_m)))
 
 
 # ------------------------------------------------------------------ table schemas
@@ -214,7 +223,7 @@ class TableSchema:
 
 RANGES = TableSchema("ranges.csv", (
     "frame", "time_s", "bearing_deg", "laser_range_m", "stereo_range_m",
-    "stereo_has_features", "fused_range_m", "fused_source"))
+    "stereo_has_features", "fused_range_m", "fused_source", "laser_free_m"))
 LASER = TableSchema("laser.csv", (
     "frame", "u_px", "v_px", "strength", "x_m", "y_m", "range_m", "bearing_deg", "in_band"))
 STEREO_RANGES = TableSchema("stereo_ranges.csv", (

@@ -172,8 +172,11 @@ def test_cli_detect_jobs_and_resume_are_byte_identical(tmp_path):
     table = pd.read_csv(a / "ranges.csv")
     assert list(table.columns) == ["frame", "time_s", "bearing_deg", "laser_range_m",
                                    "stereo_range_m", "stereo_has_features", "fused_range_m",
-                                   "fused_source"]
+                                   "fused_source", "laser_free_m"]
     assert len(table) == 8 * 65 and set(table["fused_source"]) <= {"laser", "stereo", "none"}
+    # every corridor frame shows the stripe: the laser certifies free space in every bin,
+    # never beyond its band (the rig's laser.max_range_m, 1 m)
+    assert table["laser_free_m"].notna().all() and table["laser_free_m"].max() <= 1.0
     # a re-run with the same arguments does nothing new; other arguments are refused
     res = _run(["detect", BUNDLED, "-o", a])
     assert "8 already done" in res.output

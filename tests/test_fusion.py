@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from slitcli.errors import SlitcliError
-from slitcli.fusion import FusionParams, fuse
+from slitcli.fusion import FusionParams, fuse, laser_reach_m
 
 NAN = np.nan
 # bins: (laser, stereo, has_features)
@@ -102,3 +102,88 @@ def test_laser_sight_geometry_matches_the_stripe_row():
     assert rig.height_px - 3.3 <= row <= rig.height_px - 3.0
     # a roll-free rig's stripe row depends on the forward distance only
     np.testing.assert_allclose(sight * np.cos(np.radians(bearings)), sight[2], atol=2e-3)
+
+
+# ------------------------------------------------------------ the laser's certified reach
+def test_no_stripe_in_the_frame_keeps_stereo():
+    # the distractors frame through a dim camera: stereo 0.72 m (truth 0.74), the laser
+    # found nothing. Its silence certifies nothing: stereo's range stands. With the
+    # stripe seen to 1 m and beyond everywhere, the paper's clamp to 1.0 m holds.
+    laser = np.array([NAN, NAN, NAN])
+    stereo = np.array([0.72, 2.0, NAN])
+    feat = np.ones(3, bool)
+    dark = fuse(laser, stereo, feat, FusionParams(), laser_reach_m=np.full(3, NAN))
+    np.testing.assert_allclose(dark.range_m, [0.72, 2.0, NAN], equal_nan=True)
+    assert list(dark.source) == ["stereo", "stereo", "none"]
+    assert np.isnan(dark.laser_free_m).all()
+    lit = fuse(laser, stereo, feat, FusionParams(), laser_reach_m=np.full(3, 1.4))
+    np.testing.assert_allclose(lit.range_m, [1.0, 2.0, NAN], equal_nan=True)
+    np.testing.assert_allclose(lit.laser_free_m, [1.0, 1.0, 1.0])
+    # no reach given: the paper's reading, as before
+    paper = fuse(laser, stereo, feat, FusionParams())
+    np.testing.assert_allclose(paper.range_m, lit.range_m, equal_nan=True)
+
+
+def test_silence_certifies_only_as_far_as_the_reach():
+    # reach 0.85 m: a stereo return at 0.72 m lies where the laser would have seen an
+    # obstacle on its sheet, so nothing is nearer than 0.85 m; one at 0.90 m lies
+    # beyond what the laser can tell and stands
+    laser = np.array([NAN, NAN])
+    stereo = np.array([0.72, 0.90])
+    f = fuse(laser, stereo, np.ones(2, bool), FusionParams(), laser_reach_m=np.full(2, 0.85))
+    np.testing.assert_allclose(f.range_m, [0.85, 0.90])
+    np.testing.assert_allclose(f.laser_free_m, [0.85, 0.85])
+
+
+def test_own_return_beyond_the_band_certifies_the_band():
+    # the stripe seen at 1.3 m in this bin: the sheet passed through to 1.3 m here even
+    # when the signal alone certifies less; no return and no reach: nothing certified
+    laser = np.array([1.3, NAN])
+    stereo = np.array([0.7, 0.7])
+    f = fuse(laser, stereo, np.ones(2, bool), FusionParams(), laser_reach_m=np.array([0.8, NAN]))
+    np.testing.assert_allclose(f.range_m, [1.0, 0.7])
+    np.testing.assert_allclose(f.laser_free_m, [1.0, NAN], equal_nan=True)
+
+
+def test_conservative_mode_records_the_reach_but_ignores_it():
+    f = fuse(np.array([NAN]), np.array([0.72]), np.ones(1, bool),
+             FusionParams(mode="conservative"), laser_reach_m=np.array([1.4]))
+    np.testing.assert_allclose(f.range_m, [0.72])
+    np.testing.assert_allclose(f.laser_free_m, [1.0])
+
+
+def _strength_for(reach_m, range_m, required_dn, p=4.0):
+    """The peak (DN) a column at ``range_m`` needs to certify ``reach_m``."""
+    return required_dn * (reach_m / range_m) ** p
+
+
+def test_laser_reach_from_the_stripe_signal_and_both_sides():
+    # seed level 5 DN, noise 2 DN, certain_z 3: a stripe is sure to be found where its
+    # peak reaches 5 + 3 x 2 = 11 DN. A column at 0.8 m peaking at 11 (1.2/0.8)^4 =
+    # 55.69 DN certifies 1.2 m (the peak of a stripe 1.2 m away on that surface, at a
+    # fall-off of range^-4, is 11 DN); at 11 (0.9/0.8)^4 DN, 0.9 m.
+    params = FusionParams()
+    # six bins; stripe columns in bin 1 (two columns: the stronger counts) and bin 4
+    column_bin = np.array([-1, 1, 1, 4, -1])
+    rng = np.array([NAN, 0.8, 0.8, 0.8, NAN])
+    strength = np.array([NAN, _strength_for(1.2, 0.8, 11.0), 12.0,
+                         _strength_for(0.9, 0.8, 11.0), NAN])
+    reach = laser_reach_m(column_bin, rng, strength, 5.0, 2.0, 6, params)
+    # bins 0, 1: the strongest on the upper side is bin 1's 1.2 m (nothing below bin 0);
+    # bins 2-4: 1.2 m on the lower side, 0.9 m on the upper; bin 5, at the edge of the
+    # view: only the lower side, whose strongest is bin 1's 1.2 m
+    np.testing.assert_allclose(reach, [1.2, 1.2, 0.9, 0.9, 0.9, 1.2])
+    # a gentler fall-off (range^-2) credits the same columns with more reach
+    gentle = laser_reach_m(column_bin, rng, strength, 5.0, 2.0, 6,
+                           FusionParams(falloff_exponent=2.0))
+    np.testing.assert_allclose(gentle[[0, 3]], [0.8 * 1.5 ** 2, 0.8 * (0.9 / 0.8) ** 2])
+    # no stripe column: nothing certified anywhere
+    none = laser_reach_m(np.full(5, -1), np.full(5, NAN), np.full(5, NAN), 5.0, 2.0, 6, params)
+    assert np.isnan(none).all()
+
+
+def test_reach_parameters_are_checked():
+    with pytest.raises(SlitcliError, match="falloff_exponent"):
+        FusionParams(falloff_exponent=0.0)
+    with pytest.raises(SlitcliError, match="certain_z"):
+        FusionParams(certain_z=-1.0)

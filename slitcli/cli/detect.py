@@ -33,8 +33,9 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               "required for bags].")
 @click.option("--fusion", type=click.Choice(["paper", "conservative"]), default="paper",
               show_default=True, help="paper = Eq. 11 (trusts a laser 'no return' up to the "
-              "laser's max range; keeps the laser's range where stereo sees the same "
-              "surface, within 2 px); conservative = the nearer of laser and stereo.")
+              "laser's max range where the frame's stripe shows the laser could have seen "
+              "there, column laser_free_m; keeps the laser's range where stereo sees the "
+              "same surface, within 2 px); conservative = the nearer of laser and stereo.")
 @click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,
               help="Bearing bin width, degrees (0.05-10).")
 @click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
@@ -56,7 +57,8 @@ def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
     and their fusion (Eq. 11), for a sequence folder or a ROS 1/2 bag.
 
     Writes OUT/ranges.csv: one row per frame and bin (frame, time_s, bearing_deg,
-    laser_range_m, stereo_range_m, stereo_has_features, fused_range_m, fused_source),
+    laser_range_m, stereo_range_m, stereo_has_features, fused_range_m, fused_source,
+    laser_free_m),
     metres, sensor frame, empty = no return. A re-run resumes where it stopped. See
     docs/detect.md.
 
