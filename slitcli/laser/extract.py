@@ -29,7 +29,7 @@ import numpy as np
 
 from slitcli.laser import candidates, choose, evidence, judge, paper
 from slitcli.laser.params import LaserParams
-from slitcli.laser.profile import N_FIELDS
+from slitcli.laser.profile import F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
@@ -182,6 +182,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                   evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
+    chan_sigma = float(np.median(chan))
     seed = params.seed_z * noise_avg
     s_max = max_w / judge.EQ_WIDTH
     cand = np.empty((w, K_BEST, N_FIELDS))
@@ -198,12 +199,15 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
-        colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
+        colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w))
-    ok &= judge.surface_continues(cand, img_t, r0, float(np.median(chan)))
+    # a candidate less than weak_z significant is never chosen (choose.best_path): the
+    # tests on the image around it are spent on the others alone
+    need = ok & (cand[..., F_Z] >= params.weak_z)
+    ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
-                                      params.shape_error)
+                                      params.shape_error, need)
     v = np.empty(w)
     amp = np.empty(w)
     sat = np.empty(w, bool)
