@@ -439,7 +439,7 @@ def _own_amplitude(yi: np.ndarray, mi: np.ndarray, ci: np.ndarray, pos: float, s
 
 
 @njit(cache=True, nogil=True)
-def _own_light_one(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
+def own_light_at(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
                    i: int, pos: float, width: float, sigma_y: float, shape_error: float,
                    z: float) -> bool:  # pragma: no cover
     """:func:`own_light` of one crossing (column ``i``, row ``pos`` of ``y``)."""
@@ -480,7 +480,7 @@ def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.nd
     missing outward columns lower it by about as much.
     """
     for k in range(cols.shape[0]):
-        ok[k] = not np.isfinite(rows[k]) or _own_light_one(
+        ok[k] = not np.isfinite(rows[k]) or own_light_at(
             y, y_avg, clipped, mask, cols[k], rows[k], widths[k], sigma_y, shape_error, z)
 
 
@@ -497,7 +497,7 @@ def _own_light_table(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
             pos = c[F_POS] - row0
             if need[u, q] and c[F_SAT] == 0 and c[F_GNOISE] != sigma_y and np.isfinite(pos):
                 wid = 1.0 if np.isnan(c[F_WIDTH]) else c[F_WIDTH]
-                ok[u, q] = _own_light_one(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
+                ok[u, q] = own_light_at(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
                                           shape_error, z)
 
 
