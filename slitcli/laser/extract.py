@@ -190,12 +190,15 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                                  seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
                                  params.max_chi2, params.weak_z, cand)
-    cand[..., 0] += r0
     sheet_px = None
     if px_per_m is not None and params.sheet_sigma_mm > 0:
-        g = np.asarray(px_per_m, dtype=np.float64)
-        rr = np.clip(np.rint(np.nan_to_num(cand[..., 0], nan=0.0)).astype(int), 0, h - 1)
-        sheet_px = g[rr, np.arange(w)[:, None]] * params.sheet_sigma_mm * 1e-3
+        sheet_px = np.empty(cand.shape[:2])
+        # (column-major, as LaserGeometry holds it: one compiled kernel either way)
+        candidates.rows_from_top(cand, r0, np.asfortranarray(px_per_m, dtype=np.float64),
+                                 params.sheet_sigma_mm, sheet_px)
+    else:
+        candidates.rows_from_top(cand, r0, np.empty((0, 0), order="F"), 0.0,
+                                 np.empty((0, 0)))
     ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
