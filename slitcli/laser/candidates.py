@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser.judge import own_light_at
+from slitcli.laser.judge import own_light
 from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
@@ -491,7 +491,7 @@ def fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
             row = v[a] + t * (v[b] - v[a])
             out = _fit_gap(y_avg, clipped, mask, i, row - row0, width, sigma_avg, z_min,
                            shape_error, s_max, res, use, work, ebuf)
-            if np.isfinite(out) and own_light_at(y, y_avg, clipped, mask, i, out, width,
-                                                   sigma_y, shape_error, own_z):
+            if np.isfinite(out) and own_light(y, y_avg, clipped, mask, i, out, width,
+                                              sigma_y, shape_error, own_z):
                 v[i] = out + row0
                 amp[i] = fill

@@ -1,7 +1,7 @@
 """Step 4 of the stripe model: which candidates can be the laser.
 
 :func:`valid_candidates` applies the tests that follow from the model (width, shape,
-significance, colour, the sheet's thickness); :func:`laser_share` and
+significance, colour, the sheet's thickness); :func:`_laser_share` and
 :func:`surface_continues` tell the laser's light from the surface's own colour;
 :func:`own_light` asks a fit on the evidence averaged along the stripe to show in its
 own column's evidence. The choice along the stripe among the candidates that pass is
@@ -439,10 +439,23 @@ def _own_amplitude(yi: np.ndarray, mi: np.ndarray, ci: np.ndarray, pos: float, s
 
 
 @njit(cache=True, nogil=True)
-def own_light_at(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
-                   i: int, pos: float, width: float, sigma_y: float, shape_error: float,
-                   z: float) -> bool:  # pragma: no cover
-    """:func:`own_light` of one crossing (column ``i``, row ``pos`` of ``y``)."""
+def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
+              i: int, pos: float, width: float, sigma_y: float, shape_error: float,
+              z: float) -> bool:  # pragma: no cover
+    """Whether the light the averaged evidence shows at a crossing is its column's own
+    (True), or not.
+
+    The evidence averaged along the stripe (weights 1, 4, 6, 4, 1 over five columns)
+    stands for a column only where the stripe runs on across them: one column past a
+    stripe's end the average still holds 5/16 of the neighbours' light, though the
+    column has none. So the peak of a Gaussian at the crossing (column ``i``, row
+    ``pos`` of ``y`` (W, H'), width ``width``) in the averaged evidence ``y_avg`` must
+    show in the column's own evidence ``y``: the own peak (:func:`_own_amplitude`,
+    noise ``sigma_y``) may fall short of it by at most ``z`` standard errors
+    (``OWN_Z``). Inside a stripe the two agree within the noise; at a partly covered
+    end column, whose own light is its coverage's share, the average's missing outward
+    columns lower it by about as much.
+    """
     mi = mask[i]
     ci = clipped[i]
     s = max(width, MIN_SIGMA_PX)
@@ -462,29 +475,6 @@ def own_light_at(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np
 
 
 @njit(cache=True, nogil=True)
-def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
-              cols: np.ndarray, rows: np.ndarray, widths: np.ndarray, sigma_y: float,
-              shape_error: float, z: float, ok: np.ndarray) -> None:  # pragma: no cover
-    """Whether the light the averaged evidence shows at each crossing is its column's own
-    (``ok`` (N,): False where not).
-
-    The evidence averaged along the stripe (weights 1, 4, 6, 4, 1 over five columns)
-    stands for a column only where the stripe runs on across them: one column past a
-    stripe's end the average still holds 5/16 of the neighbours' light, though the
-    column has none. So the peak of a Gaussian at the crossing (column ``cols[k]``, row
-    ``rows[k]`` of ``y`` (W, H'), width ``widths[k]``) in the averaged evidence
-    ``y_avg`` must show in the column's own evidence ``y``: the own peak
-    (:func:`_own_amplitude`, noise ``sigma_y``) may fall short of it by at most ``z``
-    standard errors (``OWN_Z``). Inside a stripe the two agree within the noise; at a
-    partly covered end column, whose own light is its coverage's share, the average's
-    missing outward columns lower it by about as much.
-    """
-    for k in range(cols.shape[0]):
-        ok[k] = not np.isfinite(rows[k]) or own_light_at(
-            y, y_avg, clipped, mask, cols[k], rows[k], widths[k], sigma_y, shape_error, z)
-
-
-@njit(cache=True, nogil=True)
 def _own_light_table(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
                      clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
                      shape_error: float, z: float, need: np.ndarray,
@@ -497,8 +487,8 @@ def _own_light_table(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
             pos = c[F_POS] - row0
             if need[u, q] and c[F_SAT] == 0 and c[F_GNOISE] != sigma_y and np.isfinite(pos):
                 wid = 1.0 if np.isnan(c[F_WIDTH]) else c[F_WIDTH]
-                ok[u, q] = own_light_at(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
-                                          shape_error, z)
+                ok[u, q] = own_light(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
+                                     shape_error, z)
 
 
 def own_light_candidates(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
