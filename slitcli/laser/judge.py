@@ -1,7 +1,7 @@
 """Step 4 of the stripe model: which candidates can be the laser.
 
 :func:`valid_candidates` applies the tests that follow from the model (width, shape,
-significance, colour, the sheet's thickness); :func:`_laser_share` and
+significance, colour, the sheet's thickness); :func:`laser_share` and
 :func:`surface_continues` tell the laser's light from the surface's own colour;
 :func:`own_light` asks a fit on the evidence averaged along the stripe to show in its
 own column's evidence. The choice along the stripe among the candidates that pass is
@@ -67,7 +67,7 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     and, where the frame shows the laser's colour (:func:`_laser_colour`), lies in the
     plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
     ``colour_error`` of its size (:func:`_colour_residual`) and shows the laser's share
-    (:func:`_laser_share`); with ``sheet_px`` (W, K: the sheet's sigma at the
+    (:func:`laser_share`); with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
     ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
     strong columns do (when at least ``sheet_support`` of them show it, else the
@@ -242,7 +242,7 @@ def _colour_residual(t: np.ndarray, k: np.ndarray, lu: np.ndarray) -> float:  # 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _laser_share(t: np.ndarray, k: np.ndarray, laser: np.ndarray, lu: np.ndarray,
+def laser_share(t: np.ndarray, k: np.ndarray, laser: np.ndarray, lu: np.ndarray,
                  n_core: float, channel_sigma_dn: float,
                  share_z: float) -> bool:  # pragma: no cover
     """Whether the light a candidate adds (core contrast ``t``, surface colour ``k``,
@@ -289,11 +289,11 @@ def _colour_tests(cand: np.ndarray, laser: np.ndarray, lu: np.ndarray,
                 colour_error * _norm3(t[0], t[1], t[2])
             ok[u, q] = _colour_residual(t, k, lu) <= lim
             if ok[u, q] and share_z > 0 and not c[F_SAT] > 0:
-                ok[u, q] = _laser_share(t, k, laser, lu, c[F_NCORE], channel_sigma_dn,
+                ok[u, q] = laser_share(t, k, laser, lu, c[F_NCORE], channel_sigma_dn,
                                          share_z)
 
 
-#: significance of the laser's share of a candidate's light (see :func:`_laser_share`)
+#: significance of the laser's share of a candidate's light (see :func:`laser_share`)
 LASER_SHARE_Z = 3.0
 
 
