@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
+from slitcli.laser.judge import own_light
 from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
@@ -392,33 +393,105 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
 
 
 @njit(cache=True, nogil=True)
-def fit_gaps(y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, cols: np.ndarray,
-             rows: np.ndarray, widths: np.ndarray, sigma_avg: float, z_min: float,
-             shape_error: float, s_max: float, out: np.ndarray) -> None:  # pragma: no cover
-    """Columns left empty inside a segment, fitted where the stripe must pass: the
-    averaged evidence of column ``cols[k]`` near the row ``rows[k]`` interpolated
-    across the gap, starting at the neighbours' width ``widths[k]``. ``out[k]`` gets the
-    fitted row, or NaN where the fit is not within a pixel of the interpolated row or
-    less than ``z_min`` significant (against ``sigma_avg``)."""
+def rows_from_top(cand: np.ndarray, row0: int, px_per_m: np.ndarray, sheet_sigma_mm: float,
+                  sheet_px: np.ndarray) -> None:  # pragma: no cover
+    """Candidates' rows (``cand[..., F_POS]``, (W, K)) moved from the searched rows'
+    first, ``row0``, to the image's top; with ``px_per_m`` (H, W: image rows per metre
+    of height where each pixel's ray meets the laser plane) the sheet's sigma,
+    ``sheet_sigma_mm``, in pixels at each candidate's row into ``sheet_px`` (W, K)."""
+    n_rows = px_per_m.shape[0]
+    for i in range(cand.shape[0]):
+        for q in range(cand.shape[1]):
+            cand[i, q, F_POS] += row0
+            if n_rows == 0:
+                continue
+            pos = cand[i, q, F_POS]
+            r = 0 if np.isnan(pos) else int(min(max(np.rint(pos), 0.0), n_rows - 1))
+            sheet_px[i, q] = float(px_per_m[r, i]) * sheet_sigma_mm * 1e-3
+
+
+@njit(cache=True, nogil=True)
+def evidence_live(mask: np.ndarray, img: np.ndarray, clipped: np.ndarray,
+                  out: np.ndarray) -> bool:  # pragma: no cover
+    """Pixels (W, H) whose evidence shows the noise: searched (``mask``), red inside its
+    range (above 0 in ``img`` (W, H, 3) BGR; not ``clipped``); returns whether any."""
+    any_live = False
+    for i in range(mask.shape[0]):
+        for j in range(mask.shape[1]):
+            out[i, j] = mask[i, j] and img[i, j, 2] > 0 and not clipped[i, j]
+            any_live = any_live or out[i, j]
+    return any_live
+
+
+@njit(cache=True, nogil=True)
+def _fit_gap(y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, i: int, row: float,
+             width: float, sigma_avg: float, z_min: float, shape_error: float, s_max: float,
+             res: np.ndarray, use: np.ndarray, work: np.ndarray,
+             ebuf: np.ndarray) -> float:  # pragma: no cover
+    """The averaged evidence of column ``i`` fitted near ``row`` (rows of ``y_avg``),
+    starting at width ``width``: the fitted row, or NaN where the fit is not within a
+    pixel of ``row`` or less than ``z_min`` significant (against ``sigma_avg``).
+    ``res``, ``use``, ``work``, ``ebuf``: scratch."""
+    n = y_avg.shape[1]
+    s0 = min(max(width, 0.6), s_max)
+    w_half = math.ceil(3.0 * s0 + 3.0)
+    c = int(row + 0.5)
+    j0 = max(c - w_half, 0)
+    j1 = min(c + w_half + 1, n)
+    m = j1 - j0
+    if m < 6:
+        return np.nan
+    for jj in range(m):
+        use[jj] = mask[i, j0 + jj] and not clipped[i, j0 + jj]
+    if fit_gaussian(y_avg[i, j0:j1], use[:m], j0, row, s0, sigma_avg, shape_error,
+                    s_max, res, work, ebuf) and abs(res[0] - row) <= 1.0 and \
+            res[3] >= z_min:
+        return res[0]
+    return np.nan
+
+
+@njit(cache=True, nogil=True)
+def fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
+              y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray, sigma_y: float,
+              sigma_avg: float, row0: int, max_gap: int, max_jump_px: float, z_min: float,
+              shape_error: float, s_max: float, own_z: float) -> None:  # pragma: no cover
+    """Columns without a stripe between two found ones at most ``max_gap + 1`` apart
+    whose rows differ by at most ``max_jump_px`` a column: the stripe passes there, so
+    the averaged evidence ``y_avg`` (W, H', rows from ``row0``) of each column between
+    is fitted at the row interpolated across the gap (:func:`_fit_gap`, starting at the
+    width of the left column's candidate nearest its row). Where that fit holds
+    (``z_min`` significant against ``sigma_avg``, within a pixel of the interpolated
+    row, and its light the column's own: :func:`~.judge.own_light`, ``own_z``), ``v``
+    (W,, rows from the image's top) gets the fitted row and ``amp`` (W,) the left
+    column's peak (0 where that is NaN)."""
     n = y_avg.shape[1]
     res = np.empty(6)
     use = np.empty(n, np.bool_)
     work = np.empty((WORK_ROWS, N_PAR))
     ebuf = np.empty(n)
-    for k in range(cols.shape[0]):
-        out[k] = np.nan
-        i = cols[k]
-        s0 = min(max(widths[k], 0.6), s_max)
-        w_half = math.ceil(3.0 * s0 + 3.0)
-        c = int(rows[k] + 0.5)
-        j0 = max(c - w_half, 0)
-        j1 = min(c + w_half + 1, n)
-        m = j1 - j0
-        if m < 6:
+    found = np.flatnonzero(np.isfinite(v))
+    for f in range(found.shape[0] - 1):
+        a, b = found[f], found[f + 1]
+        gap = b - a
+        if gap <= 1 or gap > max_gap + 1 or not abs(v[b] - v[a]) <= max_jump_px * gap:
             continue
-        for jj in range(m):
-            use[jj] = mask[i, j0 + jj] and not clipped[i, j0 + jj]
-        if fit_gaussian(y_avg[i, j0:j1], use[:m], j0, rows[k], s0, sigma_avg, shape_error,
-                        s_max, res, work, ebuf) and abs(res[0] - rows[k]) <= 1.0 and \
-                res[3] >= z_min:
-            out[k] = res[0]
+        # the width of the left column's candidate nearest its row (the first of equals)
+        k_best = -1
+        best = np.inf
+        for q in range(cand.shape[1]):
+            d = abs(cand[a, q, 0] - v[a])
+            if d < best:
+                best = d
+                k_best = q
+        width = cand[a, max(k_best, 0), 2]
+        fill = 0.0 if np.isnan(amp[a]) else min(max(amp[a], -1.7976931348623157e308),
+                                                1.7976931348623157e308)
+        for i in range(a + 1, b):
+            t = (i - a) / (b - a)
+            row = v[a] + t * (v[b] - v[a])
+            out = _fit_gap(y_avg, clipped, mask, i, row - row0, width, sigma_avg, z_min,
+                           shape_error, s_max, res, use, work, ebuf)
+            if np.isfinite(out) and own_light(y, y_avg, clipped, mask, i, out, width,
+                                              sigma_y, shape_error, own_z):
+                v[i] = out + row0
+                amp[i] = fill

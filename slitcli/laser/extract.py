@@ -29,7 +29,7 @@ import numpy as np
 
 from slitcli.laser import candidates, choose, evidence, judge, paper
 from slitcli.laser.params import LaserParams
-from slitcli.laser.profile import N_FIELDS
+from slitcli.laser.profile import F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
@@ -177,8 +177,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # judges them, where it is larger
     # pixels whose red is clipped to black show no noise (nor does a clipped core): the
     # noise is measured where the red channel is inside its range
-    live = mask_t & (img_t[..., 2] > 0) & ~clipped
-    if not live.any():
+    live = np.empty_like(mask_t)
+    if not candidates.evidence_live(mask_t, img_t, clipped, live):
         live = mask_t
     noise_avg = max(evidence.robust_sigma(y_avg, live, evidence.NOISE_STEP),
                     AVG_NOISE * params.noise_floor_dn)
@@ -186,6 +186,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                   evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
+    chan_sigma = float(np.sort(chan)[1])  # (the median of three)
     seed = params.seed_z * noise_avg
     s_max = max_w / judge.EQ_WIDTH
     cand = np.empty((w, K_BEST, N_FIELDS))
@@ -193,21 +194,27 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                                  seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
                                  params.max_chi2, params.weak_z, cand)
-    cand[..., 0] += r0
     sheet_px = None
     if px_per_m is not None and params.sheet_sigma_mm > 0:
-        g = np.asarray(px_per_m, dtype=np.float64)
-        rr = np.clip(np.rint(np.nan_to_num(cand[..., 0], nan=0.0)).astype(int), 0, h - 1)
-        sheet_px = g[rr, np.arange(w)[:, None]] * params.sheet_sigma_mm * 1e-3
+        sheet_px = np.empty(cand.shape[:2])
+        # (column-major, as LaserGeometry holds it: one compiled kernel either way)
+        candidates.rows_from_top(cand, r0, np.asfortranarray(px_per_m, dtype=np.float64),
+                                 params.sheet_sigma_mm, sheet_px)
+    else:
+        candidates.rows_from_top(cand, r0, np.empty((0, 0), order="F"), 0.0,
+                                 np.empty((0, 0)))
     ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
-        colour_error=params.colour_error, channel_sigma_dn=float(np.median(chan)),
+        colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w))
-    ok &= judge.surface_continues(cand, img_t, r0, float(np.median(chan)))
+    # a candidate less than weak_z significant is never chosen (choose.best_path): the
+    # tests on the image around it are spent on the others alone
+    need = ok & (cand[..., F_Z] >= params.weak_z)
+    ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
-                                      params.shape_error)
+                                      params.shape_error, need)
     v = np.empty(w)
     amp = np.empty(w)
     sat = np.empty(w, bool)
@@ -216,41 +223,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          STRONG_SHARE * params.min_z,
                          round(params.min_stripe_share * int(mask.any(axis=0).sum())),
                          choose.CHOICE_ROUNDS, v, amp, sat)
-    _fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, sigma_y, sigma_avg, r0, params, s_max)
+    # columns without a stripe inside a segment, where the stripe must pass
+    candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
+                         float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
+                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)
 
-
-def _fill_gaps(v: np.ndarray, amp: np.ndarray, cand: np.ndarray, y: np.ndarray,
-               y_avg: np.ndarray, clipped: np.ndarray, mask_t: np.ndarray, sigma_y: float,
-               sigma_avg: float, r0: int,
-               params: LaserParams, s_max: float) -> None:
-    """Columns without a stripe between two found ones at most ``choose.MAX_GAP + 1``
-    apart whose rows link: the stripe passes there, so the averaged evidence is fitted
-    at the interpolated row (:func:`~.candidates.fit_gaps`); ``v`` and ``amp`` (W,)
-    updated where that fit holds."""
-    found = np.flatnonzero(np.isfinite(v))
-    if found.size < 2:
-        return
-    gap = np.diff(found)
-    step = np.abs(np.diff(v[found]))
-    pair = (gap > 1) & (gap <= choose.MAX_GAP + 1) & (step <= params.max_jump_px * gap)
-    a, b = found[:-1][pair], found[1:][pair]
-    if a.size == 0:
-        return
-    n = b - a - 1
-    cols = np.repeat(a, n) + np.concatenate([np.arange(1, k + 1) for k in n])
-    left = np.repeat(a, n)
-    right = np.repeat(b, n)
-    t = (cols - left) / (right - left)
-    rows = v[left] + t * (v[right] - v[left])
-    k_idx = np.nanargmin(np.abs(cand[left, :, 0] - v[left][:, None]), axis=1)
-    widths = cand[left, k_idx, 2]
-    out = np.empty(cols.size)
-    candidates.fit_gaps(y_avg, clipped, mask_t, cols.astype(np.int64), rows - r0, widths,
-                        sigma_avg, GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, out)
-    own = np.empty(cols.size, bool)  # the gap column's own light, as a candidate's
-    judge.own_light(y, y_avg, clipped, mask_t, cols.astype(np.int64), out, widths, sigma_y,
-                    params.shape_error, judge.OWN_Z, own)
-    ok = np.isfinite(out) & own
-    v[cols[ok]] = out[ok] + r0
-    amp[cols[ok]] = np.nan_to_num(amp[left[ok]])

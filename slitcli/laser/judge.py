@@ -54,34 +54,6 @@ SURFACE_STEP = 0.1
 SURFACE_MIN_DN = 10.0
 
 
-def laser_colour(cand: np.ndarray, ok: np.ndarray, min_z: float) -> np.ndarray | None:
-    """The laser's colour (RGB, red 1) from the frame's strong unclipped candidates
-    (median of their core contrast over its red), or None with fewer than
-    ``COLOUR_SUPPORT`` of them."""
-    strong = ok & (cand[..., F_Z] >= COLOUR_Z * min_z) & (cand[..., F_SAT] == 0) & \
-        (cand[..., F_NCORE] > 0) & (cand[..., F_TR] > 0)
-    if strong.sum() < COLOUR_SUPPORT:
-        return None
-    t = cand[strong][:, [F_TR, F_TG, F_TB]]
-    gb = np.clip(np.median(t[:, 1:] / t[:, :1], axis=0), 0.0, MAX_LASER_GB)
-    return np.array([1.0, gb[0], gb[1]])
-
-
-def colour_residual(cand: np.ndarray, laser_rgb: np.ndarray) -> np.ndarray:
-    """Size of each candidate's core contrast across the plane of the laser colour and
-    the surface colour (DN; texture and shading move the surface along its colour, the
-    laser adds along its own); shape (W, K)."""
-    t = cand[..., [F_TR, F_TG, F_TB]]
-    k = cand[..., [F_KR, F_KG, F_KB]]
-    e1 = laser_rgb / np.linalg.norm(laser_rgb)
-    e2 = k - (k @ e1)[..., None] * e1
-    n2 = np.linalg.norm(e2, axis=-1, keepdims=True)
-    e2 = np.divide(e2, n2, out=np.zeros_like(e2), where=n2 > 1e-6 * np.linalg.norm(k, axis=-1,
-                                                                                   keepdims=True))
-    q = t - (t @ e1)[..., None] * e1 - np.sum(t * e2, axis=-1, keepdims=True) * e2
-    return np.linalg.norm(q, axis=-1)
-
-
 def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: float,
                      max_chi2: float, min_th: float, min_delta_th: float,
                      colour_error: float, channel_sigma_dn: float,
@@ -92,101 +64,241 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
     unclipped one a Gaussian within the model error (reduced chi-square ``max_chi2``);
     the light its core adds passes Eq. 2 (red chromaticity ``min_th``, ``min_delta_th``)
-    and, where the frame shows the laser's colour (:func:`laser_colour`), lies in the
+    and, where the frame shows the laser's colour (:func:`_laser_colour`), lies in the
     plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
-    ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
+    ``colour_error`` of its size (:func:`_colour_residual`) and shows the laser's share
+    (:func:`laser_share`); with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
     ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
     strong columns do (when at least ``sheet_support`` of them show it, else the
     parameter); and at most
     ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
+
+    Returns
+    -------
+    ok : ndarray, shape (W, K) bool
+    laser_rgb : ndarray, shape (3,), or None
+        The laser's colour (red 1), None where too few strong columns show it.
     """
-    pos = cand[..., F_POS]
-    s = cand[..., F_WIDTH]
-    sat = cand[..., F_SAT] > 0
-    with np.errstate(invalid="ignore"):
-        ok = np.isfinite(pos) & (pos >= -0.5) & (pos <= height_px - 0.5)
-        ok &= (s >= MIN_SIGMA_PX) & (s <= s_max)
-        ok &= sat | (cand[..., F_FLAT] > 0) | (cand[..., F_CHI2] <= max_chi2)
-        t = cand[..., [F_TR, F_TG, F_TB]]
-        tot = t.sum(axis=-1)
-        rc = t[..., 0] / tot
-        eq2 = (tot > 0) & (rc > min_th) & (rc - np.maximum(t[..., 1], t[..., 2]) / tot
-                                           > min_delta_th)
-        has_core = cand[..., F_NCORE] > 0
-        ok &= eq2 | (sat & ~has_core)
-        if sheet_px is not None:
-            # the sheet's thickness relative to the parameter's; where the frame shows
-            # its own clearly (its strong unclipped columns), that is a second reference
-            ratio = np.sqrt(np.maximum(s * s - PIXEL_VAR, 0.01)) / sheet_px
-            strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z) & np.isfinite(ratio)
-            # (a stripe's worth of them: a few strong columns beside a clipped core are
-            # widened by it, and would move the reference for the whole frame)
-            ref = float(np.median(ratio[strong])) if strong.sum() >= max(
-                COLOUR_SUPPORT, sheet_support) else 1.0
-            # judged on the fitted width itself, within its error: the sheet's
-            # sigma ``ref x sheet_px`` up to ``sheet_tolerance`` times either way, the
-            # pixel's extent added (subtracting it from a noisy narrow fit would
-            # inflate the fit's error), widened by two standard errors of the width
-            # (about the centre's for a Gaussian fit); a clipped core's width rests on
-            # its flanks alone: not judged
-            # A width that fits the sheet of the parameter passes as well: the frame's
-            # strong columns can be clutter when the stripe itself is clipped
-            se = 2.0 * np.nan_to_num(cand[..., F_SE_POS], nan=0.0)
-            fits = ~np.isfinite(sheet_px)  # the sheet's width unknown there: not judged
-            for r in {1.0, ref}:
-                lo = np.sqrt((r * sheet_px / sheet_tolerance) ** 2 + PIXEL_VAR) - se
-                hi = np.sqrt((r * sheet_px * sheet_tolerance) ** 2 + PIXEL_VAR) + se
-                fits |= (s >= lo) & (s <= hi)
-            ok &= sat | fits
-        # the sheet's width as the frame shows it: its strong unclipped columns
-        strong = ok & ~sat & (cand[..., F_Z] >= COLOUR_Z * min_z)
-        if strong.sum() >= COLOUR_SUPPORT:
-            ok &= sat | (s <= WIDTH_SPREAD * np.median(s[strong]))
-        laser = laser_colour(cand, ok, min_z)
-        if laser is not None:
-            q = colour_residual(cand, laser)
-            n = np.maximum(cand[..., F_NCORE], 1.0)
-            lim = COLOUR_SIGMAS * channel_sigma_dn / np.sqrt(n) + \
-                colour_error * np.linalg.norm(t, axis=-1)
-            ok &= ~has_core | (q <= lim)
-            if LASER_SHARE_Z > 0:
-                ok &= ~has_core | sat | laser_share(cand, laser, channel_sigma_dn)
+    ok = np.empty(cand.shape[:2], np.bool_)
+    has_sheet = sheet_px is not None
+    sheet = np.asarray(sheet_px, np.float64) if has_sheet else np.empty((0, 0))
+    laser = np.empty(3)
+    found = _shape_tests(cand, has_sheet, sheet, height_px, s_max, min_z, max_chi2, min_th,
+                         min_delta_th, sheet_tolerance, sheet_support, WIDTH_SPREAD, ok,
+                         laser)
+    if not found:
+        return ok, None
+    # (the unit vector of the laser colour as numpy's norm gives it: the tests below
+    # compare against it to the last bit, as they always did)
+    lu = laser / np.linalg.norm(laser)
+    _colour_tests(cand, laser, lu, channel_sigma_dn, colour_error, LASER_SHARE_Z, ok)
     return ok, laser
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _model_tests(cand: np.ndarray, height_px: int, s_max: float, max_chi2: float,
+                 min_th: float, min_delta_th: float, ok: np.ndarray) -> None:  # pragma: no cover
+    """The tests of one fit on its own (:func:`valid_candidates`: place, width, shape,
+    Eq. 2 on the light its core adds) into ``ok`` (W, K)."""
+    for u in range(ok.shape[0]):
+        for q in range(ok.shape[1]):
+            c = cand[u, q]
+            pos, s, sat = c[F_POS], c[F_WIDTH], c[F_SAT] > 0
+            good = np.isfinite(pos) and pos >= -0.5 and pos <= height_px - 0.5 and \
+                s >= MIN_SIGMA_PX and s <= s_max and \
+                (sat or c[F_FLAT] > 0 or c[F_CHI2] <= max_chi2)
+            tr, tg, tb = c[F_TR], c[F_TG], c[F_TB]
+            tot = tr + tg + tb
+            eq2 = tot > 0 and tr / tot > min_th and \
+                tr / tot - max(tg, tb) / tot > min_delta_th
+            ok[u, q] = good and (eq2 or (sat and not c[F_NCORE] > 0))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _shape_tests(cand: np.ndarray, has_sheet: bool, sheet_px: np.ndarray, height_px: int,
+                 s_max: float, min_z: float, max_chi2: float, min_th: float,
+                 min_delta_th: float, sheet_tolerance: float, sheet_support: int,
+                 width_spread: float, ok: np.ndarray,
+                 laser: np.ndarray) -> bool:  # pragma: no cover
+    """:func:`valid_candidates` up to the colour tests: ``ok`` (W, K) and the laser
+    colour into ``laser`` (3,); returns whether the frame shows that colour."""
+    _model_tests(cand, height_px, s_max, max_chi2, min_th, min_delta_th, ok)
+    w, k = ok.shape
+    vals = np.empty(w * k)
+    strong_z = COLOUR_Z * min_z
+    if has_sheet:
+        # the sheet's thickness relative to the parameter's; where the frame shows its
+        # own clearly (a stripe's worth of strong unclipped columns: a few strong
+        # columns beside a clipped core are widened by it), that is a second reference
+        ratio = np.empty((w, k))
+        m = 0
+        for u in range(w):
+            for q in range(k):
+                s = cand[u, q, F_WIDTH]
+                ratio[u, q] = math.sqrt(max(s * s - PIXEL_VAR, 0.01)) / sheet_px[u, q]
+                if ok[u, q] and not cand[u, q, F_SAT] > 0 and cand[u, q, F_Z] >= strong_z \
+                        and np.isfinite(ratio[u, q]):
+                    vals[m] = ratio[u, q]
+                    m += 1
+        ref = np.median(vals[:m]) if m >= max(COLOUR_SUPPORT, sheet_support) else 1.0
+        for u in range(w):
+            for q in range(k):
+                if ok[u, q] and not cand[u, q, F_SAT] > 0:
+                    ok[u, q] = _fits_sheet(cand[u, q, F_WIDTH], cand[u, q, F_SE_POS],
+                                           sheet_px[u, q], ref, sheet_tolerance)
+    # the sheet's width as the frame shows it: its strong unclipped columns
+    m = 0
+    for u in range(w):
+        for q in range(k):
+            if ok[u, q] and not cand[u, q, F_SAT] > 0 and cand[u, q, F_Z] >= strong_z:
+                vals[m] = cand[u, q, F_WIDTH]
+                m += 1
+    if m >= COLOUR_SUPPORT:
+        widest = width_spread * np.median(vals[:m])
+        for u in range(w):
+            for q in range(k):
+                if not cand[u, q, F_SAT] > 0:
+                    ok[u, q] = ok[u, q] and cand[u, q, F_WIDTH] <= widest
+    return _laser_colour(cand, ok, min_z, laser)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _fits_sheet(s: float, se_pos: float, sheet_px: float, ref: float,
+                tolerance: float) -> bool:  # pragma: no cover
+    """A fitted width ``s`` that a sheet of sigma ``r x sheet_px`` (``r`` 1 or ``ref``)
+    gives, up to ``tolerance`` times either way, the pixel's extent added (subtracting
+    it from a noisy narrow fit would inflate the fit's error), widened by two standard
+    errors of the width (about the centre's ``se_pos`` for a Gaussian fit); True where
+    the sheet's width is unknown. (A clipped core's width rests on its flanks alone:
+    not judged. A width that fits the sheet of the parameter passes as well: the
+    frame's strong columns can be clutter when the stripe itself is clipped.)"""
+    if not np.isfinite(sheet_px):
+        return True
+    se = 0.0 if np.isnan(se_pos) else min(se_pos, 1.7976931348623157e308)
+    se = 2.0 * se
+    for r in (1.0, ref):
+        a = r * sheet_px / tolerance
+        b = r * sheet_px * tolerance
+        if math.sqrt(a * a + PIXEL_VAR) - se <= s <= math.sqrt(b * b + PIXEL_VAR) + se:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _laser_colour(cand: np.ndarray, ok: np.ndarray, min_z: float,
+                  laser: np.ndarray) -> bool:  # pragma: no cover
+    """The laser's colour (RGB, red 1) into ``laser`` from the frame's strong unclipped
+    candidates (median of their core contrast over its red); False with fewer than
+    ``COLOUR_SUPPORT`` of them."""
+    w, k = ok.shape
+    g = np.empty(w * k)
+    b = np.empty(w * k)
+    m = 0
+    for u in range(w):
+        for q in range(k):
+            c = cand[u, q]
+            if ok[u, q] and c[F_Z] >= COLOUR_Z * min_z and c[F_SAT] == 0 and \
+                    c[F_NCORE] > 0 and c[F_TR] > 0:
+                g[m] = c[F_TG] / c[F_TR]
+                b[m] = c[F_TB] / c[F_TR]
+                m += 1
+    if m < COLOUR_SUPPORT:
+        return False
+    laser[0] = 1.0
+    laser[1] = min(max(np.median(g[:m]), 0.0), MAX_LASER_GB)
+    laser[2] = min(max(np.median(b[:m]), 0.0), MAX_LASER_GB)
+    return True
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def _dot3(a0: float, a1: float, a2: float, b: np.ndarray) -> float:  # pragma: no cover
+    """``a . b`` of 3-vectors, rounded as numpy's ``matmul`` rounds it (its kernel fuses
+    the multiply-adds)."""
+    return a0 * b[0] + a1 * b[1] + a2 * b[2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _norm3(a0: float, a1: float, a2: float) -> float:  # pragma: no cover
+    return math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _colour_residual(t: np.ndarray, k: np.ndarray, lu: np.ndarray) -> float:  # pragma: no cover
+    """Size of a core contrast ``t`` (RGB, DN) across the plane of the laser colour (unit
+    ``lu``) and the surface colour ``k`` (texture and shading move the surface along
+    its colour, the laser adds along its own)."""
+    kd = _dot3(k[0], k[1], k[2], lu)
+    e0, e1, e2 = k[0] - kd * lu[0], k[1] - kd * lu[1], k[2] - kd * lu[2]
+    n2 = _norm3(e0, e1, e2)
+    if n2 > 1e-6 * _norm3(k[0], k[1], k[2]):
+        e0, e1, e2 = e0 / n2, e1 / n2, e2 / n2
+    else:
+        e0 = e1 = e2 = 0.0
+    td = _dot3(t[0], t[1], t[2], lu)
+    te = t[0] * e0 + t[1] * e1 + t[2] * e2
+    return _norm3(t[0] - td * lu[0] - te * e0, t[1] - td * lu[1] - te * e1,
+                  t[2] - td * lu[2] - te * e2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def laser_share(t: np.ndarray, k: np.ndarray, laser: np.ndarray, lu: np.ndarray,
+                 n_core: float, channel_sigma_dn: float,
+                 share_z: float) -> bool:  # pragma: no cover
+    """Whether the light a candidate adds (core contrast ``t``, surface colour ``k``,
+    ``n_core`` core rows) shows the laser's colour (``laser``, unit ``lu``) where the colours can
+    tell it from the surface's (True: it does, or they cannot).
+
+    The core contrast ``t`` is the laser's light ``a L`` plus a change of the surface's
+    own colour ``b K`` (texture, shading). Only the part of ``L`` across ``K``, the unit
+    vector ``e``, tells them apart: ``t . e`` is ``a`` times ``L . e`` plus noise of
+    ``channel_sigma_dn / sqrt(n)``. Where all of ``t`` being laser light would show
+    across ``K`` by at least twice ``share_z`` noise sigmas but ``t . e`` stays below
+    ``share_z`` sigmas, the light is the surface's own (a brighter patch of its texture
+    next to a faint stripe's end). On a surface of the laser's colour ``L . e`` is near
+    zero and the test does not judge."""
+    kk = _norm3(k[0], k[1], k[2])
+    kn0, kn1, kn2 = k[0] / kk, k[1] / kk, k[2] / kk
+    kd = _dot3(kn0, kn1, kn2, laser)
+    e0, e1, e2 = laser[0] - kd * kn0, laser[1] - kd * kn1, laser[2] - kd * kn2
+    en = _norm3(e0, e1, e2)
+    e0, e1, e2 = e0 / en, e1 / en, e2 / en
+    power = _norm3(t[0], t[1], t[2]) * _dot3(e0, e1, e2, lu)
+    se = channel_sigma_dn / math.sqrt(max(n_core, 1.0))
+    across = t[0] * e0 + t[1] * e1 + t[2] * e2
+    return not (power >= 2.0 * share_z * se and across < share_z * se)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _colour_tests(cand: np.ndarray, laser: np.ndarray, lu: np.ndarray,
+                  channel_sigma_dn: float, colour_error: float, share_z: float,
+                  ok: np.ndarray) -> None:  # pragma: no cover
+    """The colour tests of :func:`valid_candidates` (laser colour ``laser``, its unit
+    vector ``lu``) on the
+    candidates that show a core, into ``ok`` (W, K)."""
+    t = np.empty(3)
+    k = np.empty(3)
+    for u in range(ok.shape[0]):
+        for q in range(ok.shape[1]):
+            c = cand[u, q]
+            if not ok[u, q] or not c[F_NCORE] > 0:
+                continue
+            t[0], t[1], t[2] = c[F_TR], c[F_TG], c[F_TB]
+            k[0], k[1], k[2] = c[F_KR], c[F_KG], c[F_KB]
+            lim = COLOUR_SIGMAS * channel_sigma_dn / math.sqrt(max(c[F_NCORE], 1.0)) + \
+                colour_error * _norm3(t[0], t[1], t[2])
+            ok[u, q] = _colour_residual(t, k, lu) <= lim
+            if ok[u, q] and share_z > 0 and not c[F_SAT] > 0:
+                ok[u, q] = laser_share(t, k, laser, lu, c[F_NCORE], channel_sigma_dn,
+                                         share_z)
 
 
 #: significance of the laser's share of a candidate's light (see :func:`laser_share`)
 LASER_SHARE_Z = 3.0
 
 
-def laser_share(cand: np.ndarray, laser_rgb: np.ndarray, channel_sigma_dn: float) -> np.ndarray:
-    """Whether the light each candidate (W, K) adds shows the laser's colour where the
-    colours can tell it from the surface's (True: it does, or they cannot).
-
-    The core contrast ``t`` is the laser's light ``a L`` plus a change of the surface's
-    own colour ``b K`` (texture, shading). Only the part of ``L`` across ``K``, the unit
-    vector ``e``, tells them apart: ``t . e`` is ``a`` times ``L . e`` plus noise of
-    ``channel_sigma_dn / sqrt(n)`` (``n`` core rows). Where all of ``t`` being laser
-    light would show across ``K`` by at least twice ``LASER_SHARE_Z`` noise sigmas but
-    ``t . e`` stays below ``LASER_SHARE_Z`` sigmas, the light is the surface's own (a
-    brighter patch of its texture next to a faint stripe's end). On a surface of the
-    laser's colour ``L . e`` is near zero and the test does not judge."""
-    t = cand[..., [F_TR, F_TG, F_TB]]
-    k = cand[..., [F_KR, F_KG, F_KB]]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        kn = k / np.linalg.norm(k, axis=-1, keepdims=True)
-        e = laser_rgb - (kn @ laser_rgb)[..., None] * kn
-        e_norm = np.linalg.norm(e, axis=-1)
-        e = e / e_norm[..., None]
-        lu = laser_rgb / np.linalg.norm(laser_rgb)
-        power = np.linalg.norm(t, axis=-1) * (e @ lu)  # t . e if t were all laser light
-        se = channel_sigma_dn / np.sqrt(np.maximum(cand[..., F_NCORE], 1.0))
-        across = np.sum(t * e, axis=-1)
-        return ~((power >= 2.0 * LASER_SHARE_Z * se) & (across < LASER_SHARE_Z * se))
-
-
 def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
-                      channel_sigma_dn: float) -> np.ndarray:
+                      channel_sigma_dn: float, need: np.ndarray | None = None) -> np.ndarray:
     """Whether the surface beneath each candidate (W, K) is one surface: the laser adds
     light to the surface it falls on, so the surface's colour (chromaticity) just above
     the stripe and just below it is the same; an edge between two surfaces of different
@@ -201,38 +313,73 @@ def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
     are not judged. An edge along the stripe runs on, so the break must show in both
     neighbouring columns too (at the same rows): where an object's side crosses the
     stripe, its end column sees two surfaces alone. Returns (W, K) bool, True where the
-    surface continues or where it cannot be told.
+    surface continues or where it cannot be told, and where ``need`` (W, K), when
+    given, is False (candidates that are out already are not judged).
     """
-    n_cols, n_rows = img_t.shape[0], img_t.shape[1]
-    pos = cand[..., F_POS] - row0
-    off = np.ceil(EQ_WIDTH * np.nan_to_num(cand[..., F_WIDTH], nan=1.0) + 2.0)
-    breaks = np.isfinite(pos)
-    # an edge along the stripe runs on: the break must show in the neighbouring columns
-    # too (at the same rows); where an object's side crosses the stripe (its end
-    # column) the surfaces differ in one column only
-    for shift in (-1, 0, 1):
-        cols = np.clip(np.arange(n_cols) + shift, 0, n_cols - 1)[:, None]
-        sides = []
-        for sign in (-1.0, 1.0):
-            tot = np.zeros((*cand.shape[:2], 3))
-            inside = np.isfinite(pos)
-            for extra in (0.0, 1.0):
-                r = np.rint(np.nan_to_num(pos, nan=-1e6) + sign * (off + extra))
-                inside &= (r >= 0) & (r < n_rows)
-                ri = np.clip(r, 0, n_rows - 1).astype(np.int64)
-                tot += img_t[cols, ri].astype(np.float64)
-            sides.append((tot, inside))
-        (up, in_up), (dn, in_dn) = sides
-        s_up, s_dn = up.sum(axis=-1), dn.sum(axis=-1)
-        lit = (s_up >= 6.0 * SURFACE_MIN_DN) & (s_dn >= 6.0 * SURFACE_MIN_DN)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d = np.abs(up / s_up[..., None] - dn / s_dn[..., None]).max(axis=-1)
-            # a chromaticity of a two-row sum of three channels: noise about
-            # sigma sqrt(2) / sum per channel, on each side
-            noise = channel_sigma_dn * math.sqrt(2.0) * (1.0 / s_up + 1.0 / s_dn)
-        breaks &= in_up & in_dn & lit & (d > SURFACE_STEP + 4.0 * noise)
-    return ~breaks
+    out = np.empty(cand.shape[:2], np.bool_)
+    need = np.ones(cand.shape[:2], np.bool_) if need is None else need
+    _surface_table(cand, img_t, row0, channel_sigma_dn, need, out)
+    return out
 
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _side_colour(img_t: np.ndarray, col: int, pos: float, edge: float,
+                 tot: np.ndarray) -> bool:  # pragma: no cover
+    """Sum (B, G, R) into ``tot`` of column ``col`` of ``img_t`` at the two rows
+    ``rint(pos + edge)`` and ``rint(pos + edge +- 1)`` (away from ``pos``); False where
+    one of them lies outside the image."""
+    n_rows = img_t.shape[1]
+    tot[:] = 0.0
+    inside = True
+    step = 1.0 if edge > 0 else -1.0
+    for extra in (0.0, 1.0):
+        r = np.rint(pos + step * (abs(edge) + extra))
+        inside = inside and 0 <= r < n_rows
+        ri = int(min(max(r, 0), n_rows - 1))
+        for c in range(3):
+            tot[c] += float(img_t[col, ri, c])
+    return inside
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _surface_table(cand: np.ndarray, img_t: np.ndarray, row0: int, channel_sigma_dn: float,
+                   need: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """:func:`surface_continues` of the candidates where ``need`` (True elsewhere)."""
+    n_cols = img_t.shape[0]
+    up = np.empty(3)
+    dn = np.empty(3)
+    for u in range(cand.shape[0]):
+        for q in range(cand.shape[1]):
+            pos = cand[u, q, F_POS] - row0
+            out[u, q] = True
+            if not need[u, q] or not np.isfinite(pos):
+                continue
+            wid = cand[u, q, F_WIDTH]
+            off = math.ceil(EQ_WIDTH * (1.0 if np.isnan(wid) else wid) + 2.0)
+            breaks = True
+            # an edge along the stripe runs on: the break must show in the neighbouring
+            # columns too (at the same rows); where an object's side crosses the stripe
+            # (its end column) the surfaces differ in one column only
+            for shift in (-1, 0, 1):
+                col = min(max(u + shift, 0), n_cols - 1)
+                inside = _side_colour(img_t, col, pos, -off, up)
+                inside = _side_colour(img_t, col, pos, off, dn) and inside
+                s_up = up[0] + up[1] + up[2]
+                s_dn = dn[0] + dn[1] + dn[2]
+                if not (inside and s_up >= 6.0 * SURFACE_MIN_DN and
+                        s_dn >= 6.0 * SURFACE_MIN_DN):
+                    breaks = False
+                    break
+                d = 0.0
+                for c in range(3):
+                    d = max(d, abs(up[c] / s_up - dn[c] / s_dn))
+                # a chromaticity of a two-row sum of three channels: noise about
+                # sigma sqrt(2) / sum per channel, on each side
+                noise = channel_sigma_dn * math.sqrt(2.0) * (1.0 / s_up + 1.0 / s_dn)
+                if not d > SURFACE_STEP + 4.0 * noise:
+                    breaks = False
+                    break
+            out[u, q] = not breaks
 
 
 #: the light an averaged fit gives a column must show in the column's own evidence: it
@@ -244,101 +391,116 @@ OWN_REACH_PX = 1.0
 
 
 @njit(cache=True, nogil=True)
-def _own_amplitude(yi: np.ndarray, ui: np.ndarray, pos: float, s: float, amp: float,
-                   sigma: float, shape_error: float) -> tuple[float, float]:  # pragma: no cover
+def _own_amplitude(yi: np.ndarray, mi: np.ndarray, ci: np.ndarray, pos: float, s: float,
+                   amp: float, sigma: float,
+                   shape_error: float) -> tuple[float, float]:  # pragma: no cover
     """Peak of a Gaussian at row ``pos`` of width ``s`` in one column's own evidence
-    ``yi`` (rows where ``ui``), on a straight background, by weighted least squares
-    (row variance ``sigma^2 + (shape_error amp g)^2`` as the profile fit's); returns the
-    peak and its standard error (NaN, NaN with too few rows)."""
+    ``yi`` (rows where ``mi`` and not ``ci``), on a straight background, by weighted
+    least squares (row variance ``sigma^2 + (shape_error amp g)^2`` as the profile
+    fit's); returns the peak and its standard error (NaN, NaN with too few rows)."""
     n = yi.shape[0]
     w_half = math.ceil(3.0 * s + 3.0)
     c = math.floor(pos + 0.5)
-    h = np.zeros((3, 3))
-    b = np.zeros(3)
+    # the normal equations of (1, d, g): h (symmetric) and b
+    h00 = h01 = h02 = h11 = h12 = h22 = 0.0
+    b0 = b1 = b2 = 0.0
     m = 0
     for j in range(max(c - w_half, 0), min(c + w_half + 1, n)):
-        if not ui[j]:
+        if not mi[j] or ci[j]:
             continue
         d = j - pos
         g = math.exp(-0.5 * d * d / (s * s))
         var = sigma * sigma + (shape_error * amp * g) ** 2
-        x = (1.0, d, g)
-        for p in range(3):
-            b[p] += x[p] * yi[j] / var
-            for q in range(3):
-                h[p, q] += x[p] * x[q] / var
+        yj = float(yi[j])
+        b0 += yj / var
+        b1 += d * yj / var
+        b2 += g * yj / var
+        h00 += 1.0 / var
+        h01 += d / var
+        h02 += g / var
+        h11 += d * d / var
+        h12 += d * g / var
+        h22 += g * g / var
         m += 1
     if m < 6:
         return np.nan, np.nan
     # 3x3 inverse by cofactors (the peak's row of it)
-    c00 = h[1, 1] * h[2, 2] - h[1, 2] * h[2, 1]
-    c01 = h[1, 2] * h[2, 0] - h[1, 0] * h[2, 2]
-    c02 = h[1, 0] * h[2, 1] - h[1, 1] * h[2, 0]
-    det = h[0, 0] * c00 + h[0, 1] * c01 + h[0, 2] * c02
+    c00 = h11 * h22 - h12 * h12
+    c01 = h12 * h02 - h01 * h22
+    c02 = h01 * h12 - h11 * h02
+    det = h00 * c00 + h01 * c01 + h02 * c02
     if not abs(det) > 1e-300:
         return np.nan, np.nan
-    i20 = (h[0, 1] * h[1, 2] - h[0, 2] * h[1, 1]) / det
-    i21 = (h[0, 2] * h[1, 0] - h[0, 0] * h[1, 2]) / det
-    i22 = (h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]) / det
-    a = i20 * b[0] + i21 * b[1] + i22 * b[2]
+    i20 = (h01 * h12 - h02 * h11) / det
+    i21 = (h02 * h01 - h00 * h12) / det
+    i22 = (h00 * h11 - h01 * h01) / det
+    a = i20 * b0 + i21 * b1 + i22 * b2
     return a, math.sqrt(max(i22, 0.0))
 
 
 @njit(cache=True, nogil=True)
 def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
-              cols: np.ndarray, rows: np.ndarray, widths: np.ndarray, sigma_y: float,
-              shape_error: float, z: float, ok: np.ndarray) -> None:  # pragma: no cover
-    """Whether the light the averaged evidence shows at each crossing is its column's own
-    (``ok`` (N,): False where not).
+              i: int, pos: float, width: float, sigma_y: float, shape_error: float,
+              z: float) -> bool:  # pragma: no cover
+    """Whether the light the averaged evidence shows at a crossing is its column's own
+    (True), or not.
 
     The evidence averaged along the stripe (weights 1, 4, 6, 4, 1 over five columns)
     stands for a column only where the stripe runs on across them: one column past a
     stripe's end the average still holds 5/16 of the neighbours' light, though the
-    column has none. So the peak of a Gaussian at the crossing (column ``cols[k]``, row
-    ``rows[k]`` of ``y`` (W, H'), width ``widths[k]``) in the averaged evidence
-    ``y_avg`` must show in the column's own evidence ``y``: the own peak
-    (:func:`_own_amplitude`, noise ``sigma_y``) may fall short of it by at most ``z``
-    standard errors (``OWN_Z``). Inside a stripe the two agree within the noise; at a
-    partly covered end column, whose own light is its coverage's share, the average's
-    missing outward columns lower it by about as much.
+    column has none. So the peak of a Gaussian at the crossing (column ``i``, row
+    ``pos`` of ``y`` (W, H'), width ``width``) in the averaged evidence ``y_avg`` must
+    show in the column's own evidence ``y``: the own peak (:func:`_own_amplitude`,
+    noise ``sigma_y``) may fall short of it by at most ``z`` standard errors
+    (``OWN_Z``). Inside a stripe the two agree within the noise; at a partly covered
+    end column, whose own light is its coverage's share, the average's missing outward
+    columns lower it by about as much.
     """
-    for k in range(cols.shape[0]):
-        ok[k] = True
-        i = cols[k]
-        pos = rows[k]
-        if not np.isfinite(pos):
-            continue
-        ui = mask[i] & ~clipped[i]
-        s = max(widths[k], MIN_SIGMA_PX)
-        a_avg, _ = _own_amplitude(y_avg[i], ui, pos, s, 0.0, 1.0, 0.0)
-        if not a_avg > 0.0:
-            continue
-        # on a steep stripe the average's centre at an end column leans towards the
-        # inner columns' rows (by up to a pixel): the own light is looked for within
-        # OWN_REACH_PX of it, the best place kept
-        short = -np.inf
-        for step in range(-2, 3):
-            a, se = _own_amplitude(y[i], ui, pos + 0.5 * OWN_REACH_PX * step, s, a_avg,
-                                   sigma_y, shape_error)
-            if np.isfinite(a):
-                short = max(short, (a - a_avg) / se)
-        if short > -np.inf and short < -z:
-            ok[k] = False
+    mi = mask[i]
+    ci = clipped[i]
+    s = max(width, MIN_SIGMA_PX)
+    a_avg, _ = _own_amplitude(y_avg[i], mi, ci, pos, s, 0.0, 1.0, 0.0)
+    if not a_avg > 0.0:
+        return True
+    # on a steep stripe the average's centre at an end column leans towards the inner
+    # columns' rows (by up to a pixel): the own light is looked for within OWN_REACH_PX
+    # of it, the best place kept
+    short = -np.inf
+    for step in range(-2, 3):
+        a, se = _own_amplitude(y[i], mi, ci, pos + 0.5 * OWN_REACH_PX * step, s, a_avg,
+                               sigma_y, shape_error)
+        if np.isfinite(a):
+            short = max(short, (a - a_avg) / se)
+    return not (short > -np.inf and short < -z)
+
+
+@njit(cache=True, nogil=True)
+def _own_light_table(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
+                     clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
+                     shape_error: float, z: float, need: np.ndarray,
+                     ok: np.ndarray) -> None:  # pragma: no cover
+    """:func:`own_light_candidates` into ``ok`` (W, K)."""
+    for u in range(cand.shape[0]):
+        for q in range(cand.shape[1]):
+            c = cand[u, q]
+            ok[u, q] = True
+            pos = c[F_POS] - row0
+            if need[u, q] and c[F_SAT] == 0 and c[F_GNOISE] != sigma_y and np.isfinite(pos):
+                wid = 1.0 if np.isnan(c[F_WIDTH]) else c[F_WIDTH]
+                ok[u, q] = own_light(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
+                                     shape_error, z)
 
 
 def own_light_candidates(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
                          clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
-                         shape_error: float) -> np.ndarray:
+                         shape_error: float, need: np.ndarray | None = None) -> np.ndarray:
     """:func:`own_light` of every candidate (W, K) fitted on the averaged evidence (rows
-    of ``cand`` from the image's top, of ``y`` from ``row0``); True where it holds and
-    for the others (a fit of the column's own evidence, whose noise ``sigma_y`` its
-    ``F_GNOISE`` holds, measured the column's own light; a clipped core is its own)."""
-    w, k = cand.shape[:2]
-    cols = np.repeat(np.arange(w, dtype=np.int64), k)
-    averaged = (cand[..., F_SAT] == 0) & (cand[..., F_GNOISE] != sigma_y)
-    rows = np.where(averaged, cand[..., F_POS] - row0, np.nan).ravel()
-    ok = np.empty(w * k, np.bool_)
-    own_light(y, y_avg, clipped, mask, cols, rows, np.nan_to_num(cand[..., F_WIDTH].ravel(),
-                                                                   nan=1.0),
-              sigma_y, shape_error, OWN_Z, ok)
-    return ok.reshape(w, k)
+    of ``cand`` from the image's top, of ``y`` from ``row0``); True where it holds, for
+    the others (a fit of the column's own evidence, whose noise ``sigma_y`` its
+    ``F_GNOISE`` holds, measured the column's own light; a clipped core is its own),
+    and where ``need`` (W, K), when given, is False."""
+    ok = np.empty(cand.shape[:2], np.bool_)
+    need = np.ones(cand.shape[:2], np.bool_) if need is None else need
+    _own_light_table(cand, y, y_avg, clipped, mask, row0, sigma_y, shape_error, OWN_Z, need,
+                     ok)
+    return ok
