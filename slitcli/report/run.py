@@ -1,7 +1,7 @@
 """A finished detection run, read from its files (docs/detect.md).
 
 The report and the ROS export read only what ``slitcli detect`` writes: ``ranges.csv``
-(schema 1), the optional ``laser.csv`` and ``mask/``, and the manifest in
+(schema 2), the optional ``laser.csv`` and ``mask/``, and the manifest in
 ``.slitcli/detect/manifest.json`` (the rig, the input's kind and frames). Nothing here
 runs detection. :func:`left_images` is the one place that reads the input's frames
 again (for the overlay video and the exported images).
