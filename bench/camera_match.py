@@ -102,13 +102,19 @@ def real_images(dev: Path, prefix: str) -> list[tuple[str, np.ndarray, np.ndarra
     """(name, BGR image, truth rows) of the development folder's photographs."""
     spec_ = importlib.util.spec_from_file_location("truthlib", dev / "truthlib.py")
     if spec_ is None or spec_.loader is None or not (dev / "truth").is_dir():
-        sys.exit(f"camera_match: {dev} is not a real-laser dev folder (truthlib.py, truth/)")
+        print(f"camera_match: DEV {dev} is not a real-laser dev folder (needs truthlib.py "
+              f"and truth/); give the folder of the real laser photographs", file=sys.stderr)
+        sys.exit(2)
     tl = importlib.util.module_from_spec(spec_)
     spec_.loader.exec_module(tl)
     out = []
     for p in sorted((dev / "truth").glob(f"{prefix}*.json")):
         spec = tl.load_spec(p)
         bgr = cv2.imread(str(dev / "images" / spec["image"]))
+        if bgr is None:
+            print(f"camera_match: cannot read {dev / 'images' / spec['image']} named by "
+                  f"{p}; restore the image", file=sys.stderr)
+            sys.exit(2)
         t = tl.compute_truth(bgr, spec)
         out.append((p.stem, bgr, np.where(t["state"] == 1, t["row"], np.nan)))
     return out
