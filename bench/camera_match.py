@@ -11,12 +11,14 @@ preset's physical terms (exposure, gain, read noise, crosstalk) can be set from 
   local (smoothed) gradient is in the lower half (flat areas; texture and edges add to
   a residual);
 - **background**: the median R, G, B of the surface 8-20 rows from the stripe;
-- **stripe**: per stripe column, the red excess at its peak (within 2 rows of the truth
-  row) less its median 8-14 rows away, its FWHM in rows (the profile's samples at or
-  above half the peak, interpolated at both ends), and the SNR peak / excess noise.
+- **stripe**: the median over the stripe columns of R, G, B and red-excess profiles
+  down each column, aligned on the truth row (noise-free: a per-column maximum would add
+  the noise's own extreme); its rise at the truth row over its median 8-14 rows away per
+  channel, the stripe colour (G + B rise) / (2 x R rise), the red excess's FWHM in rows
+  (interpolated at both ends) and the SNR: red-excess rise / red-excess noise.
 
-Each statistic is a median over a picture's stripe columns; the table shows each picture
-and the spread (min-max) of the pictures. Not part of `make bench` (seconds a scene).
+The table shows each picture (a rendered frame with the median range of its stripe) and
+the spread (min-max) of the pictures. Not part of `make bench` (seconds a scene).
 
     .venv/bin/python bench/camera_match.py DEV_FOLDER [--preset robot]
         [--set KEY=VALUE ...] [--scenes sample_data/corridor.yaml ...] [--frames 0 6 11]
