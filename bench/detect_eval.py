@@ -25,7 +25,7 @@ Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
         [--overhang 0] [--reseed 0] [--plain 0] [--fusion paper] [--camera PRESET]
-        [--details] [--coverage]
+        [--laser-power DN] [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -248,6 +248,10 @@ def main() -> int:
                     help="render every scene through this camera model (image.camera: a "
                          "preset such as webcam or robot, docs/scene.md); its sequences "
                          "are cached apart")
+    ap.add_argument("--laser-power", type=float, default=None,
+                    help="render every scene with this laser.power_dn (DN at the reference "
+                         "range; default: each scene's own, 900); its sequences are cached "
+                         "apart")
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
     ap.add_argument("--coverage", action="store_true",
                     help="print how much of each missed bin's wedge the true obstacle fills")
@@ -261,6 +265,9 @@ def main() -> int:
         if args.camera:
             d = {**d, "image": {**d.get("image", {}), "camera": args.camera}}
             name = f"{name}-{args.camera}"
+        if args.laser_power is not None:
+            d = {**d, "laser": {**d.get("laser", {}), "power_dn": args.laser_power}}
+            name = f"{name}-p{args.laser_power:g}"
         out = Path(args.cache) / name
         if not (out / "gt" / "ranges.csv").exists():
             render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)
