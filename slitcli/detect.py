@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
@@ -74,20 +75,75 @@ COLOUR_CHECKS = ("every", "once", "off")
 SKIPPED_FILE = "skipped_frames.csv"
 
 
+#: rows of a JPEG 4:2:0 chroma block (8 chroma rows at half resolution): chroma
+#: subsampling and the block's quantised AC terms move colour within it, keeping its sum
+JPEG_CHROMA_BLOCK_ROWS = 16
+#: a median's standard error over m samples of spread sigma is sqrt(pi / 2) sigma / sqrt(m)
+MEDIAN_SE = 1.2533
+
+
+def stripe_added_light(img_bgr: np.ndarray, stripe: LaserFrame, half_band_px: int) -> np.ndarray:
+    """Light a found stripe adds to each of its columns, per channel, in the order given.
+
+    The band of ``2 half_band_px + 1`` rows centred on the stripe row is summed after
+    subtracting each column's background: the per-channel median of the
+    ``half_band_px + 1`` rows just above and just below the band. Summing across the band
+    (the stripe's flux, not its peak pixel) keeps the stripe's colour through what JPEG
+    does to chroma (4:2:0 averaging and block ringing move colour a few rows, but keep its
+    sum within the block), so a red line's blue fringe does not read as a blue line.
+    Rows beyond the image repeat its border rows.
+
+    Parameters
+    ----------
+    img_bgr : np.ndarray, shape (H, W, 3), uint8
+        The image the stripe was searched in, channels in the order given.
+    stripe : LaserFrame
+        A stripe found in it (or in it with channels swapped): ``v_px`` per column.
+    half_band_px : int
+        Rows either side of the stripe row in the band, pixels.
+
+    Returns
+    -------
+    np.ndarray, shape (M, 3), float
+        Added light per found column (M = ``stripe.found.sum()``), channel slots as
+        given, DN summed over the band's rows.
+    """
+    img = np.asarray(img_bgr)
+    h = img.shape[0]
+    u = np.flatnonzero(stripe.found)
+    v = np.rint(stripe.v_px[u]).astype(np.int64)
+    band = np.arange(-half_band_px, half_band_px + 1)
+    ring = np.arange(half_band_px + 1, 2 * half_band_px + 2)
+    rows_band = np.clip(v[:, None] + band[None, :], 0, h - 1)
+    rows_ring = np.clip(v[:, None] + np.r_[-ring, ring][None, :], 0, h - 1)
+    background_m3 = np.median(img[rows_ring, u[:, None], :].astype(np.float64), axis=1)
+    band_mb3 = img[rows_band, u[:, None], :].astype(np.float64)
+    return (band_mb3 - background_m3[:, None, :]).sum(axis=1)
+
+
 def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
                        params: LaserParams | None = None, *,
-                       geometry: LaserGeometry | None = None, min_cols: int = 16) -> bool:
+                       geometry: LaserGeometry | None = None, min_cols: int = 16,
+                       margin_z: float = 4.0) -> bool:
     """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
 
     A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
     chromaticity rejects every column of it: the frame silently has no laser. So when
     the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
-    columns, the stripe is searched again with the first and last channels swapped;
-    finding at least ``min_cols`` columns there (two of the extractor's shortest
-    segments, 8 columns each), four times as many as given, means the channels are
-    swapped. A scene without any lit obstacle or floor in view costs one more
-    extraction and passes; a real blue light would have to form a thin line on the
-    laser plane's rows to be taken for the stripe.
+    columns, the stripe is searched again with the first and last channels swapped.
+    Finding at least ``min_cols`` columns there (two of the extractor's shortest
+    segments, 8 columns each), four times as many as given, is the precondition; the
+    evidence is the colour of the light that line adds, measured in the image as given
+    (:func:`stripe_added_light`, over a band of the widest stripe's width and at least
+    half a JPEG chroma block either side). A red laser adds light whose last slot (red,
+    BGR) is far above its first; read from an RGB image it is the reverse. So the order
+    is called swapped only when the median over the columns of first-slot minus
+    last-slot added light exceeds ``margin_z`` standard errors of that median (from the
+    columns' own robust spread, floored by the image's noise). A line the swapped search
+    finds next to a red stripe (its JPEG chroma fringe, a red object's edge) adds red
+    light as given and passes. A scene without any lit obstacle or floor in view costs
+    one more extraction and passes; a real blue light would have to form a thin line on
+    the laser plane's rows to be taken for the stripe.
 
     Returns
     -------
@@ -98,21 +154,35 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     Raises
     ------
     SlitcliError
-        ``param="colour_order"``, naming both counts.
+        ``param="colour_order"``, naming both counts and the added light.
     """
     n = int(found.found.sum())
     if 2 * n >= min_cols:
         return n >= min_cols
-    swapped = detect_laser(np.ascontiguousarray(np.asarray(left_bgr)[..., ::-1]), rig, params,
+    img = np.asarray(left_bgr)
+    swapped = detect_laser(np.ascontiguousarray(img[..., ::-1]), rig, params,
                            geometry=geometry)
     m = int(swapped.found.sum())
-    if m >= min_cols and m >= 4 * max(n, 1):
-        raise SlitcliError(
-            f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
-            f"({m} stripe columns with red and blue swapped, {n} as given); set "
-            "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
-            param="colour_order")
-    return False
+    if m < min_cols or m < 4 * max(n, 1):
+        return False
+    laser = params if params is not None else LaserParams()
+    half_band = max(math.ceil(laser.max_width_px(img.shape[0])), JPEG_CHROMA_BLOCK_ROWS // 2)
+    added_m3 = stripe_added_light(img, swapped, half_band)
+    blue_excess = added_m3[:, 0] - added_m3[:, 2]
+    centre = float(np.median(blue_excess))
+    # the columns' spread holds texture, speckle and compression; the floor is the
+    # noise of a difference of two channels summed over the band's rows
+    spread = max(1.4826 * float(np.median(np.abs(blue_excess - centre))),
+                 swapped.noise_sigma_dn * math.sqrt(2.0 * (2 * half_band + 1)))
+    if centre <= margin_z * MEDIAN_SE * spread / math.sqrt(m):
+        return False
+    blue, red = np.median(added_m3[:, 0]), np.median(added_m3[:, 2])
+    raise SlitcliError(
+        f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
+        f"({m} stripe columns with red and blue swapped, {n} as given; the line adds "
+        f"{blue:.0f} DN to the first channel and {red:.0f} DN to the last); set "
+        "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
+        param="colour_order")
 
 
 # --save-images: 16-bit data images, the obstacle mask, and colour previews with a bar
