@@ -121,6 +121,36 @@ def stripe_added_light(img_bgr: np.ndarray, stripe: LaserFrame, half_band_px: in
     return (band_mb3 - background_m3[:, None, :]).sum(axis=1)
 
 
+def blue_line_z(img_bgr: np.ndarray, stripe: LaserFrame, params: LaserParams | None = None
+                ) -> tuple[float, np.ndarray]:
+    """How blue, in the order given, the light a found line adds is: a z score.
+
+    The added light (:func:`stripe_added_light`, over a band of the widest stripe's width
+    and at least half a JPEG chroma block either side) of each found column, first slot
+    minus last slot; its median over the columns divided by the median's standard error
+    (from the columns' own robust spread, floored by the image's noise). A red laser read
+    in the right order scores far below zero, read from an RGB image far above.
+
+    Returns
+    -------
+    z : float
+        The median first-minus-last added light over its standard error.
+    added_m3 : np.ndarray, shape (M, 3), float
+        The added light per found column (DN summed over the band), slots as given.
+    """
+    img = np.asarray(img_bgr)
+    laser = params if params is not None else LaserParams()
+    half_band = max(math.ceil(laser.max_width_px(img.shape[0])), JPEG_CHROMA_BLOCK_ROWS // 2)
+    added_m3 = stripe_added_light(img, stripe, half_band)
+    blue_excess = added_m3[:, 0] - added_m3[:, 2]
+    centre = float(np.median(blue_excess))
+    # the columns' spread holds texture, speckle and compression; the floor is the
+    # noise of a difference of two channels summed over the band's rows
+    spread = max(1.4826 * float(np.median(np.abs(blue_excess - centre))),
+                 stripe.noise_sigma_dn * math.sqrt(2.0 * (2 * half_band + 1)))
+    return centre / (MEDIAN_SE * spread / math.sqrt(len(blue_excess))), added_m3
+
+
 def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
                        params: LaserParams | None = None, *,
                        geometry: LaserGeometry | None = None, min_cols: int = 16,
@@ -128,59 +158,55 @@ def check_colour_order(left_bgr: np.ndarray, found: LaserFrame, rig: Rig,
     """Raise when an image given as BGR is really RGB (its stripe is in the blue slot).
 
     A red laser stripe read with red and blue swapped is blue, and Eq. 2's red
-    chromaticity rejects every column of it: the frame silently has no laser. So when
-    the stripe found in ``left_bgr`` (``found``) has fewer than ``min_cols / 2``
-    columns, the stripe is searched again with the first and last channels swapped.
-    Finding at least ``min_cols`` columns there (two of the extractor's shortest
-    segments, 8 columns each), four times as many as given, is the precondition; the
-    evidence is the colour of the light that line adds, measured in the image as given
-    (:func:`stripe_added_light`, over a band of the widest stripe's width and at least
-    half a JPEG chroma block either side). A red laser adds light whose last slot (red,
-    BGR) is far above its first; read from an RGB image it is the reverse. So the order
-    is called swapped only when the median over the columns of first-slot minus
-    last-slot added light exceeds ``margin_z`` standard errors of that median (from the
-    columns' own robust spread, floored by the image's noise). A line the swapped search
-    finds next to a red stripe (its JPEG chroma fringe, a red object's edge) adds red
-    light as given and passes. A scene without any lit obstacle or floor in view costs
-    one more extraction and passes; a real blue light would have to form a thin line on
-    the laser plane's rows to be taken for the stripe.
+    chromaticity rejects every column of it: the frame silently has no laser. The
+    evidence is the colour of the light a found line adds, measured in the image as given
+    (:func:`blue_line_z`): a red laser adds light whose last slot (red, BGR) is far above
+    its first; read from an RGB image it is the reverse. The order is called swapped when
+    that line's first-minus-last added light exceeds ``margin_z`` standard errors.
+
+    - When the stripe found in ``left_bgr`` (``found``) has at least ``min_cols`` columns
+      (two of the extractor's shortest segments, 8 columns each), its own added light
+      is measured: a stray line found in an RGB image (a red object's edge, seen blue)
+      is refused too.
+    - When it has fewer than ``min_cols / 2`` columns, the stripe is searched again with
+      the first and last channels swapped; finding at least ``min_cols`` columns there,
+      four times as many as given, is the precondition for measuring that line. A line
+      the swapped search finds next to a red stripe (its JPEG chroma fringe, a red
+      object's edge) adds red light as given and passes. A scene without any lit
+      obstacle or floor in view costs one more extraction and passes.
 
     Returns
     -------
     bool
         True when the frame settles the question: the stripe was found as given in at
-        least ``min_cols`` columns (a red line where the laser is: the order is right).
+        least ``min_cols`` columns and adds red light (the order is right).
 
     Raises
     ------
     SlitcliError
         ``param="colour_order"``, naming both counts and the added light.
     """
-    n = int(found.found.sum())
-    if 2 * n >= min_cols:
-        return n >= min_cols
     img = np.asarray(left_bgr)
-    swapped = detect_laser(np.ascontiguousarray(img[..., ::-1]), rig, params,
-                           geometry=geometry)
-    m = int(swapped.found.sum())
-    if m < min_cols or m < 4 * max(n, 1):
+    n = int(found.found.sum())
+    if n >= min_cols:
+        line, m = found, n
+    elif 2 * n >= min_cols:
         return False
-    laser = params if params is not None else LaserParams()
-    half_band = max(math.ceil(laser.max_width_px(img.shape[0])), JPEG_CHROMA_BLOCK_ROWS // 2)
-    added_m3 = stripe_added_light(img, swapped, half_band)
-    blue_excess = added_m3[:, 0] - added_m3[:, 2]
-    centre = float(np.median(blue_excess))
-    # the columns' spread holds texture, speckle and compression; the floor is the
-    # noise of a difference of two channels summed over the band's rows
-    spread = max(1.4826 * float(np.median(np.abs(blue_excess - centre))),
-                 swapped.noise_sigma_dn * math.sqrt(2.0 * (2 * half_band + 1)))
-    if centre <= margin_z * MEDIAN_SE * spread / math.sqrt(m):
-        return False
+    else:
+        line = detect_laser(np.ascontiguousarray(img[..., ::-1]), rig, params,
+                            geometry=geometry)
+        m = int(line.found.sum())
+        if m < min_cols or m < 4 * max(n, 1):
+            return False
+    z, added_m3 = blue_line_z(img, line, params)
+    if z <= margin_z:
+        return line is found
     blue, red = np.median(added_m3[:, 0]), np.median(added_m3[:, 2])
+    where = ("as given" if line is found
+             else f"with red and blue swapped, {n} as given")
     raise SlitcliError(
-        f"the image looks like RGB, not BGR: the laser stripe is in its first channel "
-        f"({m} stripe columns with red and blue swapped, {n} as given; the line adds "
-        f"{blue:.0f} DN to the first channel and {red:.0f} DN to the last); set "
+        f"the image looks like RGB, not BGR: the line found adds {blue:.0f} DN to the "
+        f"first channel and {red:.0f} DN to the last ({m} stripe columns {where}); set "
         "`colour_order` to 'rgb' or convert it with cv2.cvtColor(image, cv2.COLOR_RGB2BGR)",
         param="colour_order")
 
@@ -540,4 +566,4 @@ def summary_line(summary: RunSummary) -> str:
 
 
 __all__ = ["COLOUR_CHECKS", "COLOUR_ORDERS", "DetectParams", "Detector", "FrameDetection",
-           "check_colour_order", "run_detect", "summary_line"]
+           "blue_line_z", "check_colour_order", "run_detect", "summary_line"]
