@@ -356,22 +356,35 @@ def test_depth_edges_keep_the_foreground_inside_its_silhouette(seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_textured_square_on_a_plain_background_does_not_spill(seed):
+    """On a plain background only the square's texture is in a window near it, so the
+    matcher alone gives the first columns past each silhouette the square's disparity
+    (about one column per row); the support tests must remove most of it, and nothing
+    can be fattened beyond the texture's reach (:func:`_texture_reach_px`, 8 px).
+
+    The depth-edge test has no background evidence here, so only the support tests act:
+    a pixel whose one-sided block still holds the square's texture through the prefilter
+    box (4 px) can pass them. "Most" is asserted as at least half, per side, of what the
+    matcher keeps with the edge tests off (measured over 60 seeds: at most 0.26).
+    """
     box = (140, 220, 60, 180)
     left, right, _ = occlusion_pair(8.0, 20.0, box, noise_dn=2.0, background_contrast_dn=0.0,
                                     seed=seed)
-    res = compute_disparity(left, right, MatcherParams(num_disparities=32))
+    p = MatcherParams(num_disparities=32)
+    res = compute_disparity(left, right, p)
     fat_l, fat_r, first, last = _fattening(res, 20.0, 8.0, box)
-    assert fat_l.mean() <= 0.3 and fat_r.mean() <= 0.3
     assert first >= 0.9 and last >= 0.9
     # without the edge tests the first column past each silhouette sees texture only
     # from the square (the background is plain), so it takes the square's disparity in
     # every row where the matcher's own tests keep it, as they keep >= 90 % of the
-    # square's edge columns (``first``, ``last``): the bound above then has power
+    # square's edge columns (``first``, ``last``): the bound below then has power
     off_l, off_r, _, _ = _fattening(compute_disparity(
         left, right, MatcherParams(num_disparities=32, **EDGES_OFF)), 20.0, 8.0, box)
     assert off_l.mean() >= 0.9 and off_r.mean() >= 0.9
-    # the plain background is not matched at all, a few pixels from the square on
-    assert not res.valid[70:170, :130].any() and not res.valid[70:170, 230:].any()
+    assert fat_l.mean() <= 0.5 * off_l.mean() and fat_r.mean() <= 0.5 * off_r.mean()
+    # the plain background is not matched at all beyond the texture's reach
+    reach = _texture_reach_px(p)
+    x0, x1 = box[0], box[1]
+    assert not res.valid[70:170, :x0 - reach].any() and not res.valid[70:170, x1 + reach:].any()
 
 
 @pytest.mark.parametrize("seed", SEEDS)
