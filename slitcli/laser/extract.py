@@ -29,7 +29,7 @@ import numpy as np
 
 from slitcli.laser import candidates, choose, evidence, judge, paper
 from slitcli.laser.params import LaserParams
-from slitcli.laser.profile import F_Z, N_FIELDS
+from slitcli.laser.profile import F_POS, F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
@@ -194,15 +194,13 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                                  seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
                                  params.max_chi2, params.weak_z, cand)
+    cand[..., F_POS] += r0
     sheet_px = None
     if px_per_m is not None and params.sheet_sigma_mm > 0:
         sheet_px = np.empty(cand.shape[:2])
-        # (column-major, as LaserGeometry holds it: one compiled kernel either way)
-        candidates.rows_from_top(cand, r0, np.asfortranarray(px_per_m, dtype=np.float64),
-                                 params.sheet_sigma_mm, sheet_px)
-    else:
-        candidates.rows_from_top(cand, r0, np.empty((0, 0), order="F"), 0.0,
-                                 np.empty((0, 0)))
+        # (column-major, as LaserGeometry holds it)
+        candidates.sheet_width_px(cand, np.asfortranarray(px_per_m, dtype=np.float64),
+                                  params.sheet_sigma_mm, sheet_px)
     ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
