@@ -175,12 +175,12 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
     num = c["num"]
-    two = pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1)
+    one_thread = pool is None or threads < 2 or h < 4 * (2 * c["n"] + 1)
     # the volumes in one allocation: glibc (malloc's dynamic mmap threshold) then keeps
     # its pages mapped from one frame to the next (two or three separate volumes freed
     # together are returned to the system and faulted in again: measured 700-1200
     # page faults, ~5 ms of a 320 x 240 frame)
-    volumes = np.empty((2 if two else 3, h, w, num), np.uint16)
+    volumes = np.empty((2 if one_thread else 3, h, w, num), np.uint16)
     cost = volumes[0]
     s_a = volumes[1]
     p1 = round(params.sgm_p1 * COST_SCALE)
@@ -190,7 +190,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
              c["n"], COST_MAX, COST_SCALE)
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
-    if two:
+    if one_thread:
         _sgm_lanes.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
         _sgm_lanes.second_sweep_winners(cost, s_a, *bargs)
         return
