@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -101,6 +102,60 @@ def background_window_px(params: LaserParams, height_px: int) -> int:
     return w | 1
 
 
+class _Evidence(NamedTuple):
+    """The laser evidence of a frame's searched rows and its noise levels (transposed,
+    (W, h): one image column per array row)."""
+
+    y: np.ndarray          # evidence per pixel, float32
+    y_avg: np.ndarray      # averaged over five columns along the stripe
+    clipped: np.ndarray    # red at or above saturation
+    bg_t: np.ndarray       # the opening per channel, (3 W, h)
+    sigma_y: float         # noise of y (the larger of pixel noise and spread), DN
+    sigma_avg: float       # the same of y_avg
+    noise_avg: float       # pixel noise of y_avg (seeds candidates), DN
+    chan: np.ndarray       # noise per channel (b, g, r), floored, DN
+
+
+def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
+              win: int, params: LaserParams) -> _Evidence:
+    """Background (vertical opening of ``win`` rows), laser evidence and its noise for
+    the searched rows ``sub`` (h, W, 3) BGR; ``img_t``, ``mask_t`` their transposes,
+    ``chan`` the per-channel noise (module notes of :mod:`~slitcli.laser.evidence`)."""
+    w = sub.shape[1]
+    # the opening along the columns: on the (rows, 3 W) one-channel view a vertical
+    # window mixes no channels; its transpose holds each column's channels as runs
+    flat = np.ascontiguousarray(sub.reshape(sub.shape[0], 3 * w))
+    opened = np.empty_like(flat)
+    evidence.vertical_opening(flat, win, opened)
+    bg_t = cv2.transpose(opened)
+    y = np.empty((w, sub.shape[0]), np.float32)
+    clipped = np.empty((w, sub.shape[0]), bool)
+    # the share of the surface colour to remove: texture against noise, on this image
+    lo, hi = params.texture_share_range()
+    lam = hi if lo >= hi else max(lo, evidence.texture_share(
+        img_t, bg_t, mask_t, params.saturation_dn, 2 * evidence.NOISE_STEP, hi))
+    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, lam, y, clipped)
+    # the stripe runs along the image rows: the evidence averaged over five columns
+    # (1, 4, 6, 4, 1) / 16 has about half the noise (its own is measured below)
+    y_avg = cv2.filter2D(y, -1, AVG_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    # two noise levels of each: the pixel noise (lag-2 residuals) seeds candidates; the
+    # spread of the evidence over the image (noise and the clutter it does not cancel)
+    # judges them, where it is larger
+    # pixels whose red is clipped to black show no noise (nor does a clipped core): the
+    # noise is measured where the red channel is inside its range
+    live = np.empty_like(mask_t)
+    if not candidates.evidence_live(mask_t, img_t, clipped, live):
+        live = mask_t
+    noise_avg = max(evidence.robust_sigma(y_avg, live, evidence.NOISE_STEP),
+                    AVG_NOISE * params.noise_floor_dn)
+    sigma_y = max(evidence.robust_sigma(y, live, evidence.NOISE_STEP),
+                  evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
+    sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
+    chan = np.maximum(chan, params.noise_floor_dn)
+    return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
+                     float(noise_avg), chan)
+
+
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                    search_mask: np.ndarray | None = None,
                    previous_v_px: np.ndarray | None = None,
@@ -156,36 +211,9 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         paper.paper_columns(img_t, mask_t, params.min_th, params.min_delta_th, params.alpha,
                             params.beta, params.gamma, params.continuity_px, max_w, v, amp)
         return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
-    # the opening along the columns: on the (rows, 3 W) one-channel view a vertical
-    # window mixes no channels; its transpose holds each column's channels as runs
-    flat = np.ascontiguousarray(sub.reshape(sub.shape[0], 3 * w))
-    opened = np.empty_like(flat)
-    evidence.vertical_opening(flat, win, opened)
-    bg_t = cv2.transpose(opened)
-    y = np.empty((w, sub.shape[0]), np.float32)
-    clipped = np.empty((w, sub.shape[0]), bool)
-    # the share of the surface colour to remove: texture against noise, on this image
-    lo, hi = params.texture_share_range()
-    lam = hi if lo >= hi else max(lo, evidence.texture_share(
-        img_t, bg_t, mask_t, params.saturation_dn, 2 * evidence.NOISE_STEP, hi))
-    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, lam, y, clipped)
-    # the stripe runs along the image rows: the evidence averaged over five columns
-    # (1, 4, 6, 4, 1) / 16 has about half the noise (its own is measured below)
-    y_avg = cv2.filter2D(y, -1, AVG_KERNEL, borderType=cv2.BORDER_REPLICATE)
-    # two noise levels of each: the pixel noise (lag-2 residuals) seeds candidates; the
-    # spread of the evidence over the image (noise and the clutter it does not cancel)
-    # judges them, where it is larger
-    # pixels whose red is clipped to black show no noise (nor does a clipped core): the
-    # noise is measured where the red channel is inside its range
-    live = np.empty_like(mask_t)
-    if not candidates.evidence_live(mask_t, img_t, clipped, live):
-        live = mask_t
-    noise_avg = max(evidence.robust_sigma(y_avg, live, evidence.NOISE_STEP),
-                    AVG_NOISE * params.noise_floor_dn)
-    sigma_y = max(evidence.robust_sigma(y, live, evidence.NOISE_STEP),
-                  evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
-    sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
-    chan = np.maximum(chan, params.noise_floor_dn)
+    ev = _evidence(sub, img_t, mask_t, chan, win, params)
+    y, y_avg, clipped, bg_t = ev.y, ev.y_avg, ev.clipped, ev.bg_t
+    sigma_y, sigma_avg, noise_avg, chan = ev.sigma_y, ev.sigma_avg, ev.noise_avg, ev.chan
     chan_sigma = float(np.sort(chan)[1])  # (the median of three)
     seed = params.seed_z * noise_avg
     s_max = max_w / judge.EQ_WIDTH
