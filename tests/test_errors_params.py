@@ -151,3 +151,19 @@ def test_calibrate_cli_names_its_flags(tmp_path):
                                    "0.025", "-o", str(tmp_path / "rig.yaml")])
     line = _one_error_line(res)
     assert "--board 2x6: a board needs at least 3x3 inner corners" in line
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--colour-error", "2"], "laser parameter --colour-error = 2.0 is out of range"),
+    (["--max-texture-ratio", "nan"], "laser parameter --max-texture-ratio = nan is out of range"),
+    (["--min-texture-ratio", "7"], "laser parameter --min-texture-ratio = 7.0 is out of range"),
+])
+def test_laser_cli_names_its_flags(tmp_path, args, expected):
+    """An out-of-range laser tuning value is named by its option, in one line, before
+    any frame is read (the folder is empty)."""
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    res = CliRunner().invoke(cli, ["laser", str(seq), "-o", str(tmp_path / "out"), *args])
+    line = _one_error_line(res)
+    assert expected in line
+    assert not (tmp_path / "out").exists()

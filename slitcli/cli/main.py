@@ -75,6 +75,16 @@ PARAM_FLAGS: dict[str, str] = {
     "recovery_after_s": "--recovery-after-s", "recovery_back_m": "--recovery-back-m",
     "min_disparity_px": "--min-disparity", "bin_width_deg": "--bin-deg", "base_rig": "--base",
     "aggregation": "--aggregation",
+    # the laser's tuning (LaserParams; alpha, beta, gamma, search and max_search_range_m
+    # above): each field's option is its name with dashes
+    "method": "--method", "min_th": "--min-th", "min_delta_th": "--min-delta-th",
+    "max_width_share": "--max-width-share", "seed_z": "--seed-z", "min_z": "--min-z",
+    "weak_z": "--weak-z", "shape_error": "--shape-error", "colour_error": "--colour-error",
+    "min_texture_ratio": "--min-texture-ratio", "max_texture_ratio": "--max-texture-ratio",
+    "noise_floor_dn": "--noise-floor-dn", "saturation_dn": "--saturation-dn",
+    "continuity_px": "--continuity-px", "max_jump_px": "--max-jump-px",
+    "min_segment_share": "--min-segment-share", "min_stripe_share": "--min-stripe-share",
+    "sheet_sigma_mm": "--sheet-sigma-mm", "sheet_tolerance": "--sheet-tolerance",
 }
 
 

@@ -135,8 +135,9 @@ class LaserParams:
             "shape_error": 0.0 <= self.shape_error < 1.0,
             "max_chi2": self.max_chi2 > 0.0,
             "colour_error": 0.0 <= self.colour_error < 1.0,
-            "min_texture_ratio": 0.0 <= self.min_texture_ratio <= self.max_texture_ratio,
+            # the maximum first: a bad maximum is named, not the minimum it bounds
             "max_texture_ratio": 0.0 <= self.max_texture_ratio <= 100.0,
+            "min_texture_ratio": 0.0 <= self.min_texture_ratio <= self.max_texture_ratio,
             "noise_floor_dn": self.noise_floor_dn > 0.0,
             "saturation_dn": 1 <= self.saturation_dn <= 255,
             "continuity_px": self.continuity_px > 0.0,
@@ -149,8 +150,8 @@ class LaserParams:
         }
         for name, ok in checks.items():
             if not ok:
-                raise SlitcliError(f"laser parameter {name} = {getattr(self, name)!r} is out of "
-                                   f"range; {_RANGES[name]}")
+                raise SlitcliError(f"laser parameter `{name}` = {getattr(self, name)!r} is out "
+                                   f"of range; {_RANGES[name]}", param=name)
 
     def texture_share_range(self) -> tuple[float, float]:
         """Smallest and largest share of the surface colour the evidence removes,
@@ -187,7 +188,7 @@ _RANGES = {
     "shape_error": "give a relative error in [0, 1)",
     "max_chi2": "give a reduced chi-square > 0",
     "colour_error": "give a relative error in [0, 1)",
-    "min_texture_ratio": "give a ratio in [0, max_texture_ratio]",
+    "min_texture_ratio": "give a ratio from 0 up to the maximum texture ratio",
     "max_texture_ratio": "give a ratio in [0, 100]",
     "noise_floor_dn": "give a noise level > 0 DN",
     "saturation_dn": "give a level in 1..255 DN",
