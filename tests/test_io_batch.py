@@ -48,6 +48,32 @@ def test_results_of_another_slitcli_version_are_not_reused(tmp_path):
 
 
 # ---------------------------------------------------------------- run lock (issue 26 item 2)
+@pytest.mark.parametrize("left", ["lock", "working folder", "parts and a temporary"])
+def test_a_run_killed_before_its_manifest_is_resumed_not_refused(tmp_path, left):
+    """kill -9 between taking the folder's lock and writing the manifest leaves
+    ``.slitcli`` with the lock and the command's working folder but no settings: no
+    results, so a re-run starts there (a foreign folder or another command's is still
+    refused)."""
+    out = tmp_path / "out"
+    work = out / ".slitcli" / "detect"
+    (out / ".slitcli").mkdir(parents=True)
+    (out / ".slitcli" / "lock").write_text("999999\n")
+    if left != "lock":
+        (work / "parts").mkdir(parents=True)
+    if left == "parts and a temporary":
+        (work / "parts" / "000000.rows.csv").write_text("stale\n")
+        (work / ".manifest.json.tmp-999999").write_text("{")
+    b = FrameBatch(out, "detect", {"fusion": "paper"})
+    assert not b.is_done(0) and (work / "manifest.json").exists()
+    b.close()
+    # the same leftovers are not this command's: refused
+    other = tmp_path / "other"
+    shutil.copytree(out, other)
+    (other / ".slitcli" / "detect" / "manifest.json").unlink()
+    with pytest.raises(SlitcliError, match="was not written by slitcli stereo"):
+        FrameBatch(other, "stereo", {"matcher": "nssd"})
+
+
 def test_the_lock_is_reentrant_within_a_process_and_released_on_close(tmp_path):
     a = FrameBatch(tmp_path, "detect", {"fusion": "paper"})
     b = FrameBatch(tmp_path, "detect", {"fusion": "paper"})  # same process: allowed

@@ -146,7 +146,8 @@ class FrameBatch:
             raise SlitcliError(f"{self.out}: exists and is not a folder; choose another "
                                "output path")
         foreign = None if shared or not self.out.is_dir() or (self.dir / "manifest.json").exists() \
-            else next((e for e in self.out.iterdir() if not is_lock_entry(self.out, e)), None)
+            else next((e for e in self.out.iterdir() if not is_lock_entry(self.out, e, name)),
+                      None)
         if foreign is not None and not overwrite:  # refused before the lock file is made
             raise SlitcliError(f"{self.out}: is not empty (it holds {foreign.name}) and was not "
                                f"written by slitcli {name}; choose another output folder or "
@@ -163,6 +164,9 @@ class FrameBatch:
         path = self.dir / "manifest.json"
         self.fresh = True
         # fresh: no results of an earlier run are kept (none, or discarded)
+        if not path.exists() and self.dir.exists():
+            # a run stopped before it recorded its settings: nothing in it can be trusted
+            shutil.rmtree(self.dir)
         if path.exists():
             try:
                 old = json.loads(path.read_text())

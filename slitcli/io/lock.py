@@ -95,12 +95,17 @@ def lock_output(out: str | Path, *, shown: str | Path | None = None) -> OutputLo
     return OutputLock(path, handle, time.time())
 
 
-def is_lock_entry(out: Path, entry: Path) -> bool:
+def is_lock_entry(out: Path, entry: Path, command: str | None = None) -> bool:
     """Whether ``entry`` (a child of ``out``) is only the lock's own folder: the lock
-    file and nothing else (a fresh folder holding just this is still empty)."""
+    file and nothing else (a fresh folder holding just this is still empty); with
+    ``command``, also that command's working folder of a run stopped before it wrote
+    its manifest (killed between taking the lock and recording its settings: it holds
+    no results)."""
     if entry.name != LOCK_DIR or not entry.is_dir():
         return False
-    return all(p.name == LOCK_NAME for p in entry.iterdir())
+    return all(p.name == LOCK_NAME or (p.name == command and p.is_dir()
+                                       and not (p / "manifest.json").exists())
+               for p in entry.iterdir())
 
 
 __all__ = ["OutputLock", "is_lock_entry", "lock_output"]
