@@ -8,19 +8,28 @@ STAMP := $(VENV)/.installed
 # @overload) changes. numba keys a cache entry on its own file's modification time only,
 # so a changed intrinsic would leave its callers' entries stale: every entry goes first
 KERNELS := $(VENV)/.kernels
+# the Cython kernels (setup.py), built into the clone by the editable install and again
+# (in place, without a fresh build environment) when a .pyx or .pxd changes
+EXTENSIONS := $(VENV)/.extensions
+EXTENSION_SOURCES := $(shell find slitcli -name '*.pyx' -o -name '*.pxd' 2>/dev/null)
 KERNEL_SOURCES := $(shell grep -rlE --include='*.py' \
 	'^\s*@(\w+\.)?(n?jit|intrinsic|register_jitable|overload)\b' slitcli 2>/dev/null)
 
 .PHONY: venv reproduce-figures test bench lint clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	@echo "set-up: installing slitcli and its dependencies into $(VENV) (a few minutes)"
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
-	touch $(STAMP)
+	touch $(STAMP) $(EXTENSIONS)
 
-$(KERNELS): $(STAMP) $(KERNEL_SOURCES)
+$(EXTENSIONS): $(STAMP) $(EXTENSION_SOURCES)
+	@echo "set-up: building the compiled kernels (Cython and the C compiler)"
+	$(PY) -m pip install --quiet --no-build-isolation --no-deps -e .
+	touch $(EXTENSIONS)
+
+$(KERNELS): $(EXTENSIONS) $(KERNEL_SOURCES)
 	@echo "set-up: compiling the numba kernels for this machine (one line per job)"
 	$(if $(filter slitcli/%,$?),find slitcli -name '*.nbi' -delete -o -name '*.nbc' -delete)
 	$(VENV)/bin/slitcli warm-up
