@@ -6,8 +6,10 @@ inlines the ``cdef inline`` functions of the ``.pxd`` files it cimports) to C; t
 compiler builds it for the processor of the machine that installs slitcli, as numba did
 (``-march=native``; set ``SLITCLI_PORTABLE_BUILD=1`` for a wheel that other x86-64
 machines can run). Floating-point contraction (fused multiply-add) stays off, so that a
-kernel's arithmetic is the IEEE operations its source spells, in that order; a module may
-add flags of its own in a ``# distutils: extra_compile_args = ...`` header line.
+kernel's arithmetic is the IEEE operations its source spells, in that order. A module whose
+kernels may reorder sums (as numba's ``fastmath`` allowed) says so in a header line of its
+own, ``# cflags: -fassociative-math -fno-signed-zeros -fno-trapping-math``, read here and
+passed after the defaults.
 """
 
 from __future__ import annotations
@@ -30,13 +32,22 @@ DIRECTIVES = {
 }
 
 
+def _own_flags(source: Path) -> list[str]:
+    """The ``# cflags: ...`` header line of a kernel module (its first 20 lines)."""
+    with source.open(encoding="utf-8") as text:
+        for _, line in zip(range(20), text, strict=False):
+            if line.startswith("# cflags:"):
+                return line.split(":", 1)[1].split()
+    return []
+
+
 def _extensions() -> list[Extension]:
     flags = ["-O3", "-ffp-contract=off", "-Wno-unreachable-code"]
     if not os.environ.get("SLITCLI_PORTABLE_BUILD"):
         flags.append("-march=native")
     sources = sorted(Path("slitcli").rglob("*.pyx"))
     extensions = [Extension(".".join(src.with_suffix("").parts), [str(src)],
-                            extra_compile_args=flags,
+                            extra_compile_args=flags + _own_flags(src),
                             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")])
                   for src in sources]
     if not extensions:

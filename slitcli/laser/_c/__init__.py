@@ -1,0 +1,1 @@
+"""Compiled (Cython) kernels of the laser stripe search; built by setup.py."""

@@ -1,0 +1,1 @@
+"""Compiled (Cython) kernels of the stereo matcher; built by setup.py."""
