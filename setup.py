@@ -42,7 +42,7 @@ def _own_flags(source: Path) -> list[str]:
 
 
 def _extensions() -> list[Extension]:
-    flags = ["-O3", "-ffp-contract=off", "-Wno-unreachable-code"]
+    flags = ["-O3", "-g0", "-ffp-contract=off", "-Wno-unreachable-code"]
     if not os.environ.get("SLITCLI_PORTABLE_BUILD"):
         flags.append("-march=native")
     sources = sorted(Path("slitcli").rglob("*.pyx"))
