@@ -507,6 +507,14 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
         return RunSummary("detect", len(todo), len(finished), time.perf_counter() - t0, ())
     if on_progress is not None:
         on_progress(n, n)
+    return _finish(batch, src, params, save_images, len(finished), t0)
+
+
+def _finish(batch: FrameBatch, src: FrameSource, params: DetectParams, save_images: bool,
+            resumed: int, t0: float) -> RunSummary:
+    """Assemble a whole run's tables from its finished frames, count the bins each sensor
+    ranged and say what the user should know (skipped frames, frames without a stripe)."""
+    n = len(src)
     table = batch.out / RANGES.file
     batch.assemble(n, "rows", table, RANGES.header)
     outputs: tuple[Path, ...] = (table,)
@@ -523,7 +531,7 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     # most frames without a laser bin: say so, and why where the images tell
     notes += absence_notes(lit, lambda pos: _grey_frames(src, [int(frame_ids[p]) for p in pos]),
                            search=params.laser.search)
-    return RunSummary("detect", n, len(finished), time.perf_counter() - t0, outputs,
+    return RunSummary("detect", n, resumed, time.perf_counter() - t0, outputs,
                       MappingProxyType({"laser_bins": counts.get("laser", 0),
                                         "stereo_bins": counts.get("stereo", 0),
                                         "skipped_frames": skipped}), notes)

@@ -260,14 +260,7 @@ def run_detect_many(sources: Sequence[str | Path], out: str | Path, *,
     from slitcli.detect import run_detect
 
     t0 = time.perf_counter()
-    srcs = [Path(s) for s in sources]
-    if not srcs:
-        raise SlitcliError("no inputs given; give sequence folders or bags", param="sources")
-    seen: dict[Path, Path] = {}
-    for s in srcs:
-        if s.resolve() in seen:
-            raise SlitcliError(f"{s}: is given twice; give each input once", param="sources")
-        seen[s.resolve()] = s
+    srcs = _distinct_inputs(sources)
     out = Path(out)
     single = len(srcs) == 1
     names = output_names(srcs)
@@ -276,64 +269,102 @@ def run_detect_many(sources: Sequence[str | Path], out: str | Path, *,
     targets = [out] if single else [out / n for n in names]
     n_frames, errors = _prepare(srcs, targets, overwrite, kwargs)
     chunks = [c for c in plan_chunks(n_frames, chunk_frames) if c.input not in errors]
-    total = sum(n for i, n in enumerate(n_frames) if i not in errors)
-    left = {i: 0 for i in range(len(srcs)) if i not in errors}
+    tally = _Tally(len(srcs), sum(n for i, n in enumerate(n_frames) if i not in errors),
+                   errors, on_progress)
     for c in chunks:
-        left[c.input] += 1
-    worker_s = dict.fromkeys(range(len(srcs)), 0.0)
-    resumed = dict.fromkeys(range(len(srcs)), 0)
-    summaries: list[RunSummary | None] = [None] * len(srcs)
-    frames_done = computed = chunks_resumed = 0
-    inputs_done = len(errors)
+        tally.left[c.input] += 1
 
-    def report() -> None:
-        if on_progress is not None:
-            on_progress(ManyProgress(inputs_done, len(srcs), frames_done, total,
-                                     chunks_resumed))
+    def finish(i: int) -> RunSummary:
+        # every frame is finished: this assembles the table from the parts
+        return run_detect(srcs[i], targets[i], overwrite=False, **kwargs)
 
-    report()
+    tally.report()
     run = (make_runner or serial_runner)(srcs, targets, {**kwargs})
     for r in run(chunks):
-        if isinstance(r, tuple):
-            c, e = r
-            if single or not isinstance(e, SlitcliError):
-                raise e
-            if c.input not in errors:
-                errors[c.input] = str(e)
-                inputs_done += 1
-                report()
-            continue
-        i = r.chunk.input
-        frames_done += len(r.chunk.frames)
-        computed += r.computed
-        resumed[i] += r.resumed
-        worker_s[i] += r.seconds
-        chunks_resumed += r.computed == 0 and len(r.chunk.frames) > 0
-        left[i] -= 1
-        if left[i] == 0 and i not in errors:
-            # every frame is finished: this assembles the table from the parts
-            try:
-                summaries[i] = run_detect(srcs[i], targets[i], overwrite=False, **kwargs)
-            except SlitcliError as e:
-                if single:
-                    raise
-                errors[i] = str(e)
-            else:
-                worker_s[i] += summaries[i].seconds
-            inputs_done += 1
-        report()
+        tally.take(r, single, finish)
     index = None
     if not single:
         index = out / INDEX_FILE
         _write_index(index, [
-            (str(s), names[i], n_frames[i], resumed[i],
-             "failed" if i in errors else "done", worker_s[i], errors.get(i, ""))
+            (str(s), names[i], n_frames[i], tally.resumed[i],
+             "failed" if i in errors else "done", tally.worker_s[i], errors.get(i, ""))
             for i, s in enumerate(srcs)])
     outputs = tuple(t for i, t in enumerate(targets) if i not in errors)
-    notes = tuple(n for s in summaries if s is not None for n in s.notes)
-    return ManySummary(tuple(srcs), outputs, tuple(summaries), total, computed, len(chunks),
-                       chunks_resumed, time.perf_counter() - t0,
+    notes = tuple(n for s in tally.summaries if s is not None for n in s.notes)
+    return ManySummary(tuple(srcs), outputs, tuple(tally.summaries), tally.total,
+                       tally.computed, len(chunks), tally.chunks_resumed,
+                       time.perf_counter() - t0,
                        tuple((srcs[i], m) for i, m in sorted(errors.items())), index, notes)
+
+
+def _distinct_inputs(sources: Sequence[str | Path]) -> list[Path]:
+    """The inputs as paths; none, or one given twice (as another spelling of the same
+    path too), is an error."""
+    srcs = [Path(s) for s in sources]
+    if not srcs:
+        raise SlitcliError("no inputs given; give sequence folders or bags", param="sources")
+    seen: set[Path] = set()
+    for s in srcs:
+        if s.resolve() in seen:
+            raise SlitcliError(f"{s}: is given twice; give each input once", param="sources")
+        seen.add(s.resolve())
+    return srcs
+
+
+class _Tally:
+    """What the chunks of a many-input run have done so far: per input (chunks left,
+    frames resumed, worker seconds, its summary once assembled, its error) and in all
+    (for :class:`ManyProgress`)."""
+
+    def __init__(self, n_inputs: int, total: int, errors: dict[int, str],
+                 on_progress: Callable[[ManyProgress], None] | None) -> None:
+        self.n_inputs, self.total, self.errors = n_inputs, total, errors
+        self.on_progress = on_progress
+        self.left = {i: 0 for i in range(n_inputs) if i not in errors}
+        self.worker_s = dict.fromkeys(range(n_inputs), 0.0)
+        self.resumed = dict.fromkeys(range(n_inputs), 0)
+        self.summaries: list[RunSummary | None] = [None] * n_inputs
+        self.frames_done = self.computed = self.chunks_resumed = 0
+        self.inputs_done = len(errors)
+
+    def report(self) -> None:
+        if self.on_progress is not None:
+            self.on_progress(ManyProgress(self.inputs_done, self.n_inputs, self.frames_done,
+                                          self.total, self.chunks_resumed))
+
+    def take(self, r: ChunkResult | tuple[Chunk, BaseException], single: bool,
+             finish: Callable[[int], RunSummary]) -> None:
+        """Count one chunk's result (or its failure); the last chunk of an input
+        assembles that input's table (``finish``). A single input's failure, and any
+        that is not a :class:`SlitcliError`, is raised; with several inputs the
+        input is marked failed and the others go on."""
+        if isinstance(r, tuple):
+            c, e = r
+            if single or not isinstance(e, SlitcliError):
+                raise e
+            if c.input not in self.errors:
+                self.errors[c.input] = str(e)
+                self.inputs_done += 1
+                self.report()
+            return
+        i = r.chunk.input
+        self.frames_done += len(r.chunk.frames)
+        self.computed += r.computed
+        self.resumed[i] += r.resumed
+        self.worker_s[i] += r.seconds
+        self.chunks_resumed += r.computed == 0 and len(r.chunk.frames) > 0
+        self.left[i] -= 1
+        if self.left[i] == 0 and i not in self.errors:
+            try:
+                self.summaries[i] = summary = finish(i)
+            except SlitcliError as e:
+                if single:
+                    raise
+                self.errors[i] = str(e)
+            else:
+                self.worker_s[i] += summary.seconds
+            self.inputs_done += 1
+        self.report()
 
 
 def summary_line(s: ManySummary) -> str:
