@@ -122,8 +122,17 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
         k += 1
         if on_progress is not None:
             on_progress(k, n)
+    return _finish(batch, src, params, overlay, len(done), t0)
+
+
+def _finish(batch: FrameBatch, src: FrameSource, params: LaserParams, overlay: bool,
+            resumed: int, t0: float) -> RunSummary:
+    """Publish a whole run's outputs once every frame is done (``laser.csv``, the
+    overlays, the skipped frames) and say what the user should know (frames without
+    a stripe, and why where the images tell)."""
+    n, out = len(src), batch.out
     if overlay:
-        _publish_overlays(out / OVERLAY_DIR, staged,
+        _publish_overlays(out / OVERLAY_DIR, batch.dir / OVERLAY_DIR,
                           [src.info[i].name for i in range(n) if not batch.is_skipped(i)])
     path = out / LASER.file
     batch.assemble(n, "laser", path, LASER.header)
@@ -138,7 +147,7 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
         outputs += (out / SKIPPED_FILE,)
         notes += (f"{bad} frame(s) could not be read and were skipped (no rows): "
                   f"{out / SKIPPED_FILE}",)
-    return RunSummary("laser", n, len(done), time.perf_counter() - t0, outputs,
+    return RunSummary("laser", n, resumed, time.perf_counter() - t0, outputs,
                       MappingProxyType({"stripe_columns": len(table),
                                         "skipped_frames": bad}), notes)
 

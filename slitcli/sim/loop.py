@@ -310,9 +310,8 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
     min_clear = initial = here
     path = 0.0
     best_goal = math.inf
-    best_t = still_t = 0.0
-    still_xy = np.array(pose[:2])
-    backing = 0
+    best_t = 0.0
+    recovery = _Recovery(pose, sim, dwa)
     t_goal = math.nan
     outcome = "timeout"
     for k in range(steps + 1):
@@ -333,24 +332,13 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
         scans.append(scan)
         static_w, moving_w = model.update(pose, scan.bearing_deg, scan.range_m, scan.forward_m,
                                           scan.free_m, t)
-        if np.hypot(*(np.array(pose[:2]) - still_xy)) > sim.stuck_progress_m:
-            still_xy, still_t = np.array(pose[:2]), t
-        if (sim.recovery_after_s > 0 and t - still_t > sim.recovery_after_s
-                and dist > dwa.goal_close_m and backing == 0):
-            backing = math.ceil(sim.recovery_back_m / (sim.recovery_speed_mps * dwa.dt_s))
-            still_t = t
-        v_back = _backup(pose, static_w, sim, dwa.footprint_radius_m) if backing else 0.0
-        backing = backing - 1 if v_back < 0 else 0
+        v_back = recovery.speed(pose, t, dist, static_w)
         cmd_v, cmd_w, status = (v_back, 0.0, "recover") if v_back < 0 else \
             _plan(pose, v, w, goal, static_w, moving_w, dwa)
         rows.append((t, *pose[:2], math.degrees(pose[2]), cmd_v, math.degrees(cmd_w), here))
         statuses.append(status)
-        along = unicycle(pose, cmd_v, cmd_w, sub_t)
-        clear = truth.clearance(along[:, :2], t + sub_t) - radius
-        min_clear = min(min_clear, float(clear.min()))
-        hit = np.flatnonzero(clear <= 0)
-        if len(hit):  # stop at the first contact
-            along, clear = along[: hit[0] + 1], clear[: hit[0] + 1]
+        along, clear, lowest = _advance(truth, radius, pose, cmd_v, cmd_w, t, sub_t)
+        min_clear = min(min_clear, lowest)
         here = float(clear[-1])
         path += abs(cmd_v) * (len(along) * dwa.dt_s / sim.substeps)
         pose = tuple(float(x) for x in along[-1])
@@ -368,6 +356,48 @@ def run_world(world: World, sensor: Sensor, dwa: DwaParams, sim: SimParams) -> R
         "outcome": outcome,
     }
     return RunResult(traj, metrics, ranges)
+
+
+def _advance(truth: _Truth, radius_m: float, pose: tuple[float, float, float], v_mps: float,
+             w_radps: float, t_s: float, sub_t_s: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Move the robot under one command for one period: the poses (n, 3) at the
+    sub-step instants ``t_s + sub_t_s``, stopped at the first contact, the clearance
+    (m) of the robot's disc at each, and the smallest clearance over the whole period
+    (the command as if no contact stopped it)."""
+    along = unicycle(pose, v_mps, w_radps, sub_t_s)
+    clear = truth.clearance(along[:, :2], t_s + sub_t_s) - radius_m
+    lowest = float(clear.min())
+    hit = np.flatnonzero(clear <= 0)
+    if len(hit):  # stop at the first contact
+        along, clear = along[: hit[0] + 1], clear[: hit[0] + 1]
+    return along, clear, lowest
+
+
+class _Recovery:
+    """Backing up out of a dead end: when the robot has moved less than
+    ``stuck_progress_m`` for ``recovery_after_s`` away from the goal, it reverses
+    ``recovery_back_m`` at ``recovery_speed_mps`` (as far as the map behind it is free,
+    :func:`_backup`), then plans again."""
+
+    def __init__(self, pose: tuple[float, float, float], sim: SimParams, dwa: DwaParams):
+        self.sim, self.dwa = sim, dwa
+        self.still_xy, self.still_t = np.array(pose[:2]), 0.0
+        self.backing = 0
+
+    def speed(self, pose: tuple[float, float, float], t_s: float, goal_dist_m: float,
+              static_w: np.ndarray) -> float:
+        """The reversing speed (m/s, < 0) for this period, or 0 to plan as usual."""
+        sim, dwa = self.sim, self.dwa
+        if np.hypot(*(np.array(pose[:2]) - self.still_xy)) > sim.stuck_progress_m:
+            self.still_xy, self.still_t = np.array(pose[:2]), t_s
+        if (sim.recovery_after_s > 0 and t_s - self.still_t > sim.recovery_after_s
+                and goal_dist_m > dwa.goal_close_m and self.backing == 0):
+            self.backing = math.ceil(sim.recovery_back_m / (sim.recovery_speed_mps * dwa.dt_s))
+            self.still_t = t_s
+        v_back = _backup(pose, static_w, sim, dwa.footprint_radius_m) if self.backing else 0.0
+        self.backing = self.backing - 1 if v_back < 0 else 0
+        return v_back
 
 
 def _range_table(scans: list[RangeScan], dt_s: float) -> pd.DataFrame:
