@@ -21,96 +21,112 @@ def _laser_defaults() -> dict[str, Any]:
 _LD = _laser_defaults()
 
 
+#: the laser tuning options: (LaserParams field, help, choices); the flag is the field's
+#: name with dashes, the default and type LaserParams' own
+_LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
+    ("method",
+     "model: the stripe model with noise, width, profile and laser colour measured on each "
+     "image; paper: the paper's Eqs. 1-4 taken literally per pixel (a baseline for "
+     "comparison).",
+     ["model", "paper"]),
+    ("search",
+     "rig: only rows where the rig's laser plane lies within --max-search-range-m; full: "
+     "every row (a camera whose geometry is unknown or differs from the rig).",
+     ["rig", "full"]),
+    ("min_th",
+     "Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a stripe adds above the "
+     "surface (unitless; grey is 0.333).",
+     None),
+    ("min_delta_th",
+     "Eq. 2: minimum R - max(G, B) of that added light (unitless).",
+     None),
+    ("alpha",
+     "Eq. 3 white rejection (paper 0.32), --method paper: red must exceed alpha x max(g, b) "
+     "(unitless).",
+     None),
+    ("beta",
+     "Eq. 4 weight of the continuity term f(y) (paper 0.25); the model method weighs the "
+     "previous frame's row with it.",
+     None),
+    ("gamma",
+     "Eq. 4 weight of the narrowness term g(I) (paper 0.25), --method paper.",
+     None),
+    ("max_width_share",
+     "Widest stripe (equivalent width, 2.5 Gaussian sigmas) as a share of the image height: "
+     "8 px at 240 rows, 32 px at 960 (unitless).",
+     None),
+    ("seed_z",
+     "Candidates start where the laser evidence is this many noise sigmas high (noise "
+     "measured on each image; unitless).",
+     None),
+    ("min_z",
+     "Root mean square significance (peak over its standard error) of a segment's columns "
+     "(unitless).",
+     None),
+    ("weak_z",
+     "Least significance of one column of a segment (unitless, <= --min-z).",
+     None),
+    ("shape_error",
+     "Relative error of the Gaussian profile (speckle, demosaicing, JPEG) allowed by the "
+     "shape test (unitless).",
+     None),
+    ("max_chi2",
+     "Largest reduced chi-square of a Gaussian profile; a worse fit is centred by its upper "
+     "half instead (unitless).",
+     None),
+    ("colour_error",
+     "Share by which a candidate's colour may leave the plane of the laser's colour "
+     "(measured on the frame) and the surface's (unitless).",
+     None),
+    ("min_texture_ratio",
+     "Least texture-to-noise ratio along the surface colour that the laser evidence assumes "
+     "(unitless); between it and --max-texture-ratio the ratio is measured on each image.",
+     None),
+    ("max_texture_ratio",
+     "Largest texture-to-noise ratio along the surface colour that the laser evidence "
+     "assumes (unitless).",
+     None),
+    ("noise_floor_dn",
+     "Smallest noise sigma of the laser evidence (quantisation and compression), DN.",
+     None),
+    ("saturation_dn",
+     "Level from which a pixel counts as clipped, DN.",
+     None),
+    ("continuity_px",
+     "Scale of the row change between neighbouring columns, px.",
+     None),
+    ("max_jump_px",
+     "Largest row step between neighbouring columns of one segment, px.",
+     None),
+    ("min_segment_share",
+     "Shorter segments (share of the image width; 8 columns at 320) are dropped unless their"
+     " columns are strong (unitless).",
+     None),
+    ("min_stripe_share",
+     "A frame whose longest segment spans less than this share of the width shows no stripe "
+     "(unitless).",
+     None),
+    ("max_search_range_m",
+     "--search rig: rows whose laser-plane range is at most this, m.",
+     None),
+    ("sheet_sigma_mm",
+     "--search rig: laser sheet thickness (Gaussian sigma across the plane), mm; 0 = no "
+     "thickness test.",
+     None),
+    ("sheet_tolerance",
+     "A candidate whose width implies a sheet this many times thicker or thinner is rejected"
+     " (> 1).",
+     None),
+)
+
+
 def laser_options(f: Any) -> Any:
     """The laser tuning options (fields of :class:`slitcli.laser.params.LaserParams`), shared
     by ``laser`` and ``detect``."""
-    options = [
-        click.option("--method", type=click.Choice(["model", "paper"]), default=_LD["method"],
-                     show_default=True,
-                     help="model: the stripe model with noise, width, profile and laser colour "
-                          "measured on each image; paper: the paper's Eqs. 1-4 taken literally per "
-                          "pixel (a baseline for comparison)."),
-        click.option("--search", type=click.Choice(["rig", "full"]), default=_LD["search"],
-                     show_default=True,
-                     help="rig: only rows where the rig's laser plane lies within "
-                          "--max-search-range-m; full: every row (a camera whose geometry is "
-                          "unknown or differs from the rig)."),
-        click.option("--min-th", type=float, default=_LD["min_th"], show_default=True,
-                     help="Eq. 2: minimum red chromaticity R = r/(r+g+b) of the light a stripe "
-                          "adds "
-                          "above the surface (unitless; grey is 0.333)."),
-        click.option("--min-delta-th", type=float, default=_LD["min_delta_th"], show_default=True,
-                     help="Eq. 2: minimum R - max(G, B) of that added light (unitless)."),
-        click.option("--alpha", type=float, default=_LD["alpha"], show_default=True,
-                     help="Eq. 3 white rejection (paper 0.32), --method paper: red must exceed "
-                          "alpha x max(g, b) (unitless)."),
-        click.option("--beta", type=float, default=_LD["beta"], show_default=True,
-                     help="Eq. 4 weight of the continuity term f(y) (paper 0.25); the model "
-                          "method weighs the previous frame's row with it."),
-        click.option("--gamma", type=float, default=_LD["gamma"], show_default=True,
-                     help="Eq. 4 weight of the narrowness term g(I) (paper 0.25), --method paper."),
-        click.option("--max-width-share", type=float, default=_LD["max_width_share"],
-                     show_default=True,
-                     help="Widest stripe (equivalent width, 2.5 Gaussian sigmas) as a share of the "
-                          "image height: 8 px at 240 rows, 32 px at 960 (unitless)."),
-        click.option("--seed-z", type=float, default=_LD["seed_z"], show_default=True,
-                     help="Candidates start where the laser evidence is this many noise sigmas "
-                          "high (noise measured on each image; unitless)."),
-        click.option("--min-z", type=float, default=_LD["min_z"], show_default=True,
-                     help="Root mean square significance (peak over its standard error) of a "
-                          "segment's columns (unitless)."),
-        click.option("--weak-z", type=float, default=_LD["weak_z"], show_default=True,
-                     help="Least significance of one column of a segment (unitless, <= --min-z)."),
-        click.option("--shape-error", type=float, default=_LD["shape_error"], show_default=True,
-                     help="Relative error of the Gaussian profile (speckle, demosaicing, JPEG) "
-                          "allowed by the shape test (unitless)."),
-        click.option("--max-chi2", type=float, default=_LD["max_chi2"], show_default=True,
-                     help="Largest reduced chi-square of a Gaussian profile; a worse fit is "
-                          "centred by its upper half instead (unitless)."),
-        click.option("--colour-error", type=float, default=_LD["colour_error"], show_default=True,
-                     help="Share by which a candidate's colour may leave the plane of the laser's "
-                          "colour (measured on the frame) and the surface's (unitless)."),
-        click.option("--min-texture-ratio", type=float, default=_LD["min_texture_ratio"],
-                     show_default=True,
-                     help="Least texture-to-noise ratio along the surface colour that the "
-                          "laser evidence assumes (unitless); between it and "
-                          "--max-texture-ratio the ratio is measured on each image."),
-        click.option("--max-texture-ratio", type=float, default=_LD["max_texture_ratio"],
-                     show_default=True,
-                     help="Largest texture-to-noise ratio along the surface colour that the "
-                          "laser evidence assumes (unitless)."),
-        click.option("--noise-floor-dn", type=float, default=_LD["noise_floor_dn"],
-                     show_default=True,
-                     help="Smallest noise sigma of the laser evidence (quantisation and "
-                          "compression), DN."),
-        click.option("--saturation-dn", type=int, default=_LD["saturation_dn"], show_default=True,
-                     help="Level from which a pixel counts as clipped, DN."),
-        click.option("--continuity-px", type=float, default=_LD["continuity_px"], show_default=True,
-                     help="Scale of the row change between neighbouring columns, px."),
-        click.option("--max-jump-px", type=float, default=_LD["max_jump_px"], show_default=True,
-                     help="Largest row step between neighbouring columns of one segment, px."),
-        click.option("--min-segment-share", type=float, default=_LD["min_segment_share"],
-                     show_default=True,
-                     help="Shorter segments (share of the image width; 8 columns at 320) are "
-                          "dropped unless their columns are strong (unitless)."),
-        click.option("--min-stripe-share", type=float, default=_LD["min_stripe_share"],
-                     show_default=True,
-                     help="A frame whose longest segment spans less than this share of the width "
-                          "shows no stripe (unitless)."),
-        click.option("--max-search-range-m", type=float, default=_LD["max_search_range_m"],
-                     show_default=True,
-                     help="--search rig: rows whose laser-plane range is at most this, m."),
-        click.option("--sheet-sigma-mm", type=float, default=_LD["sheet_sigma_mm"],
-                     show_default=True,
-                     help="--search rig: laser sheet thickness (Gaussian sigma across the plane), "
-                          "mm; 0 = no thickness test."),
-        click.option("--sheet-tolerance", type=float, default=_LD["sheet_tolerance"],
-                     show_default=True,
-                     help="A candidate whose width implies a sheet this many times thicker or "
-                          "thinner is rejected (> 1)."),
-    ]
-    for option in reversed(options):
-        f = option(f)
+    for field, text, choices in reversed(_LASER_OPTIONS):
+        kind = click.Choice(choices) if choices else type(_LD[field])
+        f = click.option("--" + field.replace("_", "-"), type=kind, default=_LD[field],
+                         show_default=True, help=text)(f)
     return f
 
 
