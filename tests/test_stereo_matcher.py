@@ -539,8 +539,9 @@ def test_row_window_minimum_is_an_erosion(seed):
 
 
 def test_second_thread_only_when_another_core_is_free(monkeypatch):
-    # the matcher's thread count: numba's setting, less the cores other runnable tasks
-    # hold right now (/proc/loadavg's running count includes the calling thread)
+    # the matcher's thread count: SLITCLI_THREADS (default every core), less the cores
+    # other runnable tasks hold right now (/proc/loadavg's running count includes the
+    # calling thread); a setting that is no positive number is an error naming it
     import io
 
     import slitcli.stereo.bands as matcher
@@ -555,10 +556,14 @@ def test_second_thread_only_when_another_core_is_free(monkeypatch):
         return fake_open
 
     monkeypatch.setattr(matcher.os, "cpu_count", lambda: 2)
-    monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 2)
+    monkeypatch.delenv(matcher.THREADS_ENV, raising=False)
     for running, expected in ((1, 2), (2, 1), (5, 1)):
         monkeypatch.setattr("builtins.open", fake_loadavg(running))
         assert matcher.kernel_threads() == expected
     monkeypatch.setattr("builtins.open", fake_loadavg(1))
-    monkeypatch.setattr(matcher.numba, "get_num_threads", lambda: 1)
+    monkeypatch.setenv(matcher.THREADS_ENV, "1")
     assert matcher.kernel_threads() == 1
+    for bad in ("0", "-2", "two"):
+        monkeypatch.setenv(matcher.THREADS_ENV, bad)
+        with pytest.raises(SlitcliError, match="SLITCLI_THREADS"):
+            matcher.kernel_threads()

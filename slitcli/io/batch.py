@@ -368,10 +368,12 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
 
 
 def single_thread_worker() -> None:
-    """Pool initializer: one OpenCV/numba thread per worker process (the pool is the
-    parallelism; nested threads would oversubscribe the cores)."""
+    """Pool initializer: one thread for OpenCV and for the compiled kernels per worker
+    process (the pool is the parallelism; nested threads would oversubscribe the cores).
+    numba is not imported for it: no slitcli kernel uses numba's own threads."""
     import cv2
-    import numba
+
+    from slitcli.stereo.bands import THREADS_ENV
 
     cv2.setNumThreads(1)
-    numba.set_num_threads(1)
+    os.environ[THREADS_ENV] = "1"

@@ -1,7 +1,8 @@
 """Rows in bands over threads: how the compiled stereo kernels use the cores.
 
-The numba kernels release the GIL and each band of rows depends only on read-only
-inputs, so plain threads run bands in parallel (no process pool, no copies).
+The compiled kernels (Cython and numba) release the GIL and each band of rows depends
+only on read-only inputs, so plain threads run bands in parallel (no process pool, no
+copies).
 """
 
 from __future__ import annotations
@@ -12,21 +13,33 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
+from slitcli.errors import SlitcliError
+
+#: environment variable: most threads a frame's kernels use (default: every core); the
+#: workers of a process pool set it to 1 (slitcli.io.batch.single_thread_worker)
+THREADS_ENV = "SLITCLI_THREADS"
 
 
 def kernel_threads() -> int:
     """Threads for the compiled kernels of one frame.
 
-    At most numba's setting (``NUMBA_NUM_THREADS``, default the number of cores; 1 in
-    the workers of a process pool), and only cores that no other runnable task holds
+    At most ``SLITCLI_THREADS`` (default the number of cores; 1 in the workers of a
+    process pool), and only cores that no other runnable task holds
     right now (Linux ``/proc/loadavg``; this thread is one of the runnable tasks). A
     band of rows handed to a core that another process holds waits for that core's
     time slice, and every kernel of the frame waits for its slowest band: measured on
     the 2-core development machine under a competing busy loop, a second thread made
     a frame slower, not faster (docs/notes/stereo-kernels.md).
     """
-    wanted = int(numba.get_num_threads())
+    setting = os.environ.get(THREADS_ENV, "").strip()
+    try:
+        wanted = int(setting) if setting else (os.cpu_count() or 1)
+    except ValueError:
+        wanted = 0
+    if wanted < 1:
+        raise SlitcliError(f"{THREADS_ENV}={setting!r} is not a positive whole number of "
+                           "threads; set it to 1 or more, or unset it for every core",
+                           param=THREADS_ENV)
     if wanted <= 1:
         return 1
     try:
@@ -71,4 +84,4 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
         f.result()
 
 
-__all__ = ["kernel_threads", "run_row_bands"]
+__all__ = ["THREADS_ENV", "kernel_threads", "run_row_bands"]
