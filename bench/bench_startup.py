@@ -5,10 +5,11 @@ Measures, after the set-up (the kernels warmed up), each over N runs (default 21
 - wall and CPU time (user + sys of the child process) of `python -c pass` (the
   interpreter alone), `slitcli --help` and a warm `slitcli detect` of a one-frame
   sequence (the first frame of SEQ);
-- the CPU breakdown of that detect measured inside the process: numpy, numba (with
-  SciPy's version check), OpenCV, numba's registries (loaded on the first kernel call),
-  each kernel's cache load, numba's dispatch around the loads, and the rest (slitcli's
-  modules, reading, the frame's work, writing); which heavy modules were imported;
+- the CPU breakdown of that detect measured inside the process: numpy, OpenCV, loading
+  the compiled (Cython) kernel modules, importing slitcli's command-line and detect
+  modules, and the command itself (reading, the frame's work, writing); whether the
+  command imported numba (it should not: the detect path is compiled ahead of time) and
+  which heavy modules it imported;
 - `python -X importtime -c "import slitcli.detect"`: cumulative import time of the
   largest packages.
 
@@ -42,28 +43,20 @@ HEAVY = ("pandas", "scipy.linalg", "matplotlib", "skimage")
 
 # One warm detect, timed from inside: the parts of its CPU time (process_time).
 _BREAKDOWN = r'''
-import json, sys, time
+import importlib, json, pathlib, sys, time
 T = time.process_time
 t_start = T()
 t0 = T(); import numpy; t_numpy = T() - t0
 t0 = T(); import cv2; t_cv2 = T() - t0
-from slitcli.cli import main   # installs the compile notice (and numba's import hooks)
-t0 = T(); import numba; t_numba = T() - t0
-from numba.core import caching, dispatcher
-loads, outer, inner = [], [], []
-orig_c, orig_l, orig_i = (dispatcher.Dispatcher._compile_for_args,
-                          caching.Cache.load_overload, caching.Cache._load_overload)
-def c(self, *a, **k):
-    t = T(); r = orig_c(self, *a, **k); outer.append(T() - t); return r
-def l(self, *a, **k):
-    t = T(); r = orig_l(self, *a, **k)
-    f = self._py_func
-    loads.append((f.__module__ + '.' + f.__qualname__, T() - t)); return r
-def i(self, *a, **k):
-    t = T(); r = orig_i(self, *a, **k); inner.append(T() - t); return r
-dispatcher.Dispatcher._compile_for_args = c
-caching.Cache.load_overload = l
-caching.Cache._load_overload = i
+import slitcli
+root = pathlib.Path(slitcli.__file__).parent
+compiled = sorted("slitcli." + ".".join(p.relative_to(root).parts[:-1] + (p.name.split(".")[0],))
+                  for p in root.rglob("*.so"))
+t0 = T()
+for name in compiled:
+    importlib.import_module(name)
+t_compiled = T() - t0
+t0 = T(); from slitcli.cli import main; import slitcli.detect; t_modules = T() - t0
 sys.argv = ["slitcli", "detect", sys.argv[1], "-o", sys.argv[2]]
 t0 = T()
 try:
@@ -72,16 +65,13 @@ except SystemExit:
     pass
 t_cmd = T() - t0
 print(json.dumps({
-    "numpy": t_numpy, "cv2": t_cv2, "numba": t_numba,
-    "registries": loads[0][1] - inner[0] if loads else 0.0,
-    "cache_loads": sum(inner), "n_kernels": len(inner),
-    "dispatch": sum(outer) - sum(t for _, t in loads),
-    "rest": t_cmd - sum(outer), "total": T() - t_start,
-    "kernels": [[name, t] for (name, _), t in zip(loads, inner)],
+    "numpy": t_numpy, "cv2": t_cv2, "compiled": t_compiled, "n_compiled": len(compiled),
+    "modules": t_modules, "command": t_cmd, "total": T() - t_start,
+    "numba": "numba" in sys.modules,
     "heavy": [m for m in HEAVY if m in sys.modules]}))
 '''.replace("HEAVY", repr(HEAVY))
 
-PARTS = ("numpy", "cv2", "numba", "registries", "cache_loads", "dispatch", "rest", "total")
+PARTS = ("numpy", "cv2", "compiled", "modules", "command", "total")
 IMPORTS = ("numpy", "numba", "scipy", "cv2", "yaml", "click", "pandas", "matplotlib")
 
 
@@ -143,11 +133,8 @@ def measure(seq: Path = CORRIDOR, runs: int = 21,
             [sys.executable, "-c", _BREAKDOWN, str(one), f"{tmp}/bd{i}"], check=True,
             capture_output=True, text=True).stdout.splitlines()[-1]) for i in range(runs)]
     result["breakdown_cpu_s"] = {k: statistics.median(r[k] for r in rows) for k in PARTS}
-    result["kernels_loaded"] = statistics.median(r["n_kernels"] for r in rows)
-    names = [n for n, _ in rows[0]["kernels"]]
-    result["kernel_load_cpu_s"] = {
-        n: statistics.median(r["kernels"][k][1] for r in rows if len(r["kernels"]) > k)
-        for k, n in enumerate(names)}
+    result["compiled_modules"] = rows[0]["n_compiled"]
+    result["numba_imported"] = any(r["numba"] for r in rows)
     result["heavy_modules_imported"] = rows[0]["heavy"]
     say(f"importtime x {runs}")
     imports = [_importtime() for _ in range(runs)]
@@ -168,14 +155,14 @@ def table(result: dict) -> str:
     b = result["breakdown_cpu_s"]
     lines += ["", "| warm detect, CPU inside the process | s |", "|---|---|"]
     labels = {"numpy": "numpy import", "cv2": "OpenCV import",
-              "numba": "numba import (with SciPy's version check)",
-              "registries": "numba's registries, on the first kernel call",
-              "cache_loads": f"{result['kernels_loaded']:.0f} kernels loaded from the cache",
-              "dispatch": "numba's dispatch around the loads",
-              "rest": "the rest: slitcli's modules, reading, the frame's work, writing",
+              "compiled": f"loading the {result['compiled_modules']} compiled kernel modules",
+              "modules": "slitcli's command line and detect modules (import)",
+              "command": "the command: reading, the frame's work, writing",
               "total": "total"}
     lines += [f"| {labels[k]} | {b[k]:.3f} |" for k in PARTS]
-    lines += ["", "heavy modules imported: " + (", ".join(result["heavy_modules_imported"])
+    lines += ["", "numba imported by the command: "
+              + ("yes" if result["numba_imported"] else "no"),
+              "", "heavy modules imported: " + (", ".join(result["heavy_modules_imported"])
                                                 or "none of " + ", ".join(HEAVY)), "",
               "| `import slitcli.detect`: cumulative import time | s |", "|---|---|"]
     lines += [f"| {k} | {v:.3f} |" for k, v in result["importtime_s"].items()]
@@ -191,7 +178,8 @@ def bench(timer: object) -> list[dict]:
             for name, c in result["cases"].items()]
     b = result["breakdown_cpu_s"]
     rows.append({"name": "startup: warm detect CPU breakdown", "runs": result["runs"],
-                 "breakdown_cpu_s": b, "kernels_loaded": result["kernels_loaded"],
+                 "breakdown_cpu_s": b, "compiled_modules": result["compiled_modules"],
+                 "numba_imported": result["numba_imported"],
                  "heavy_modules_imported": result["heavy_modules_imported"],
                  "note": ", ".join(f"{k} {v:.3f} s" for k, v in b.items())})
     return rows
