@@ -12,7 +12,7 @@ import numpy as np
 from libc.float cimport DBL_MAX
 from libc.math cimport INFINITY, NAN, ceil, exp, fabs, isfinite, isnan, rint, sqrt
 
-from slitcli.laser._c.light cimport own_light
+from slitcli.laser._c.light cimport OWN_REACH_PX, own_light
 from slitcli.laser._c.profile cimport (CONVERGED_PX, F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB,
                                        F_KG, F_KR, F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS,
                                        F_TB, F_TG, F_TR, F_WIDTH, F_Z, MAX_ITER, MIN_ROWS,
@@ -36,13 +36,14 @@ cdef double CLIP_SIGMAS = 5.0
 
 
 def constants():
-    """The compiled constants (:mod:`slitcli.laser.candidates`', :mod:`.profile`'s field
-    indices), for the test that they agree with the Python ones."""
+    """The compiled constants (:mod:`slitcli.laser.candidates`', :mod:`.profile`'s and
+    its field indices, :mod:`.judge`'s ``OWN_REACH_PX``), for the test that they agree
+    with the Python ones."""
     return {"NMS_HALF": NMS_HALF, "FLANK_ROWS": FLANK_ROWS, "NOISE_HALF": NOISE_HALF,
             "N_SEEDS": N_SEEDS, "SEED_MIN_SIGMA_PX": SEED_MIN_SIGMA_PX,
             "SEED_EFFICIENCY": SEED_EFFICIENCY, "MEAN_TO_SIGMA": MEAN_TO_SIGMA,
             "CLIP_SIGMAS": CLIP_SIGMAS, "CONVERGED_PX": CONVERGED_PX, "N_PAR": N_PAR,
-            "MAX_ITER": MAX_ITER, "MIN_ROWS": MIN_ROWS,
+            "MAX_ITER": MAX_ITER, "MIN_ROWS": MIN_ROWS, "OWN_REACH_PX": OWN_REACH_PX,
             "MIN_SIGMA_PX": MIN_SIGMA_PX, "N_FIELDS": N_FIELDS,
             "F_POS": F_POS, "F_AMP": F_AMP, "F_WIDTH": F_WIDTH, "F_Z": F_Z,
             "F_SE_POS": F_SE_POS, "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_NOISE": F_NOISE,
