@@ -1,10 +1,11 @@
 """Step 3 of the stripe model, compiled: candidate crossings per column, seeded and fitted.
 
-The seeds, fits and their notes are :mod:`slitcli.laser.candidates`'; these are its
-kernels. Arithmetic in the numba kernels' order and types (float32 evidence, float64
-sums; Python ``min``/``max``; uint8 differences as numba's unsigned 64-bit ones), so that
-results are bit-identical but for :func:`slitcli.laser._c.profile._normal`'s sums, which
-numba could reorder (``fastmath``) and C here does not.
+The seeds (``seeds.pxd``), the fits (``profile.pxd``) and their notes are
+:mod:`slitcli.laser.candidates`'; these are its kernels. Arithmetic in the numba kernels'
+order and types (float32 evidence, float64 sums; Python ``min``/``max``; uint8
+differences as numba's unsigned 64-bit ones), so that results are bit-identical to
+numba's but for ``profile.pxd``'s ``_normal`` sums, which numba could reorder
+(``fastmath``) and C here does not: IEEE order, the same on every machine.
 """
 
 import numpy as np
@@ -18,21 +19,17 @@ from slitcli.laser._c.profile cimport (CONVERGED_PX, F_AMP, F_CHI2, F_FLAT, F_GN
                                        F_TB, F_TG, F_TR, F_WIDTH, F_Z, MAX_ITER, MIN_ROWS,
                                        MIN_SIGMA_PX, N_FIELDS, N_PAR, fit_gaussian, flat_top,
                                        gaussian_rows, imax, imin, plateau_centre, pmax, pmin)
+from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
+                                     NOISE_HALF, _local_sigma, _seeds)
 
 ctypedef fused real:
     float
     double
 
-# (slitcli.laser.candidates' constants; tests/test_laser_kernels.py checks that they agree)
-cdef enum:
-    NMS_HALF = 2
-    FLANK_ROWS = 2
-    NOISE_HALF = 24
-    N_SEEDS = 5
+# (slitcli.laser.candidates' constants, as seeds.pxd's; tests/test_laser_kernels.py checks
+# that they agree)
 cdef double SEED_MIN_SIGMA_PX = 0.6
 cdef double SEED_EFFICIENCY = exp(-0.25 / (4.0 * (SEED_MIN_SIGMA_PX * SEED_MIN_SIGMA_PX)))
-cdef double MEAN_TO_SIGMA = sqrt(3.141592653589793 / 2.0) / sqrt(1.5)
-cdef double CLIP_SIGMAS = 5.0
 
 
 def constants():
@@ -49,27 +46,6 @@ def constants():
             "F_SE_POS": F_SE_POS, "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_NOISE": F_NOISE,
             "F_TR": F_TR, "F_TG": F_TG, "F_TB": F_TB, "F_KR": F_KR, "F_KG": F_KG,
             "F_KB": F_KB, "F_NCORE": F_NCORE, "F_FLAT": F_FLAT, "F_GNOISE": F_GNOISE}
-
-
-cdef inline double _local_sigma(const float* yi, const unsigned char* mi, Py_ssize_t n,
-                                double c, double core, double clip) noexcept nogil:
-    """Noise of the evidence ``yi`` (n,) within ``NOISE_HALF + core`` rows of ``c``, the
-    rows within ``core`` left out: the mean absolute lag-2 residual (each clipped at
-    ``clip``, so that an edge or a second stripe counts as no more than that), scaled to a
-    Gaussian's sigma."""
-    cdef Py_ssize_t lo = imax(<Py_ssize_t>(c - core - NOISE_HALF), 2)
-    cdef Py_ssize_t hi = imin(<Py_ssize_t>(c + core + NOISE_HALF) + 1, n - 2)
-    cdef Py_ssize_t j, m = 0
-    cdef double acc = 0.0
-    for j in range(lo, hi):
-        if fabs(j - c) <= core + 2.0 or not (mi[j - 2] and mi[j + 2]):
-            continue
-        # (float32 sum of the two neighbours, as numba's)
-        acc += pmin(fabs(yi[j] - 0.5 * (yi[j - 2] + yi[j + 2])), clip)
-        m += 1
-    if m < 8:
-        return 0.0
-    return MEAN_TO_SIGMA * acc / m
 
 
 cdef inline double _linear_z_c(const real* y, const unsigned char* use, Py_ssize_t m,
@@ -145,109 +121,6 @@ def _linear_z(const real[::1] y, use, Py_ssize_t j0, double v, double s, double 
     with nogil:
         z = _linear_z_c(&y[0], &u[0], m, j0, v, s, sigma, &e[0])
     return z
-
-
-cdef inline double _red_excess(const unsigned char[:, :, ::1] img,
-                               const unsigned char[:, ::1] bg, Py_ssize_t i,
-                               Py_ssize_t j) noexcept nogil:
-    """Red excess ``t_r - max(t_g, t_b)`` of the contrast of pixel ``j`` of column ``i``."""
-    cdef double tr = <double>img[i, j, 2] - bg[3 * i + 2, j]
-    cdef double tg = <double>img[i, j, 1] - bg[3 * i + 1, j]
-    cdef double tb = <double>img[i, j, 0] - bg[3 * i, j]
-    return tr - pmax(tg, tb)
-
-
-cdef inline bint _red_flanks(const unsigned char[:, :, ::1] img,
-                             const unsigned char[:, ::1] bg, Py_ssize_t i, Py_ssize_t a,
-                             Py_ssize_t b, double seed_dn) noexcept nogil:
-    """Whether the clipped run ``[a, b)`` of column ``i`` has red light on both flanks:
-    the largest red excess within ``FLANK_ROWS`` rows beyond each end (an image border
-    counts as ``seed_dn``) positive on both sides and ``2 seed_dn`` together (a laser
-    core's flanks are both red; a white highlight's fringe is white on both sides)."""
-    cdef Py_ssize_t n = img.shape[1], d
-    cdef double up = seed_dn if a == 0 else -1e300
-    cdef double dn = seed_dn if b == n else -1e300
-    for d in range(1, FLANK_ROWS + 1):
-        if a - d >= 0:
-            up = pmax(up, _red_excess(img, bg, i, a - d))
-    for d in range(FLANK_ROWS):
-        if b + d < n:
-            dn = pmax(dn, _red_excess(img, bg, i, b + d))
-    return up > 0.0 and dn > 0.0 and up + dn >= 2.0 * seed_dn
-
-
-cdef inline Py_ssize_t _seeds(const unsigned char[:, :, ::1] img,
-                              const unsigned char[:, ::1] bg, Py_ssize_t i, const float* yi,
-                              const unsigned char* ci, const unsigned char* mi, Py_ssize_t n,
-                              double seed_dn, double sigma_y, Py_ssize_t max_run,
-                              double* rank, double* centre, Py_ssize_t* run_a,
-                              Py_ssize_t* run_b, double* noise) noexcept nogil:
-    """The column's seeds (at most ``N_SEEDS``), most significant first (module notes:
-    against the local noise, which ``noise`` gets); returns how many."""
-    cdef double clip = CLIP_SIGMAS * 1.2 * sigma_y  # (1.2 ~ sqrt(1.5): the residual's)
-    cdef Py_ssize_t nk = 0, j = 0, a, b, q, lo, hi, slot
-    cdef double r, c, sig
-    cdef bint top
-    while j < n:
-        if not mi[j]:
-            j += 1
-            continue
-        if ci[j]:
-            a = j
-            while j < n and ci[j] and mi[j]:
-                j += 1
-            b = j
-            if b - a > max_run:
-                continue
-            if not _red_flanks(img, bg, i, a, b, seed_dn):
-                continue
-            c = 0.5 * (a + b - 1)
-            sig = pmax(sigma_y, _local_sigma(yi, mi, n, c, 1.5 * (b - a) + 1.0, clip))
-            r = 1e9 + (b - a)  # clipped cores rank first
-        else:
-            if yi[j] < seed_dn:
-                j += 1
-                continue
-            top = True
-            for q in range(imax(j - NMS_HALF, 0), imin(j + NMS_HALF + 1, n)):
-                if q != j and (yi[q] > yi[j] or (yi[q] == yi[j] and q < j) or ci[q]):
-                    top = False
-            if not top:
-                j += 1
-                continue
-            a = j
-            b = j + 1
-            c = <double>j
-            # the core's extent: rows above half the peak
-            lo = j
-            while lo > 0 and yi[lo - 1] >= 0.5 * yi[j] and j - lo < max_run:
-                lo -= 1
-            hi = j
-            while hi < n - 1 and yi[hi + 1] >= 0.5 * yi[j] and hi - j < max_run:
-                hi += 1
-            sig = pmax(sigma_y, _local_sigma(yi, mi, n, c, 1.5 * (hi - lo + 1) + 1.0, clip))
-            r = yi[j] / sig
-            j += NMS_HALF + 1
-        if nk < N_SEEDS:
-            slot = nk
-            nk += 1
-        elif r > rank[N_SEEDS - 1]:
-            slot = N_SEEDS - 1
-        else:
-            continue
-        while slot > 0 and rank[slot - 1] < r:
-            rank[slot] = rank[slot - 1]
-            noise[slot] = noise[slot - 1]
-            centre[slot] = centre[slot - 1]
-            run_a[slot] = run_a[slot - 1]
-            run_b[slot] = run_b[slot - 1]
-            slot -= 1
-        rank[slot] = r
-        noise[slot] = sig
-        centre[slot] = c
-        run_a[slot] = a
-        run_b[slot] = b
-    return nk
 
 
 cdef inline void _core_colour(const unsigned char[:, :, ::1] img,
