@@ -164,7 +164,7 @@ cdef struct _Params:
     double seed_dn
     double strong_z
     double screen_z      # SEED_EFFICIENCY x weak_z
-    long long sat_dn
+    double sat_dn        # (integer DN: the sums below are exact, as numba's int64 ones)
     double s_max
     double shape_error
     double max_chi2
@@ -322,7 +322,7 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
 def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
                       const float[:, ::1] y, const float[:, ::1] y_avg, clipped, mask,
                       double sigma_y, double sigma_avg, double seed_dn, double strong_z,
-                      long long sat_dn, double s_max, double shape_error, double max_chi2,
+                      double sat_dn, double s_max, double shape_error, double max_chi2,
                       double weak_z, double[:, :, ::1] out):
     """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
 
