@@ -271,10 +271,10 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
     cdef Py_ssize_t run_b[N_SEEDS]
     cdef double res[6]
     cdef double res_avg[6]
-    cdef double s0, sig, gsig
+    cdef double s0, sig = 0.0, gsig = 0.0
     cdef double* o
     cdef Py_ssize_t nk, p = 0, q, a, b, w_half, j0, j1, m, jj, r
-    cdef bint sat, ok, flat, dup
+    cdef bint sat, ok, flat = False, dup
     nk = _seeds(img, bg, i, ya, ci, mi, n, pr.seed_dn, pr.sigma_avg, pr.max_run, rank,
                 centre, run_a, run_b, noise)
     for q in range(nk):

@@ -78,7 +78,7 @@ cdef inline bint own_light(const float* yi, const float* yai, const unsigned cha
     looked for within ``OWN_REACH_PX`` of ``pos`` (:func:`slitcli.laser.judge.
     own_light`'s notes). ``ci``, ``mi``: the column's clipped and searched rows."""
     cdef double s = pmax(width, MIN_SIGMA_PX)
-    cdef double se, a, a_avg, short = -INFINITY
+    cdef double se = 0.0, a, a_avg, short = -INFINITY
     cdef Py_ssize_t step
     a_avg = _own_amplitude(yai, mi, ci, n, pos, s, 0.0, 1.0, 0.0, &se)
     if not a_avg > 0.0:

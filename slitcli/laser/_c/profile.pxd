@@ -224,7 +224,7 @@ cdef inline bint fit_gaussian(const float* y, const unsigned char* use, Py_ssize
     cdef double dx[N_PAR]
     cdef double p[N_PAR]
     cdef double lo = 1e300, pk = -1e300, chi = 0.0, lim_v, var_a = 0.0, var_v = 0.0
-    cdef Py_ssize_t jj, q, it, idx, n_use = 0
+    cdef Py_ssize_t jj, q, idx, n_use = 0
     for q in range(N_PAR):
         p[q] = 0.0
     for jj in range(m):
@@ -238,7 +238,7 @@ cdef inline bint fit_gaussian(const float* y, const unsigned char* use, Py_ssize
     p[1] = pmax(pk - lo, 1e-3)
     p[2] = v_start
     p[3] = s_start
-    for it in range(MAX_ITER):
+    for _ in range(MAX_ITER):
         chi = _normal(y, use, m, j0, v_start, p, sigma, shape_error, h, g, ebuf, False,
                       &n_use)
         if n_use < MIN_ROWS:
