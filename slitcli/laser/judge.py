@@ -3,8 +3,8 @@
 :func:`valid_candidates` applies the tests that follow from the model (width, shape,
 significance, colour, the sheet's thickness); :func:`laser_share` and
 :func:`surface_continues` tell the laser's light from the surface's own colour;
-:func:`own_light` asks a fit on the evidence averaged along the stripe to show in its
-own column's evidence. The choice along the stripe among the candidates that pass is
+:func:`own_light_candidates` asks a fit on the evidence averaged along the stripe to show
+in its own column's evidence. The choice along the stripe among the candidates that pass is
 :mod:`slitcli.laser.choose`.
 """
 from __future__ import annotations
@@ -14,10 +14,10 @@ import math
 import numpy as np
 from numba import njit
 
+from slitcli.laser._c.light import own_light_table
 from slitcli.laser.profile import (
     F_CHI2,
     F_FLAT,
-    F_GNOISE,
     F_KB,
     F_KG,
     F_KR,
@@ -382,6 +382,20 @@ def _surface_table(cand: np.ndarray, img_t: np.ndarray, row0: int, channel_sigma
             out[u, q] = not breaks
 
 
+# The own-light test (compiled: slitcli/laser/_c/light.pxd's own_light, inlined where gaps
+# are filled and in light.pyx's table). The evidence averaged along the stripe (weights
+# 1, 4, 6, 4, 1 over five columns) stands for a column only where the stripe runs on
+# across them: one column past a stripe's end the average still holds 5/16 of the
+# neighbours' light, though the column has none. So the peak of a Gaussian at a crossing
+# (its row and width) in the averaged evidence must show in the column's own evidence:
+# the own peak (weighted least squares of a Gaussian on a straight background, row
+# variance sigma^2 + (shape_error A g)^2 as the profile fit's) may fall short of it by at
+# most OWN_Z standard errors. Inside a stripe the two agree within the noise; at a partly
+# covered end column, whose own light is its coverage's share, the average's missing
+# outward columns lower it by about as much. On a steep stripe the average's centre at
+# an end column leans towards the inner columns' rows (by up to a pixel): the own light
+# is looked for within OWN_REACH_PX of it, the best place kept.
+
 #: the light an averaged fit gives a column must show in the column's own evidence: it
 #: may fall short of it by at most this many standard errors of the own estimate
 #: (one-sided; a column inside a stripe falls short by more 0.13 % of the time)
@@ -390,117 +404,16 @@ OWN_Z = 3.0
 OWN_REACH_PX = 1.0
 
 
-@njit(cache=True, nogil=True)
-def _own_amplitude(yi: np.ndarray, mi: np.ndarray, ci: np.ndarray, pos: float, s: float,
-                   amp: float, sigma: float,
-                   shape_error: float) -> tuple[float, float]:  # pragma: no cover
-    """Peak of a Gaussian at row ``pos`` of width ``s`` in one column's own evidence
-    ``yi`` (rows where ``mi`` and not ``ci``), on a straight background, by weighted
-    least squares (row variance ``sigma^2 + (shape_error amp g)^2`` as the profile
-    fit's); returns the peak and its standard error (NaN, NaN with too few rows)."""
-    n = yi.shape[0]
-    w_half = math.ceil(3.0 * s + 3.0)
-    c = math.floor(pos + 0.5)
-    # the normal equations of (1, d, g): h (symmetric) and b
-    h00 = h01 = h02 = h11 = h12 = h22 = 0.0
-    b0 = b1 = b2 = 0.0
-    m = 0
-    for j in range(max(c - w_half, 0), min(c + w_half + 1, n)):
-        if not mi[j] or ci[j]:
-            continue
-        d = j - pos
-        g = math.exp(-0.5 * d * d / (s * s))
-        var = sigma * sigma + (shape_error * amp * g) ** 2
-        yj = float(yi[j])
-        b0 += yj / var
-        b1 += d * yj / var
-        b2 += g * yj / var
-        h00 += 1.0 / var
-        h01 += d / var
-        h02 += g / var
-        h11 += d * d / var
-        h12 += d * g / var
-        h22 += g * g / var
-        m += 1
-    if m < 6:
-        return np.nan, np.nan
-    # 3x3 inverse by cofactors (the peak's row of it)
-    c00 = h11 * h22 - h12 * h12
-    c01 = h12 * h02 - h01 * h22
-    c02 = h01 * h12 - h11 * h02
-    det = h00 * c00 + h01 * c01 + h02 * c02
-    if not abs(det) > 1e-300:
-        return np.nan, np.nan
-    i20 = (h01 * h12 - h02 * h11) / det
-    i21 = (h02 * h01 - h00 * h12) / det
-    i22 = (h00 * h11 - h01 * h01) / det
-    a = i20 * b0 + i21 * b1 + i22 * b2
-    return a, math.sqrt(max(i22, 0.0))
-
-
-@njit(cache=True, nogil=True)
-def own_light(y: np.ndarray, y_avg: np.ndarray, clipped: np.ndarray, mask: np.ndarray,
-              i: int, pos: float, width: float, sigma_y: float, shape_error: float,
-              z: float) -> bool:  # pragma: no cover
-    """Whether the light the averaged evidence shows at a crossing is its column's own
-    (True), or not.
-
-    The evidence averaged along the stripe (weights 1, 4, 6, 4, 1 over five columns)
-    stands for a column only where the stripe runs on across them: one column past a
-    stripe's end the average still holds 5/16 of the neighbours' light, though the
-    column has none. So the peak of a Gaussian at the crossing (column ``i``, row
-    ``pos`` of ``y`` (W, H'), width ``width``) in the averaged evidence ``y_avg`` must
-    show in the column's own evidence ``y``: the own peak (:func:`_own_amplitude`,
-    noise ``sigma_y``) may fall short of it by at most ``z`` standard errors
-    (``OWN_Z``). Inside a stripe the two agree within the noise; at a partly covered
-    end column, whose own light is its coverage's share, the average's missing outward
-    columns lower it by about as much.
-    """
-    mi = mask[i]
-    ci = clipped[i]
-    s = max(width, MIN_SIGMA_PX)
-    a_avg, _ = _own_amplitude(y_avg[i], mi, ci, pos, s, 0.0, 1.0, 0.0)
-    if not a_avg > 0.0:
-        return True
-    # on a steep stripe the average's centre at an end column leans towards the inner
-    # columns' rows (by up to a pixel): the own light is looked for within OWN_REACH_PX
-    # of it, the best place kept
-    short = -np.inf
-    for step in range(-2, 3):
-        a, se = _own_amplitude(y[i], mi, ci, pos + 0.5 * OWN_REACH_PX * step, s, a_avg,
-                               sigma_y, shape_error)
-        if np.isfinite(a):
-            short = max(short, (a - a_avg) / se)
-    return not (short > -np.inf and short < -z)
-
-
-@njit(cache=True, nogil=True)
-def _own_light_table(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
-                     clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
-                     shape_error: float, z: float, need: np.ndarray,
-                     ok: np.ndarray) -> None:  # pragma: no cover
-    """:func:`own_light_candidates` into ``ok`` (W, K)."""
-    for u in range(cand.shape[0]):
-        for q in range(cand.shape[1]):
-            c = cand[u, q]
-            ok[u, q] = True
-            pos = c[F_POS] - row0
-            if need[u, q] and c[F_SAT] == 0 and c[F_GNOISE] != sigma_y and np.isfinite(pos):
-                wid = 1.0 if np.isnan(c[F_WIDTH]) else c[F_WIDTH]
-                ok[u, q] = own_light(y, y_avg, clipped, mask, u, pos, wid, sigma_y,
-                                     shape_error, z)
-
-
 def own_light_candidates(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
                          clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
                          shape_error: float, need: np.ndarray | None = None) -> np.ndarray:
-    """:func:`own_light` of every candidate (W, K) fitted on the averaged evidence (rows
+    """The own-light test (notes above) of every candidate (W, K) fitted on the averaged
+    evidence (rows
     of ``cand`` from the image's top, of ``y`` from ``row0``); True where it holds, for
     the others (a fit of the column's own evidence, whose noise ``sigma_y`` its
     ``F_GNOISE`` holds, measured the column's own light; a clipped core is its own),
     and where ``need`` (W, K), when given, is False."""
     ok = np.empty(cand.shape[:2], np.bool_)
     need = np.ones(cand.shape[:2], np.bool_) if need is None else need
-    _own_light_table(cand, y, y_avg, clipped, mask, row0, sigma_y, shape_error, OWN_Z, need,
-                     ok)
+    own_light_table(cand, y, y_avg, clipped, mask, row0, sigma_y, shape_error, OWN_Z, need, ok)
     return ok

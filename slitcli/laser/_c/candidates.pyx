@@ -1,0 +1,511 @@
+"""Step 3 of the stripe model, compiled: candidate crossings per column, seeded and fitted.
+
+The seeds (``seeds.pxd``), the fits (``profile.pxd``) and their notes are
+:mod:`slitcli.laser.candidates`'; these are its kernels. Arithmetic in the numba kernels'
+order and types (float32 evidence, float64 sums; Python ``min``/``max``; uint8
+differences as numba's unsigned 64-bit ones), so that results are bit-identical to
+numba's but for ``profile.pxd``'s ``_normal`` sums, which numba could reorder
+(``fastmath``) and C here does not: IEEE order, the same on every machine.
+"""
+
+import numpy as np
+
+from libc.float cimport DBL_MAX
+from libc.math cimport INFINITY, NAN, ceil, exp, fabs, isfinite, isnan, rint, sqrt
+
+from slitcli.laser._c.light cimport OWN_REACH_PX, own_light
+from slitcli.laser._c.profile cimport (CONVERGED_PX, F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB,
+                                       F_KG, F_KR, F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS,
+                                       F_TB, F_TG, F_TR, F_WIDTH, F_Z, MAX_ITER, MIN_ROWS,
+                                       MIN_SIGMA_PX, N_FIELDS, N_PAR, fit_gaussian, flat_top,
+                                       gaussian_rows, imax, imin, plateau_centre, pmax, pmin)
+from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
+                                     NOISE_HALF, _local_sigma, _seeds)
+
+ctypedef fused real:
+    float
+    double
+
+# (slitcli.laser.candidates' constants, as seeds.pxd's; tests/test_laser_kernels.py checks
+# that they agree)
+cdef double SEED_MIN_SIGMA_PX = 0.6
+cdef double SEED_EFFICIENCY = exp(-0.25 / (4.0 * (SEED_MIN_SIGMA_PX * SEED_MIN_SIGMA_PX)))
+
+
+def constants():
+    """The compiled constants (:mod:`slitcli.laser.candidates`', :mod:`.profile`'s and
+    its field indices, :mod:`.judge`'s ``OWN_REACH_PX``), for the test that they agree
+    with the Python ones."""
+    return {"NMS_HALF": NMS_HALF, "FLANK_ROWS": FLANK_ROWS, "NOISE_HALF": NOISE_HALF,
+            "N_SEEDS": N_SEEDS, "SEED_MIN_SIGMA_PX": SEED_MIN_SIGMA_PX,
+            "SEED_EFFICIENCY": SEED_EFFICIENCY, "MEAN_TO_SIGMA": MEAN_TO_SIGMA,
+            "CLIP_SIGMAS": CLIP_SIGMAS, "CONVERGED_PX": CONVERGED_PX, "N_PAR": N_PAR,
+            "MAX_ITER": MAX_ITER, "MIN_ROWS": MIN_ROWS, "OWN_REACH_PX": OWN_REACH_PX,
+            "MIN_SIGMA_PX": MIN_SIGMA_PX, "N_FIELDS": N_FIELDS,
+            "F_POS": F_POS, "F_AMP": F_AMP, "F_WIDTH": F_WIDTH, "F_Z": F_Z,
+            "F_SE_POS": F_SE_POS, "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_NOISE": F_NOISE,
+            "F_TR": F_TR, "F_TG": F_TG, "F_TB": F_TB, "F_KR": F_KR, "F_KG": F_KG,
+            "F_KB": F_KB, "F_NCORE": F_NCORE, "F_FLAT": F_FLAT, "F_GNOISE": F_GNOISE}
+
+
+cdef inline double _linear_z_c(const real* y, const unsigned char* use, Py_ssize_t m,
+                               Py_ssize_t j0, double v, double s, double sigma,
+                               double* e) noexcept nogil:
+    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
+    background over the used rows of ``y`` (m rows from image row ``j0``): the linear
+    least-squares amplitude over its standard error; 0 with fewer than six rows."""
+    cdef double n = 0.0, s2 = 0.0, se = 0.0, sd = 0.0, sdd = 0.0, sde = 0.0, sy = 0.0
+    cdef double sdy = 0.0, sey = 0.0, w, d, ej, yj, det, ae, be, ee, ey
+    cdef Py_ssize_t jj
+    gaussian_rows(j0, v, s, e, m)
+    for jj in range(m):
+        w = 1.0 if use[jj] else 0.0
+        d = j0 + jj - v
+        ej = e[jj] * w
+        yj = y[jj] * w
+        n += w
+        sd += d * w
+        sdd += d * d * w
+        se += ej
+        sde += d * ej
+        s2 += ej * e[jj]
+        sy += yj
+        sdy += d * yj
+        sey += ej * y[jj]
+    if n < 6.0:
+        return 0.0
+    # the line's normal equations (n, sd; sd, sdd) give the projections of the
+    # Gaussian onto the line, which leave e_perp . e_perp and e_perp . y
+    det = n * sdd - sd * sd
+    if not det > 0.0:
+        return 0.0
+    ae = (sdd * se - sd * sde) / det
+    be = (n * sde - sd * se) / det
+    ee = s2 - (ae * se + be * sde)
+    ey = sey - (ae * sy + be * sdy)
+    if not ee > 1e-12 * s2:
+        return 0.0
+    return ey / (sigma * sqrt(ee))
+
+
+def _linear_z(const real[::1] y, use, Py_ssize_t j0, double v, double s, double sigma,
+              double[::1] e):
+    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
+    background over the used rows of ``y`` (rows ``j0 ..``): the linear least-squares
+    amplitude over its standard error, ``e_perp . y / (sigma |e_perp|)`` with ``e_perp``
+    the Gaussian's part that the line does not explain (the matched filter's output
+    against the noise); 0 with fewer than six rows.
+
+    Parameters
+    ----------
+    y : ndarray, shape (m,), float32 or float64
+        The evidence, DN.
+    use : ndarray, shape (m,), bool
+        Rows used.
+    j0 : int
+        Image row of ``y[0]``.
+    v, s : float
+        The Gaussian's centre (image rows) and width, px.
+    sigma : float
+        Noise of ``y``, DN.
+    e : ndarray, shape (>= m,), float64
+        Scratch.
+    """
+    cdef const unsigned char[::1] u = np.ascontiguousarray(use).view(np.uint8)
+    cdef Py_ssize_t m = y.shape[0]
+    cdef double z
+    if u.shape[0] < m or e.shape[0] < m:
+        raise ValueError("_linear_z: use and e need as many entries as y")
+    if m == 0:
+        return 0.0
+    with nogil:
+        z = _linear_z_c(&y[0], &u[0], m, j0, v, s, sigma, &e[0])
+    return z
+
+
+cdef inline void _core_colour(const unsigned char[:, :, ::1] img,
+                              const unsigned char[:, ::1] bg, Py_ssize_t i,
+                              const unsigned char* ci, Py_ssize_t n, double* o) noexcept nogil:
+    """The light the core of the candidate ``o`` (its fields) adds, and the surface
+    colour there (RGB): ``F_T*``, ``F_K*``, ``F_NCORE``. (The differences of uint8s are
+    numba's unsigned 64-bit ones; the opening is below the image, so they never wrap.)"""
+    cdef double tr = 0.0, tg = 0.0, tb = 0.0, kr = 0.0, kg = 0.0, kb = 0.0
+    cdef double reach = pmax(o[F_WIDTH], 1.0), pos = o[F_POS]
+    cdef Py_ssize_t nc = 0, j
+    cdef unsigned long long br, bgg, bb
+    for j in range(imax(<Py_ssize_t>(pos - reach), 0), imin(<Py_ssize_t>(pos + reach) + 2, n)):
+        if fabs(j - pos) > reach or ci[j]:
+            continue
+        br = bg[3 * i + 2, j]
+        bgg = bg[3 * i + 1, j]
+        bb = bg[3 * i, j]
+        tr += <double>(<unsigned long long>img[i, j, 2] - br)
+        tg += <double>(<unsigned long long>img[i, j, 1] - bgg)
+        tb += <double>(<unsigned long long>img[i, j, 0] - bb)
+        kr += br + 0.5
+        kg += bgg + 0.5
+        kb += bb + 0.5
+        nc += 1
+    o[F_NCORE] = nc
+    if nc > 0:
+        o[F_TR] = tr / nc
+        o[F_TG] = tg / nc
+        o[F_TB] = tb / nc
+        o[F_KR] = kr / nc
+        o[F_KG] = kg / nc
+        o[F_KB] = kb / nc
+
+
+
+cdef struct _Params:
+    # column_candidates' scalar arguments
+    double sigma_y
+    double sigma_avg
+    double seed_dn
+    double strong_z
+    double screen_z      # SEED_EFFICIENCY x weak_z
+    double sat_dn        # (integer DN: the sums below are exact, as numba's int64 ones)
+    double s_max
+    double shape_error
+    double max_chi2
+    Py_ssize_t max_run
+
+
+cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char* mi,
+                           Py_ssize_t n, const unsigned char* use, Py_ssize_t j0,
+                           Py_ssize_t m, double centre, double s0, double core, double noise,
+                           bint sat, const _Params* pr, double* res, double* res_avg,
+                           double* ebuf, double* sig, double* gsig, bint* flat) noexcept nogil:
+    """One seed fitted (``column_candidates``' notes) on the window's own evidence (``m``
+    rows of ``yi`` from ``j0``, the column's ``n``) and, where that is less than
+    ``strong_z`` significant, on the averaged ``ya``; a Gaussian that fails the shape
+    test is tried as a flat top. ``res`` gets the fit kept, ``sig`` and ``gsig`` the
+    noise it is judged against and that of the evidence fitted, ``flat`` whether a flat
+    top; returns whether a fit holds (a clipped core's flank fit: ``res`` is its own)."""
+    cdef double base
+    cdef Py_ssize_t jj
+    cdef bint ok
+    sig[0] = pmax(pr.sigma_y, _local_sigma(yi, mi, n, centre, core,
+                                           CLIP_SIGMAS * 1.2 * pr.sigma_y))
+    gsig[0] = pr.sigma_y
+    flat[0] = False
+    ok = (sat or _linear_z_c(yi + j0, use, m, j0, centre, s0, sig[0], ebuf) >= pr.screen_z) \
+        and fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error, pr.s_max,
+                         res, ebuf)
+    if not sat and (not ok or res[3] < pr.strong_z) and \
+            _linear_z_c(ya + j0, use, m, j0, centre, s0, noise, ebuf) >= pr.screen_z:
+        if fit_gaussian(ya + j0, use, m, j0, centre, s0, noise, pr.shape_error, pr.s_max,
+                        res_avg, ebuf) and (not ok or res_avg[3] > res[3]):
+            for jj in range(6):
+                res[jj] = res_avg[jj]
+            sig[0] = noise
+            gsig[0] = pr.sigma_avg
+            ok = True
+    if not sat and ok and res[5] > pr.max_chi2:
+        base = 1e300
+        for jj in range(m):
+            if use[jj]:
+                base = pmin(base, yi[j0 + jj])
+        if flat_top(yi + j0, use, m, j0, centre, base, sig[0], res_avg):
+            for jj in range(6):
+                res[jj] = res_avg[jj]
+            flat[0] = True
+    return ok
+
+
+cdef inline void _plateau(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+                          Py_ssize_t i, Py_ssize_t a, Py_ssize_t b, double centre,
+                          double s0, double sig, bint ok, const _Params* pr, double* red,
+                          double* res) noexcept nogil:
+    """A clipped core ``[a, b)`` of column ``i`` centred on its plateau
+    (:func:`plateau_centre`) unless its flank fit (``ok``, ``res``) agrees with it;
+    its significance at least the clip's over the background."""
+    cdef Py_ssize_t n = img.shape[1], jj
+    cdef Py_ssize_t jc = <Py_ssize_t>centre
+    cdef double lvl, pc
+    for jj in range(n):
+        red[jj] = img[i, jj, 2]
+    lvl = 0.5 * (bg[3 * i + 2, jc] + pr.sat_dn)
+    pc = plateau_centre(red, n, a, b, lvl)
+    # the flank fit refines the plateau's centre where it agrees with it
+    if not ok or fabs(res[0] - pc) > 0.5 or res[2] < 0.5:
+        res[0] = pc
+        res[2] = s0  # (the run's half length, at most the widest stripe)
+        res[4] = 0.25
+        res[5] = 0.0
+        res[1] = pr.sat_dn - bg[3 * i + 2, jc]
+    res[3] = pmax(res[3] if ok else 0.0, (pr.sat_dn - bg[3 * i + 2, jc]) / sig)
+
+
+cdef inline double _seed_width(const float* ya, const unsigned char* mi, Py_ssize_t n,
+                               Py_ssize_t a, Py_ssize_t b, bint sat,
+                               double s_max) noexcept nogil:
+    """The width a seed's fit starts from: a clipped core's half length, else the
+    averaged evidence's half-maximum width over 2.355; at most ``s_max``."""
+    cdef double s0, half
+    cdef Py_ssize_t lo, hi
+    if sat:
+        s0 = pmax(0.5 * (b - a), 0.8)
+    else:
+        half = 0.5 * ya[a]
+        lo = a
+        while lo > 0 and ya[lo - 1] >= half and mi[lo - 1]:
+            lo -= 1
+        hi = a
+        while hi < n - 1 and ya[hi + 1] >= half and mi[hi + 1]:
+            hi += 1
+        s0 = pmax((hi - lo + 1) / 2.355, SEED_MIN_SIGMA_PX)
+    return pmin(s0, s_max)
+
+
+cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+                  Py_ssize_t i, const float* yi, const float* ya, const unsigned char* ci,
+                  const unsigned char* mi, Py_ssize_t n, const _Params* pr,
+                  double* out, Py_ssize_t k_best, unsigned char* use, double* red,
+                  double* ebuf) noexcept nogil:
+    """The candidates of column ``i`` into ``out`` (k_best, N_FIELDS), NaN-filled."""
+    cdef double rank[N_SEEDS]
+    cdef double noise[N_SEEDS]
+    cdef double centre[N_SEEDS]
+    cdef Py_ssize_t run_a[N_SEEDS]
+    cdef Py_ssize_t run_b[N_SEEDS]
+    cdef double res[6]
+    cdef double res_avg[6]
+    cdef double s0, sig = 0.0, gsig = 0.0
+    cdef double* o
+    cdef Py_ssize_t nk, p = 0, q, a, b, w_half, j0, j1, m, jj, r
+    cdef bint sat, ok, flat = False, dup
+    nk = _seeds(img, bg, i, ya, ci, mi, n, pr.seed_dn, pr.sigma_avg, pr.max_run, rank,
+                centre, run_a, run_b, noise)
+    for q in range(nk):
+        if p == k_best:
+            break
+        a = run_a[q]
+        b = run_b[q]
+        sat = ci[a]
+        s0 = _seed_width(ya, mi, n, a, b, sat, pr.s_max)
+        # (b - a >= 1: floor division is C's)
+        w_half = <Py_ssize_t>ceil(3.0 * s0 + 3.0) + (b - a) // 2
+        j0 = imax(<Py_ssize_t>centre[q] - w_half, 0)
+        j1 = imin(<Py_ssize_t>centre[q] + w_half + 2, n)
+        m = j1 - j0
+        for jj in range(m):
+            use[jj] = mi[j0 + jj] and not ci[j0 + jj]
+        ok = _fit_seed(yi, ya, mi, n, use, j0, m, centre[q], s0, 3.0 * s0 + 0.5 * (b - a),
+                       noise[q], sat, pr, res, res_avg, ebuf, &sig, &gsig, &flat)
+        if sat:
+            _plateau(img, bg, i, a, b, centre[q], s0, sig, ok, pr, red, res)
+        elif not ok:
+            continue
+        # one fit per crossing: a second seed converging on a kept one is dropped
+        dup = False
+        for r in range(p):
+            if fabs(out[r * N_FIELDS + F_POS] - res[0]) < 1.0:
+                dup = True
+        if dup:
+            continue
+        o = out + p * N_FIELDS
+        o[F_POS] = res[0]
+        o[F_AMP] = res[1]
+        o[F_WIDTH] = res[2]
+        o[F_Z] = res[3]
+        o[F_SE_POS] = res[4]
+        o[F_CHI2] = res[5]
+        o[F_SAT] = 1.0 if sat else 0.0
+        o[F_NOISE] = sig
+        o[F_GNOISE] = gsig
+        o[F_FLAT] = 1.0 if flat else 0.0
+        _core_colour(img, bg, i, ci, n, o)
+        p += 1
+
+
+def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+                      const float[:, ::1] y, const float[:, ::1] y_avg, clipped, mask,
+                      double sigma_y, double sigma_avg, double seed_dn, double strong_z,
+                      double sat_dn, double s_max, double shape_error, double max_chi2,
+                      double weak_z, double[:, :, ::1] out):
+    """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
+
+    ``img`` (W, H, 3) uint8 BGR, ``bg`` its opening as (3 W, H) uint8, ``y`` and
+    ``clipped`` (W, H) float32 and bool from :func:`~slitcli.laser.evidence.laser_evidence`,
+    ``y_avg`` (W, H) float32 the evidence averaged along the stripe over five columns
+    (weights 1, 4, 6, 4, 1), ``mask`` (W, H) bool the searched pixels, ``sigma_y`` and
+    ``sigma_avg`` the image's noise of the two (DN), ``sat_dn`` the saturation level,
+    ``s_max`` the widest stripe's sigma, px. Seeds come from the averaged evidence (at
+    least ``seed_dn``); each is fitted on the column's own evidence, and where that fit
+    is less than ``strong_z`` significant also on the averaged one (noise about half, at
+    the cost of resolution along the stripe), the more significant fit kept. Fields:
+    :mod:`slitcli.laser.profile`'s ``F_*`` (``F_T*`` the mean contrast of the core rows,
+    ``F_K*`` the surface colour there, RGB). Where the Gaussian's reduced chi-square
+    exceeds ``max_chi2`` a flat top is tried (``F_FLAT`` 1).
+
+    An unclipped seed is fitted on either evidence only where a Gaussian of its own row
+    and width is ``SEED_EFFICIENCY x weak_z`` significant there (``_linear_z``, against
+    the fit's noise): a candidate less than ``weak_z`` significant is never chosen, and
+    a seed half a row off the centre keeps ``SEED_EFFICIENCY`` of the significance; a
+    seed that fails takes no candidate slot.
+    """
+    cdef const unsigned char[:, ::1] ci = np.ascontiguousarray(clipped).view(np.uint8)
+    cdef const unsigned char[:, ::1] mi = np.ascontiguousarray(mask).view(np.uint8)
+    cdef Py_ssize_t n_cols = y.shape[0], n = y.shape[1], k_best = out.shape[1], i
+    cdef _Params pr
+    if img.shape[0] != n_cols or img.shape[1] != n or img.shape[2] != 3 \
+            or bg.shape[0] != 3 * n_cols or bg.shape[1] != n \
+            or y_avg.shape[0] != n_cols or y_avg.shape[1] != n \
+            or ci.shape[0] != n_cols or ci.shape[1] != n \
+            or mi.shape[0] != n_cols or mi.shape[1] != n:
+        raise ValueError("column_candidates: img (W, H, 3), bg (3 W, H), y, y_avg, clipped "
+                         "and mask (W, H) disagree in shape")
+    if out.shape[0] != n_cols or out.shape[2] != N_FIELDS:
+        raise ValueError("column_candidates: out must be (W, K, N_FIELDS)")
+    np.asarray(out)[...] = np.nan
+    if n == 0:
+        return
+    # a clipped core spans more than the stripe's width: 2 s sqrt(2 ln(peak / clip))
+    pr.max_run = <Py_ssize_t>ceil(5.0 * s_max)
+    pr.screen_z = SEED_EFFICIENCY * weak_z
+    pr.sigma_y = sigma_y
+    pr.sigma_avg = sigma_avg
+    pr.seed_dn = seed_dn
+    pr.strong_z = strong_z
+    pr.sat_dn = sat_dn
+    pr.s_max = s_max
+    pr.shape_error = shape_error
+    pr.max_chi2 = max_chi2
+    cdef unsigned char[::1] use = np.empty(n, np.uint8)
+    cdef double[::1] red = np.empty(n)
+    cdef double[::1] ebuf = np.empty(n)
+    with nogil:
+        for i in range(n_cols):
+            _column(img, bg, i, &y[i, 0], &y_avg[i, 0], &ci[i, 0], &mi[i, 0], n, &pr,
+                    &out[i, 0, 0], k_best, &use[0], &red[0], &ebuf[0])
+
+
+def sheet_width_px(const double[:, :, ::1] cand, const double[::1, :] px_per_m,
+                   double sheet_sigma_mm, double[:, ::1] sheet_px):
+    """The sheet's sigma, ``sheet_sigma_mm``, in pixels at each candidate's row
+    (``cand[..., F_POS]``, (W, K), image rows) into ``sheet_px`` (W, K) float64;
+    ``px_per_m`` (H, W) float64, column-major: image rows per metre of height where each
+    pixel's ray meets the laser plane. (A gather per candidate: numpy's fancy indexing
+    over a float64 copy of ``px_per_m`` cost ~0.2 ms a frame.)"""
+    cdef Py_ssize_t n_rows = px_per_m.shape[0], i, q, r
+    cdef double pos
+    if sheet_px.shape[0] != cand.shape[0] or sheet_px.shape[1] != cand.shape[1] \
+            or px_per_m.shape[1] < cand.shape[0]:
+        raise ValueError("sheet_width_px: cand (W, K, N_FIELDS), px_per_m (H, W) and "
+                         "sheet_px (W, K) disagree in shape")
+    with nogil:
+        for i in range(cand.shape[0]):
+            for q in range(cand.shape[1]):
+                pos = cand[i, q, F_POS]
+                r = 0 if isnan(pos) else <Py_ssize_t>pmin(pmax(rint(pos), 0.0), n_rows - 1)
+                sheet_px[i, q] = px_per_m[r, i] * sheet_sigma_mm * 1e-3
+
+
+def evidence_live(mask, const unsigned char[:, :, ::1] img, clipped, out):
+    """Pixels (W, H) whose evidence shows the noise into ``out`` (W, H) bool: searched
+    (``mask`` (W, H) bool), red inside its range (above 0 in ``img`` (W, H, 3) uint8
+    BGR; not ``clipped`` (W, H) bool); returns whether any."""
+    cdef const unsigned char[:, ::1] mi = np.ascontiguousarray(mask).view(np.uint8)
+    cdef const unsigned char[:, ::1] ci = np.ascontiguousarray(clipped).view(np.uint8)
+    cdef unsigned char[:, ::1] res = out.view(np.uint8)
+    cdef Py_ssize_t i, j
+    cdef bint any_live = False
+    if img.shape[0] != mi.shape[0] or img.shape[1] != mi.shape[1] \
+            or ci.shape[0] != mi.shape[0] or ci.shape[1] != mi.shape[1] \
+            or res.shape[0] != mi.shape[0] or res.shape[1] != mi.shape[1]:
+        raise ValueError("evidence_live: mask, img, clipped and out disagree in shape")
+    with nogil:
+        for i in range(mi.shape[0]):
+            for j in range(mi.shape[1]):
+                res[i, j] = mi[i, j] and img[i, j, 2] > 0 and not ci[i, j]
+                any_live = any_live or res[i, j]
+    return any_live
+
+
+cdef inline double _fit_gap(const float[:, ::1] y_avg, const unsigned char[:, ::1] ci,
+                            const unsigned char[:, ::1] mi, Py_ssize_t i, double row,
+                            double width, double sigma_avg, double z_min,
+                            double shape_error, double s_max, double* res,
+                            unsigned char* use, double* ebuf) noexcept nogil:
+    """The averaged evidence of column ``i`` fitted near ``row`` (rows of ``y_avg``),
+    starting at width ``width``: the fitted row, or NaN where the fit is not within a
+    pixel of ``row`` or less than ``z_min`` significant (against ``sigma_avg``)."""
+    cdef Py_ssize_t n = y_avg.shape[1], jj
+    cdef double s0 = pmin(pmax(width, 0.6), s_max)
+    cdef Py_ssize_t w_half = <Py_ssize_t>ceil(3.0 * s0 + 3.0)
+    cdef Py_ssize_t c = <Py_ssize_t>(row + 0.5)
+    cdef Py_ssize_t j0 = imax(c - w_half, 0)
+    cdef Py_ssize_t j1 = imin(c + w_half + 1, n)
+    cdef Py_ssize_t m = j1 - j0
+    if m < 6:
+        return NAN
+    for jj in range(m):
+        use[jj] = mi[i, j0 + jj] and not ci[i, j0 + jj]
+    if fit_gaussian(&y_avg[i, j0], use, m, j0, row, s0, sigma_avg, shape_error, s_max, res,
+                    ebuf) and fabs(res[0] - row) <= 1.0 and res[3] >= z_min:
+        return res[0]
+    return NAN
+
+
+def fill_gaps(double[::1] v, double[::1] amp, const double[:, :, ::1] cand,
+              const float[:, ::1] y, const float[:, ::1] y_avg, clipped, mask,
+              double sigma_y, double sigma_avg, Py_ssize_t row0, Py_ssize_t max_gap,
+              double max_jump_px, double z_min, double shape_error, double s_max,
+              double own_z):
+    """Columns without a stripe between two found ones at most ``max_gap + 1`` apart
+    whose rows differ by at most ``max_jump_px`` a column: the stripe passes there, so
+    the averaged evidence ``y_avg`` (W, H', float32, rows from ``row0``) of each column
+    between is fitted at the row interpolated across the gap (starting at the width of
+    the left column's candidate nearest its row). Where that fit holds (``z_min``
+    significant against ``sigma_avg``, within a pixel of the interpolated row, and its
+    light the column's own: :func:`~slitcli.laser.judge.own_light` on ``y`` (W, H')
+    float32, ``own_z``), ``v`` (W,) float64, rows from the image's top, gets the fitted
+    row and ``amp`` (W,) float64 the left column's peak (0 where that is NaN), in place.
+    ``cand`` (W, K, N_FIELDS) is the candidate table, ``clipped`` and ``mask`` (W, H')
+    bool."""
+    cdef const unsigned char[:, ::1] ci = np.ascontiguousarray(clipped).view(np.uint8)
+    cdef const unsigned char[:, ::1] mi = np.ascontiguousarray(mask).view(np.uint8)
+    cdef Py_ssize_t n_cols = v.shape[0], n = y_avg.shape[1]
+    if amp.shape[0] != n_cols or cand.shape[0] != n_cols or cand.shape[2] != N_FIELDS \
+            or y.shape[0] != n_cols or y_avg.shape[0] != n_cols or ci.shape[0] != n_cols \
+            or mi.shape[0] != n_cols or y.shape[1] != n or ci.shape[1] != n \
+            or mi.shape[1] != n:
+        raise ValueError("fill_gaps: v, amp (W,), cand (W, K, N_FIELDS), y, y_avg, "
+                         "clipped and mask (W, H') disagree in shape")
+    if n == 0 or n_cols == 0:
+        return
+    cdef unsigned char[::1] use = np.empty(n, np.uint8)
+    cdef double[::1] ebuf = np.empty(n)
+    cdef double res[6]
+    cdef Py_ssize_t a = -1, b, i, q, k_best
+    cdef double best, d, width, fill, t, row, fit
+    with nogil:
+        for b in range(n_cols):
+            if not isfinite(v[b]):
+                continue
+            if a < 0 or b - a <= 1 or b - a > max_gap + 1 \
+                    or not fabs(v[b] - v[a]) <= max_jump_px * (b - a):
+                a = b
+                continue
+            # the width of the left column's candidate nearest its row (the first of
+            # equals)
+            k_best = -1
+            best = INFINITY
+            for q in range(cand.shape[1]):
+                d = fabs(cand[a, q, 0] - v[a])
+                if d < best:
+                    best = d
+                    k_best = q
+            width = cand[a, imax(k_best, 0), 2]
+            fill = 0.0 if isnan(amp[a]) else pmin(pmax(amp[a], -DBL_MAX), DBL_MAX)
+            for i in range(a + 1, b):
+                t = <double>(i - a) / (b - a)
+                row = v[a] + t * (v[b] - v[a])
+                fit = _fit_gap(y_avg, ci, mi, i, row - row0, width, sigma_avg, z_min,
+                               shape_error, s_max, res, &use[0], &ebuf[0])
+                if isfinite(fit) and own_light(&y[i, 0], &y_avg[i, 0], &ci[i, 0], &mi[i, 0],
+                                               n, fit, width, sigma_y, shape_error, own_z):
+                    v[i] = fit + row0
+                    amp[i] = fill
+            a = b

@@ -1,0 +1,354 @@
+"""Step 2 of the stripe model, compiled: the profile across one column, fitted.
+
+The model and its terms are :mod:`slitcli.laser.profile`'s notes; these are its kernels,
+inlined into the modules that cimport them (the candidates' inner loop runs ~900 fits a
+frame). A row ``jj`` of a window starting at image row ``j0`` is image row ``j0 + jj``.
+The arithmetic is the numba kernels' in the same order (Python ``min``/``max``: the first
+argument kept unless the second is strictly beyond it), so that results are bit-identical
+where the C compiler may not reorder sums.
+"""
+
+from libc.math cimport exp, fabs, floor, sqrt
+
+# (the fields and sizes of slitcli.laser.profile; tests/test_laser_kernels.py checks that
+# the two agree)
+cdef enum:
+    N_PAR = 5
+    MAX_ITER = 6
+    MIN_ROWS = 6
+
+#: fields of one fit (last axis of the candidate table)
+cdef enum:
+    F_POS = 0
+    F_AMP = 1
+    F_WIDTH = 2
+    F_Z = 3
+    F_SE_POS = 4
+    F_CHI2 = 5
+    F_SAT = 6
+    F_NOISE = 7
+    F_TR = 8
+    F_TG = 9
+    F_TB = 10
+    F_KR = 11
+    F_KG = 12
+    F_KB = 13
+    F_NCORE = 14
+    F_FLAT = 15
+    F_GNOISE = 16
+    N_FIELDS = 17
+
+cdef extern from *:
+    """
+    #define SLITCLI_CONVERGED_PX 0.005
+    #define SLITCLI_MIN_SIGMA_PX 0.3
+    """
+    const double CONVERGED_PX "SLITCLI_CONVERGED_PX"
+    const double MIN_SIGMA_PX "SLITCLI_MIN_SIGMA_PX"
+
+
+cdef inline double pmax(double a, double b) noexcept nogil:
+    """Python's ``max(a, b)``: ``b`` only where strictly larger (a NaN ``a`` is kept)."""
+    return b if b > a else a
+
+
+cdef inline double pmin(double a, double b) noexcept nogil:
+    """Python's ``min(a, b)``."""
+    return b if b < a else a
+
+
+cdef inline Py_ssize_t imax(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
+    return b if b > a else a
+
+
+cdef inline Py_ssize_t imin(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
+    return b if b < a else a
+
+
+cdef inline bint _solve(double* a, const double* b, double* x,
+                        bint factor) noexcept nogil:
+    """Solve ``a x = b`` for a small symmetric positive definite ``a`` by its Cholesky
+    factor ``L`` (``a = L L'``), which ``factor`` first writes over the lower triangle of
+    ``a`` (the factor of the normal equations serves the step and the covariance alike);
+    False if ``a`` is not positive definite. ``b`` is kept."""
+    cdef Py_ssize_t i, j, k
+    cdef double d, t
+    if factor:
+        for j in range(N_PAR):
+            d = a[j * N_PAR + j]
+            for k in range(j):
+                d -= a[j * N_PAR + k] * a[j * N_PAR + k]
+            if not d > 1e-300:
+                return False
+            d = sqrt(d)
+            a[j * N_PAR + j] = d
+            for i in range(j + 1, N_PAR):
+                t = a[i * N_PAR + j]
+                for k in range(j):
+                    t -= a[i * N_PAR + k] * a[j * N_PAR + k]
+                a[i * N_PAR + j] = t / d
+    for i in range(N_PAR):  # L z = b
+        t = b[i]
+        for k in range(i):
+            t -= a[i * N_PAR + k] * x[k]
+        x[i] = t / a[i * N_PAR + i]
+    for i in range(N_PAR - 1, -1, -1):  # L' x = z
+        t = x[i]
+        for k in range(i + 1, N_PAR):
+            t -= a[k * N_PAR + i] * x[k]
+        x[i] = t / a[i * N_PAR + i]
+    return True
+
+
+cdef inline void gaussian_rows(Py_ssize_t j0, double v0, double s, double* e,
+                               Py_ssize_t m) noexcept nogil:
+    """``e[k] = exp(-(j0 + k - v0)^2 / (2 s^2))`` for ``k < m``, by the ratio recurrence
+    from the row nearest the centre (``exp(-(t + u)^2 / 2) = exp(-t^2 / 2)
+    exp(-t u - u^2 / 2)``, ``u = 1 / s``): three exponentials instead of one a row."""
+    cdef double u = 1.0 / s
+    cdef Py_ssize_t jc = imin(imax(<Py_ssize_t>floor(v0 - j0 + 0.5), 0), m - 1)
+    cdef double tc = (j0 + jc - v0) * u
+    cdef double dd, q
+    cdef Py_ssize_t jj
+    e[jc] = exp(-0.5 * tc * tc)
+    dd = exp(-u * u)
+    q = exp(-tc * u - 0.5 * u * u)
+    for jj in range(jc + 1, m):
+        e[jj] = e[jj - 1] * q
+        q *= dd
+    q = exp(tc * u - 0.5 * u * u)
+    for jj in range(jc - 1, -1, -1):
+        e[jj] = e[jj + 1] * q
+        q *= dd
+
+
+cdef inline double _normal(const float* y, const unsigned char* use, Py_ssize_t m,
+                           Py_ssize_t j0, double ref, const double* p, double sigma,
+                           double shape_error, double* h, double* g,
+                           double* e, bint with_chi, Py_ssize_t* n_used) noexcept nogil:
+    """Chi-square of the model at ``p = (c, A, v0, s, b)`` under the row variance with
+    the model error (only ``with_chi``, else 0), and the Gauss-Newton normal equations
+    ``h = J' J / sigma^2``, ``g = J' r / sigma^2`` there (the noise alone weighs the
+    rows); ``n_used`` gets the rows used. The background is the line ``c + b (v - ref)``;
+    ``e`` (m,) is scratch for the Gaussian's samples."""
+    cdef double c = p[0], a = p[1], v0 = p[2], s = p[3], sl = p[4]
+    cdef double u = 1.0 / s
+    cdef double chi = 0.0, n = 0.0
+    cdef double wt = 1.0 / (sigma * sigma)
+    cdef double var0 = sigma * sigma
+    cdef double h01 = 0.0, h02 = 0.0, h03 = 0.0, h04 = 0.0, h11 = 0.0, h12 = 0.0
+    cdef double h13 = 0.0, h14 = 0.0, h22 = 0.0, h23 = 0.0, h24 = 0.0, h33 = 0.0
+    cdef double h34 = 0.0, h44 = 0.0
+    cdef double g0 = 0.0, g1 = 0.0, g2 = 0.0, g3 = 0.0, g4 = 0.0
+    cdef double w, t, ej, model, d, r, rw, j2, j3, ew, j2w, j3w, dw, sm
+    cdef Py_ssize_t jj, i, k
+    gaussian_rows(j0, v0, s, e, m)
+    # branch-free (unused rows weigh 0), so that the sums over the rows vectorise
+    for jj in range(m):
+        w = 1.0 if use[jj] else 0.0
+        t = (j0 + jj - v0) * u
+        ej = e[jj]
+        model = a * ej
+        d = j0 + jj - ref
+        r = y[jj] - (c + sl * d + model)
+        rw = r * w
+        if with_chi:
+            sm = shape_error * model
+            chi += rw * r / (var0 + sm * sm)
+        n += w
+        j2 = model * t * u
+        j3 = j2 * t
+        ew = ej * w
+        j2w = j2 * w
+        j3w = j3 * w
+        dw = d * w
+        g0 += rw
+        g1 += ej * rw
+        g2 += j2 * rw
+        g3 += j3 * rw
+        g4 += d * rw
+        h01 += ew
+        h02 += j2w
+        h03 += j3w
+        h04 += dw
+        h11 += ew * ej
+        h12 += ew * j2
+        h13 += ew * j3
+        h14 += ew * d
+        h22 += j2w * j2
+        h23 += j2w * j3
+        h24 += j2w * d
+        h33 += j3w * j3
+        h34 += j3w * d
+        h44 += dw * d
+    # (row-major 5 x 5: entry (i, k) at 5 i + k)
+    h[0] = wt * n
+    h[1] = wt * h01
+    h[2] = wt * h02
+    h[3] = wt * h03
+    h[4] = wt * h04
+    h[6] = wt * h11
+    h[7] = wt * h12
+    h[8] = wt * h13
+    h[9] = wt * h14
+    h[12] = wt * h22
+    h[13] = wt * h23
+    h[14] = wt * h24
+    h[18] = wt * h33
+    h[19] = wt * h34
+    h[24] = wt * h44
+    for i in range(N_PAR):
+        for k in range(i):
+            h[i * N_PAR + k] = h[k * N_PAR + i]
+    g[0] = wt * g0
+    g[1] = wt * g1
+    g[2] = wt * g2
+    g[3] = wt * g3
+    g[4] = wt * g4
+    n_used[0] = <Py_ssize_t>n
+    return chi
+
+
+cdef inline bint fit_gaussian(const float* y, const unsigned char* use, Py_ssize_t m,
+                              Py_ssize_t j0, double v_start, double s_start, double sigma,
+                              double shape_error, double s_max, double* out,
+                              double* ebuf) noexcept nogil:
+    """Fit ``c + b (v - v_start) + A exp(-(v - v0)^2 / 2 s^2)`` to ``y`` (m rows, image
+    rows ``j0 ..``) where ``use``: Gauss-Newton from ``v_start``, ``s_start`` with a
+    bounded step; ``out`` (6,) gets ``(v0, A, s, z, se_v0, chi2)`` (``z``: ``A`` over its
+    standard error; ``chi2`` the reduced chi-square). False when fewer than ``MIN_ROWS``
+    rows, no convergence to a positive peak inside the window, or a width beyond
+    ``2 s_max``. ``ebuf`` (at least m) is scratch."""
+    cdef double h[N_PAR * N_PAR]
+    cdef double g[N_PAR]
+    cdef double dx[N_PAR]
+    cdef double p[N_PAR]
+    cdef double lo = 1e300, pk = -1e300, chi = 0.0, lim_v, var_a = 0.0, var_v = 0.0
+    cdef Py_ssize_t jj, q, idx, n_use = 0
+    for q in range(N_PAR):
+        p[q] = 0.0
+    for jj in range(m):
+        if use[jj]:
+            lo = pmin(lo, y[jj])
+            if fabs(j0 + jj - v_start) <= pmax(1.5, s_start):
+                pk = pmax(pk, y[jj])
+    if lo == 1e300:
+        return False
+    p[0] = lo
+    p[1] = pmax(pk - lo, 1e-3)
+    p[2] = v_start
+    p[3] = s_start
+    for _ in range(MAX_ITER):
+        chi = _normal(y, use, m, j0, v_start, p, sigma, shape_error, h, g, ebuf, False,
+                      &n_use)
+        if n_use < MIN_ROWS:
+            return False
+        for q in range(N_PAR):
+            h[q * N_PAR + q] *= 1.0 + 1e-6
+        if not _solve(h, g, dx, True):
+            return False
+        # keep the step sane: the centre moves at most a width, the width changes by at
+        # most half of itself
+        lim_v = pmax(p[3], 0.5)
+        dx[2] = pmin(pmax(dx[2], -lim_v), lim_v)
+        dx[3] = pmin(pmax(dx[3], -0.5 * p[3]), 0.5 * p[3])
+        for q in range(N_PAR):
+            p[q] += dx[q]
+        p[3] = pmax(p[3], 0.5 * MIN_SIGMA_PX)
+        if p[3] > 2.0 * s_max or not (j0 - 0.5 <= p[2] <= j0 + m - 0.5):
+            return False
+        if fabs(dx[2]) < CONVERGED_PX and fabs(dx[3]) < 0.01 * p[3]:
+            break
+    chi = _normal(y, use, m, j0, v_start, p, sigma, shape_error, h, g, ebuf, True, &n_use)
+    if p[1] <= 0.0 or n_use < MIN_ROWS:
+        return False
+    # covariance: inverse of h, diagonal entries 1 (A) and 2 (v0), from one factor
+    for idx in range(1, 3):
+        for q in range(N_PAR):
+            g[q] = 0.0
+        g[idx] = 1.0
+        if not _solve(h, g, dx, idx == 1):
+            return False
+        if idx == 1:
+            var_a = dx[idx]
+        else:
+            var_v = dx[idx]
+    if not (var_a > 0.0 and var_v > 0.0):
+        return False
+    out[0] = p[2]
+    out[1] = p[1]
+    out[2] = p[3]
+    out[3] = p[1] / sqrt(var_a)
+    out[4] = sqrt(var_v)
+    out[5] = chi / (n_use - N_PAR if n_use - N_PAR > 1 else 1)
+    return True
+
+
+cdef inline double plateau_centre(const double* red, Py_ssize_t n, Py_ssize_t a,
+                                  Py_ssize_t b, double level) noexcept nogil:
+    """Centre of a clipped run ``a .. b - 1`` of the red profile ``red`` (n,): the
+    midpoint of where the profile crosses ``level`` on either side (linear interpolation;
+    a side cut off by the border takes the run's own end)."""
+    cdef Py_ssize_t j = a
+    cdef double up, dn, lo_v, hi_v
+    while j > 0 and red[j - 1] >= level:
+        j -= 1
+    up = j - 0.5
+    if j > 0:
+        lo_v = red[j - 1]
+        hi_v = red[j]
+        up = j - 1 + (level - lo_v) / pmax(hi_v - lo_v, 1e-9)
+    j = b - 1
+    while j < n - 1 and red[j + 1] >= level:
+        j += 1
+    dn = j + 0.5
+    if j < n - 1:
+        hi_v = red[j]
+        lo_v = red[j + 1]
+        dn = j + (hi_v - level) / pmax(hi_v - lo_v, 1e-9)
+    return 0.5 * (up + dn)
+
+
+cdef inline bint flat_top(const float* y, const unsigned char* use, Py_ssize_t m,
+                          Py_ssize_t j0, double v_start, double base, double sigma,
+                          double* out) noexcept nogil:
+    """A hump that is no Gaussian (a flat or skewed top), centred without a shape model:
+    the centre of gravity of its upper half. The peak is the largest used ``y`` within 2
+    rows of ``v_start``; the hump is the run of rows above half its height over
+    ``base``, which must end inside the window on both sides. ``out`` gets ``(v0,
+    height, s, z, se_v0, chi2)`` with ``s`` the half-height width over 2.355, ``z`` the
+    height over ``sigma`` and ``se_v0`` the centre of gravity's noise."""
+    cdef Py_ssize_t kp = -1, jj, a, b
+    cdef double height, level, sw = 0.0, sv = 0.0, wgt, v0, var = 0.0, dv
+    for jj in range(m):
+        if use[jj] and fabs(j0 + jj - v_start) <= 2.0 and (kp < 0 or y[jj] > y[kp]):
+            kp = jj
+    if kp < 0:
+        return False
+    height = y[kp] - base
+    if height <= 0.0:
+        return False
+    level = base + 0.5 * height
+    a = kp
+    while a > 0 and use[a - 1] and y[a - 1] >= level:
+        a -= 1
+    b = kp
+    while b < m - 1 and use[b + 1] and y[b + 1] >= level:
+        b += 1
+    if a == 0 or b == m - 1 or not (use[a - 1] and use[b + 1]):
+        return False  # a flank cut off: no crossing on that side
+    for jj in range(a, b + 1):
+        wgt = y[jj] - level
+        sw += wgt
+        sv += wgt * jj
+    v0 = sv / sw
+    for jj in range(a, b + 1):
+        dv = jj - v0
+        var += dv * dv
+    out[0] = j0 + v0
+    out[1] = height
+    out[2] = (b - a + 1) / 2.355
+    out[3] = height / sigma
+    out[4] = sigma * sqrt(var) / sw
+    out[5] = 0.0
+    return True
