@@ -104,9 +104,11 @@ def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
     surface continues or where it cannot be told, and where ``need`` (W, K), when
     given, is False (candidates that are out already are not judged).
     """
-    need = np.ones(cand.shape[:2], np.bool_) if need is None else need
-    return surface_table(np.ascontiguousarray(cand, dtype=np.float64), img_t, row0,
-                         channel_sigma_dn, need)
+    need = np.ones(cand.shape[:2], np.bool_) if need is None else \
+        np.ascontiguousarray(need, dtype=np.bool_)
+    return surface_table(np.ascontiguousarray(cand, dtype=np.float64),
+                         np.ascontiguousarray(img_t, dtype=np.uint8), row0, channel_sigma_dn,
+                         need)
 
 
 #: the light an averaged fit gives a column must show in the column's own evidence: it

@@ -8,7 +8,7 @@ second is strictly beyond it), so that results are bit-identical.
 
 import numpy as np
 
-from libc.math cimport INFINITY, NAN, exp, fabs, isfinite, sqrt
+from libc.math cimport NAN, exp, fabs, isfinite, sqrt
 
 from slitcli.laser._c.fields cimport (
     F_AMP,
@@ -19,6 +19,7 @@ from slitcli.laser._c.fields cimport (
     F_SE_POS,
     F_WIDTH,
     F_Z,
+    N_FIELDS,
 )
 
 # (the constants of slitcli.laser.choose; constants() returns them and
@@ -59,82 +60,128 @@ cdef inline double _closeness(double v, double ref, double scale) noexcept nogil
     return exp(-0.5 * d * d)
 
 
-cdef inline double _gain(const double[:, :, ::1] cand, Py_ssize_t u, Py_ssize_t q,
-                         const double[::1] prev_v, double z_weak, double beta,
+cdef inline double _gain(const double* c, double prev, double z_weak, double beta,
                          double continuity_px) noexcept nogil:
-    """Log-likelihood ratio of candidate ``q`` of column ``u`` being the stripe (its
+    """Log-likelihood ratio of the candidate of fields ``c`` being the stripe (its
     significance ``z``: ``(z^2 - z_weak^2) / 2``), its ``z^2`` raised by ``beta`` times
-    its closeness to the previous frame's row (Eq. 4's f(y) over time)."""
+    its closeness to the previous frame's row ``prev`` (NaN none; Eq. 4's f(y) over
+    time)."""
     # the choice weighs candidates by their significance against the image's noise (the
     # local noise, which also holds the stripe's own irregular surroundings, only judges
     # whether a candidate can be the stripe at all)
-    cdef double z = cand[u, q, F_Z] * cand[u, q, F_NOISE] / cand[u, q, F_GNOISE]
+    cdef double z = c[F_Z] * c[F_NOISE] / c[F_GNOISE]
     cdef double f = 0.0
-    if prev_v.shape[0] == cand.shape[0] and isfinite(prev_v[u]):
-        f = _closeness(cand[u, q, F_POS], prev_v[u], continuity_px)
+    if isfinite(prev):
+        f = _closeness(c[F_POS], prev, continuity_px)
     return 0.5 * (z * z * (1.0 + beta * f) - z_weak * z_weak)
 
 
-cdef void _best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
-                     const double[::1] prev_v, double z_weak, double beta,
-                     double continuity_px, double max_jump_px, double[:, ::1] score,
-                     Py_ssize_t[:, ::1] back, double[::1] none, Py_ssize_t[::1] none_back,
-                     Py_ssize_t[::1] pick) noexcept nogil:
-    """:func:`best_path` with its scratch (``score``, ``back`` (W, K), ``none``,
-    ``none_back`` (W,))."""
-    cdef Py_ssize_t w_cols = cand.shape[0], k = cand.shape[1], u, q, r, best_q, arg, state
-    cdef double prev_none, best_prev, g, best, dv, d, sc
+cdef struct Table:
+    # a candidate table (w, k, N_FIELDS), C-contiguous, and the previous frame's rows
+    const double* cand
+    Py_ssize_t w
+    Py_ssize_t k
+    const double* prev_v  # (w,), or NULL: none
+
+
+cdef struct Work:
+    # the scratch of the choice: score, back (w, k); none, none_back, idx (w,)
+    double* score
+    Py_ssize_t* back
+    double* none
+    Py_ssize_t* none_back
+    Py_ssize_t* idx
+
+
+cdef inline const double* _fit(const Table* t, Py_ssize_t u, Py_ssize_t q) noexcept nogil:
+    return t.cand + (u * t.k + q) * N_FIELDS
+
+
+cdef void _best_path(const Table* t, const unsigned char* ok, double z_weak, double beta,
+                     double continuity_px, double max_jump_px, Work* ws,
+                     Py_ssize_t* pick) noexcept nogil:
+    """:func:`best_path` (``ok`` (w, k))."""
+    cdef Py_ssize_t w_cols = t.w, k = t.k, u, q, r, best_q, arg, state
+    cdef double prev_none, best_prev, g, best, dv, d, sc, prev
+    cdef const double* c
+    cdef const double* cr
+    cdef double* score = ws.score
+    cdef Py_ssize_t* back = ws.back
     if w_cols == 0:
         return
     for u in range(w_cols):
-        prev_none = none[u - 1] if u > 0 else 0.0
+        prev_none = ws.none[u - 1] if u > 0 else 0.0
         best_prev = prev_none
         best_q = -1
         if u > 0:
             for r in range(k):
-                if score[u - 1, r] > best_prev:
-                    best_prev = score[u - 1, r]
+                if score[(u - 1) * k + r] > best_prev:
+                    best_prev = score[(u - 1) * k + r]
                     best_q = r
-        none[u] = best_prev
-        none_back[u] = best_q
+        ws.none[u] = best_prev
+        ws.none_back[u] = best_q
+        prev = t.prev_v[u] if t.prev_v != NULL else NAN
         for q in range(k):
-            score[u, q] = -1e300
-            back[u, q] = -1  # -1: from "none"
-            if not ok[u, q] or cand[u, q, F_Z] < z_weak:
+            score[u * k + q] = -1e300
+            back[u * k + q] = -1  # -1: from "none"
+            c = _fit(t, u, q)
+            if not ok[u * k + q] or c[F_Z] < z_weak:
                 continue
-            g = _gain(cand, u, q, prev_v, z_weak, beta, continuity_px)
+            g = _gain(c, prev, z_weak, beta, continuity_px)
             best = prev_none
             arg = -1
             if u > 0:
                 for r in range(k):
-                    if score[u - 1, r] <= -1e299:
+                    if score[(u - 1) * k + r] <= -1e299:
                         continue
-                    dv = cand[u, q, F_POS] - cand[u - 1, r, F_POS]
-                    if not links(dv, cand[u, q, F_WIDTH], cand[u - 1, r, F_WIDTH],
-                                 max_jump_px):
+                    cr = _fit(t, u - 1, r)
+                    dv = c[F_POS] - cr[F_POS]
+                    if not links(dv, c[F_WIDTH], cr[F_WIDTH], max_jump_px):
                         continue
                     d = dv / continuity_px
-                    sc = score[u - 1, r] - 0.5 * d * d
+                    sc = score[(u - 1) * k + r] - 0.5 * d * d
                     if sc > best:
                         best = sc
                         arg = r
-            score[u, q] = best + g
-            back[u, q] = arg
+            score[u * k + q] = best + g
+            back[u * k + q] = arg
     # backtrack from the best final state
     state = -1
-    best = none[w_cols - 1]
+    best = ws.none[w_cols - 1]
     for q in range(k):
-        if score[w_cols - 1, q] > best:
-            best = score[w_cols - 1, q]
+        if score[(w_cols - 1) * k + q] > best:
+            best = score[(w_cols - 1) * k + q]
             state = q
     for u in range(w_cols - 1, -1, -1):
         pick[u] = state
-        state = back[u, state] if state >= 0 else none_back[u]
+        state = back[u * k + state] if state >= 0 else ws.none_back[u]
 
 
-def best_path(const double[:, :, ::1] cand, ok_arr, const double[::1] prev_v, double z_weak,
-              double beta, double continuity_px, double max_jump_px,
-              Py_ssize_t[::1] pick) -> None:
+cdef inline Table _table(const double[:, :, ::1] cand, const double[::1] prev_v) noexcept:
+    """The table of ``cand`` (W, K, N_FIELDS; at least one entry) and ``prev_v`` (W,)
+    (another length: none)."""
+    cdef Table t
+    t.cand = &cand[0, 0, 0]
+    t.w = cand.shape[0]
+    t.k = cand.shape[1]
+    t.prev_v = &prev_v[0] if prev_v.shape[0] == t.w else NULL
+    return t
+
+
+cdef inline Work _work(double* wd, Py_ssize_t* wi, Py_ssize_t w, Py_ssize_t k) noexcept nogil:
+    """The scratch in ``wd`` (w k + w doubles) and ``wi`` (w k + 2 w integers)."""
+    cdef Work ws
+    ws.score = wd
+    ws.none = &wd[w * k]
+    ws.back = wi
+    ws.none_back = &wi[w * k]
+    ws.idx = &wi[w * k + w]
+    return ws
+
+
+def best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
+              const double[::1] prev_v, double z_weak, double beta, double continuity_px,
+              double max_jump_px, Py_ssize_t[::1] pick) -> None:
     """Eq. 4 along the stripe: the choice of one candidate or none per column.
 
     The choice maximises the summed evidence (each candidate's log-likelihood ratio
@@ -145,9 +192,9 @@ def best_path(const double[:, :, ::1] cand, ok_arr, const double[::1] prev_v, do
 
     Parameters
     ----------
-    cand : ndarray, shape (W, K, N_FIELDS), float64
+    cand : ndarray, shape (W, K, N_FIELDS), float64, C-contiguous
         The candidate table.
-    ok_arr : ndarray, shape (W, K), bool
+    ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that may be chosen.
     prev_v : ndarray, shape (W,) or (0,), float64
         The previous frame's rows, px (NaN none); empty: none.
@@ -157,17 +204,17 @@ def best_path(const double[:, :, ::1] cand, ok_arr, const double[::1] prev_v, do
         Out: the chosen candidate of each column, -1 none.
     """
     cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1]
-    cdef const unsigned char[:, ::1] ok = \
-        np.ascontiguousarray(ok_arr, dtype=np.bool_).view(np.uint8)
     if ok.shape[0] != w or ok.shape[1] != k or pick.shape[0] != w:
-        raise ValueError("ok_arr, pick and cand differ in shape")
-    cdef double[:, ::1] score = np.empty((w, k))
-    cdef Py_ssize_t[:, ::1] back = np.empty((w, k), np.intp)
-    cdef double[::1] none = np.empty(w)
-    cdef Py_ssize_t[::1] none_back = np.empty(w, np.intp)
+        raise ValueError("ok, pick and cand differ in shape")
+    if w * k == 0:
+        pick[:] = -1
+        return
+    cdef double[::1] wd = np.empty(w * k + w)
+    cdef Py_ssize_t[::1] wi = np.empty(w * k + 2 * w, np.intp)
+    cdef Table t = _table(cand, prev_v)
+    cdef Work ws = _work(&wd[0], &wi[0], w, k)
     with nogil:
-        _best_path(cand, ok, prev_v, z_weak, beta, continuity_px, max_jump_px, score, back,
-                   none, none_back, pick)
+        _best_path(&t, &ok[0, 0], z_weak, beta, continuity_px, max_jump_px, &ws, &pick[0])
 
 
 cdef inline Py_ssize_t _floor_div(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
@@ -176,19 +223,20 @@ cdef inline Py_ssize_t _floor_div(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
     return d - 1 if (a % b != 0 and a < 0) else d
 
 
-cdef Py_ssize_t _segments(const double[:, :, ::1] cand, const Py_ssize_t[::1] pick,
-                          const double[::1] v, const double[::1] wid, double max_jump_px,
-                          Py_ssize_t min_segment_cols, double min_z, double strong_z,
-                          unsigned char[::1] keep, unsigned char[::1] dropped,
-                          Py_ssize_t[::1] idx) noexcept nogil:
+cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* v,
+                          const double* wid, double max_jump_px, Py_ssize_t min_segment_cols,
+                          double min_z, double strong_z, unsigned char* keep,
+                          unsigned char* dropped, Py_ssize_t* idx) noexcept nogil:
     """The chosen columns (``pick`` >= 0) joined into segments (:func:`choose_stripe`);
     ``keep`` marks the columns of segments that stay, ``dropped`` those of segments that
     do not (``idx`` scratch (W,)); returns the longest kept segment's span in columns."""
-    cdef Py_ssize_t w_cols = cand.shape[0], longest = 0, u = 0, cnt, last, x, r, quarter
+    cdef Py_ssize_t w_cols = t.w, longest = 0, u = 0, cnt, last, x, r, quarter
     cdef double dv, z, z2
     cdef bint strong, good
-    keep[:] = 0
-    dropped[:] = 0
+    for u in range(w_cols):
+        keep[u] = 0
+        dropped[u] = 0
+    u = 0
     quarter = _floor_div(min_segment_cols, 4)
     while u < w_cols:
         if pick[u] < 0:
@@ -212,7 +260,7 @@ cdef Py_ssize_t _segments(const double[:, :, ::1] cand, const Py_ssize_t[::1] pi
         strong = cnt >= (quarter if quarter > 2 else 2)
         z2 = 0.0
         for r in range(cnt):
-            z = cand[idx[r], pick[idx[r]], F_Z]
+            z = _fit(t, idx[r], pick[idx[r]])[F_Z]
             strong = strong and z >= strong_z
             z2 += z * z
         good = (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong
@@ -225,46 +273,44 @@ cdef Py_ssize_t _segments(const double[:, :, ::1] cand, const Py_ssize_t[::1] pi
     return longest
 
 
-cdef Py_ssize_t _choose_rounds(const double[:, :, ::1] cand, unsigned char[:, ::1] allowed,
-                               const double[::1] prev_v, double beta, double z_weak,
-                               double continuity_px, double max_jump_px,
+cdef Py_ssize_t _choose_rounds(const Table* t, unsigned char* allowed, double beta,
+                               double z_weak, double continuity_px, double max_jump_px,
                                Py_ssize_t min_segment_cols, double min_z, double strong_z,
-                               Py_ssize_t rounds, double[:, ::1] score,
-                               Py_ssize_t[:, ::1] back, double[::1] none,
-                               Py_ssize_t[::1] none_back, Py_ssize_t[::1] pick,
-                               double[::1] v, double[::1] wid, unsigned char[::1] keep,
-                               unsigned char[::1] dropped,
-                               Py_ssize_t[::1] idx) noexcept nogil:
+                               Py_ssize_t rounds, Work* ws, Py_ssize_t* pick, double* v,
+                               double* wid, unsigned char* keep,
+                               unsigned char* dropped) noexcept nogil:
     """The rounds of :func:`choose_stripe`: the choice, its segments, the candidates of
-    dropped segments struck out of ``allowed``; returns the longest kept segment's span."""
-    cdef Py_ssize_t w_cols = cand.shape[0], u, i, longest = 0
+    dropped segments struck out of ``allowed`` (w, k); returns the longest kept
+    segment's span."""
+    cdef Py_ssize_t w_cols = t.w, k = t.k, u, i, longest = 0
     cdef bint any_dropped
+    cdef const double* c
     for i in range(rounds if rounds > 1 else 1):
-        _best_path(cand, allowed, prev_v, z_weak, beta, continuity_px, max_jump_px, score,
-                   back, none, none_back, pick)
+        _best_path(t, allowed, z_weak, beta, continuity_px, max_jump_px, ws, pick)
         for u in range(w_cols):
             v[u] = NAN
             wid[u] = NAN
             if pick[u] >= 0:
-                v[u] = cand[u, pick[u], F_POS]
-                wid[u] = cand[u, pick[u], F_WIDTH]
-        longest = _segments(cand, pick, v, wid, max_jump_px, min_segment_cols, min_z,
-                            strong_z, keep, dropped, idx)
+                c = _fit(t, u, pick[u])
+                v[u] = c[F_POS]
+                wid[u] = c[F_WIDTH]
+        longest = _segments(t, pick, v, wid, max_jump_px, min_segment_cols, min_z,
+                            strong_z, keep, dropped, ws.idx)
         any_dropped = False
         for u in range(w_cols):
             if dropped[u]:
                 any_dropped = True
-                allowed[u, pick[u]] = 0
+                allowed[u * k + pick[u]] = 0
         if not any_dropped:
             break
     return longest
 
 
-def choose_stripe(const double[:, :, ::1] cand, ok_arr, const double[::1] prev_v,
-                  double beta, double z_weak, double continuity_px, double max_jump_px,
-                  Py_ssize_t min_segment_cols, double min_z, double strong_z,
-                  Py_ssize_t min_stripe_cols, Py_ssize_t rounds, double[::1] v_out,
-                  double[::1] amp_out, sat_out) -> None:
+def choose_stripe(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
+                  const double[::1] prev_v, double beta, double z_weak, double continuity_px,
+                  double max_jump_px, Py_ssize_t min_segment_cols, double min_z,
+                  double strong_z, Py_ssize_t min_stripe_cols, Py_ssize_t rounds,
+                  double[::1] v_out, double[::1] amp_out, unsigned char[::1] sat_out) -> None:
     """The choice along the stripe (:func:`best_path`), then the segments; writes the
     rows, peaks and clipped flags.
 
@@ -283,9 +329,9 @@ def choose_stripe(const double[:, :, ::1] cand, ok_arr, const double[::1] prev_v
 
     Parameters
     ----------
-    cand : ndarray, shape (W, K, N_FIELDS), float64
+    cand : ndarray, shape (W, K, N_FIELDS), float64, C-contiguous
         The candidate table, rows in px from the image's top.
-    ok_arr : ndarray, shape (W, K), bool
+    ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that pass :mod:`slitcli.laser.judge`'s tests (not changed).
     prev_v : ndarray, shape (W,) or (0,), float64
         The previous frame's rows, px (NaN none); empty: none.
@@ -299,58 +345,65 @@ min_stripe_cols, rounds
     sat_out : ndarray, shape (W,), bool
         Out: whether its core is clipped.
     """
-    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], u, q, longest
-    allowed_arr = np.array(ok_arr, dtype=np.bool_, order="C")
-    cdef unsigned char[:, ::1] allowed = allowed_arr.view(np.uint8)
-    sat_view = np.asarray(sat_out)
-    if sat_view.dtype != np.bool_:
-        raise ValueError("sat_out must be a bool array")
-    cdef unsigned char[::1] sat = sat_view.view(np.uint8)
-    if allowed.shape[0] != w or allowed.shape[1] != k or v_out.shape[0] != w or \
-            amp_out.shape[0] != w or sat.shape[0] != w:
-        raise ValueError("ok_arr, v_out, amp_out, sat_out and cand differ in shape")
-    cdef double[:, ::1] score = np.empty((w, k))
-    cdef Py_ssize_t[:, ::1] back = np.empty((w, k), np.intp)
-    cdef double[::1] none = np.empty(w)
-    cdef Py_ssize_t[::1] none_back = np.empty(w, np.intp)
-    cdef Py_ssize_t[::1] pick = np.empty(w, np.intp)
-    cdef Py_ssize_t[::1] idx = np.empty(w, np.intp)
-    cdef double[::1] v = np.empty(w)
-    cdef double[::1] wid = np.empty(w)
-    cdef double[::1] se = np.empty(w)
-    cdef unsigned char[::1] keep = np.zeros(w, np.uint8)
-    cdef unsigned char[::1] dropped = np.zeros(w, np.uint8)
-    cdef unsigned char[::1] corner = np.empty(w, np.uint8)
+    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], u, longest
+    if ok.shape[0] != w or ok.shape[1] != k or v_out.shape[0] != w or \
+            amp_out.shape[0] != w or sat_out.shape[0] != w:
+        raise ValueError("ok, v_out, amp_out, sat_out and cand differ in shape")
+    if w * k == 0:
+        v_out[:] = NAN
+        amp_out[:] = NAN
+        sat_out[:] = 0
+        return
+    # (one block of each type: v, wid, se, then the choice's score and none; pick, then
+    # back, none_back, idx; allowed, then keep, dropped, corner)
+    cdef double[::1] wd = np.empty(3 * w + w * k + w)
+    cdef Py_ssize_t[::1] wi = np.empty(w + w * k + 2 * w, np.intp)
+    cdef unsigned char[::1] wu = np.empty(w * k + 3 * w, np.uint8)
+    cdef double* v = &wd[0]
+    cdef double* wid = &wd[w]
+    cdef double* se = &wd[2 * w]
+    cdef Py_ssize_t* pick = &wi[0]
+    cdef unsigned char* allowed = &wu[0]
+    cdef unsigned char* keep = &wu[w * k]
+    cdef unsigned char* dropped = &wu[w * k + w]
+    cdef unsigned char* corner = &wu[w * k + 2 * w]
+    cdef Table t = _table(cand, prev_v)
+    cdef Work ws = _work(&wd[3 * w], &wi[w], w, k)
+    cdef const double* c
     with nogil:
-        v[:] = NAN
-        wid[:] = NAN
-        longest = _choose_rounds(cand, allowed, prev_v, beta, z_weak, continuity_px,
-                                 max_jump_px, min_segment_cols, min_z, strong_z, rounds,
-                                 score, back, none, none_back, pick, v, wid, keep, dropped,
-                                 idx)
+        for u in range(w * k):
+            allowed[u] = ok[u // k, u % k]
+        for u in range(w):
+            v[u] = NAN
+            wid[u] = NAN
+        longest = _choose_rounds(&t, allowed, beta, z_weak, continuity_px, max_jump_px,
+                                 min_segment_cols, min_z, strong_z, rounds, &ws, pick, v,
+                                 wid, keep, dropped)
         if longest < min_stripe_cols:
-            keep[:] = 0
+            for u in range(w):
+                keep[u] = 0
         for u in range(w):
             se[u] = NAN
             amp_out[u] = NAN
-            sat[u] = False
+            sat_out[u] = False
             if keep[u]:
-                q = pick[u]
-                se[u] = cand[u, q, F_SE_POS]
-                amp_out[u] = cand[u, q, F_AMP]
-                sat[u] = cand[u, q, F_SAT] > 0
-        _smooth_rows(v, se, wid, keep, max_jump_px, v_out, corner)
+                c = _fit(&t, u, pick[u])
+                se[u] = c[F_SE_POS]
+                amp_out[u] = c[F_AMP]
+                sat_out[u] = c[F_SAT] > 0
+        _smooth_rows(v, se, wid, keep, w, max_jump_px, &v_out[0], corner)
 
 
-cdef void _smooth_rows(const double[::1] v, const double[::1] se, const double[::1] width,
-                       const unsigned char[::1] keep, double max_jump_px, double[::1] out,
-                       unsigned char[::1] corner) noexcept nogil:
-    """:func:`smooth_rows` (``corner`` scratch (n,))."""
-    cdef Py_ssize_t n = v.shape[0], x, u, lo, hi, p
+cdef void _smooth_rows(const double* v, const double* se, const double* width,
+                       const unsigned char* keep, Py_ssize_t n, double max_jump_px,
+                       double* out, unsigned char* corner) noexcept nogil:
+    """:func:`smooth_rows` of ``n`` columns (``corner`` scratch (n,))."""
+    cdef Py_ssize_t x, u, lo, hi, p
     cdef double d2, noise, e, wt, d, yv, pw, det, num
     cdef double m0[5]
     cdef double m1[3]
-    corner[:] = 0
+    for x in range(n):
+        corner[x] = 0
     for x in range(1, n - 1):
         if keep[x - 1] and keep[x] and keep[x + 1]:
             d2 = v[x + 1] - 2.0 * v[x] + v[x - 1]
@@ -397,8 +450,8 @@ cdef void _smooth_rows(const double[::1] v, const double[::1] se, const double[:
         out[u] = v[u] + num / det
 
 
-def smooth_rows(const double[::1] v, const double[::1] se, const double[::1] width, keep_arr,
-                double max_jump_px, double[::1] out) -> None:
+def smooth_rows(const double[::1] v, const double[::1] se, const double[::1] width,
+                const unsigned char[::1] keep, double max_jump_px, double[::1] out) -> None:
     """Each kept column's row from a weighted quadratic through its segment's rows.
 
     A stripe on a surface is a smooth image curve and the columns' fits carry
@@ -416,7 +469,7 @@ def smooth_rows(const double[::1] v, const double[::1] se, const double[::1] wid
         Their standard errors, px.
     width : ndarray, shape (W,), float64
         The stripe's fitted sigma per column, px (:func:`links`).
-    keep_arr : ndarray, shape (W,), bool
+    keep : ndarray, shape (W,), bool
         The columns to smooth (the others are NaN in ``out``).
     max_jump_px : float
         Largest row step between linked columns, px.
@@ -424,10 +477,11 @@ def smooth_rows(const double[::1] v, const double[::1] se, const double[::1] wid
         Out: the smoothed rows, px (NaN where not kept).
     """
     cdef Py_ssize_t n = v.shape[0]
-    cdef const unsigned char[::1] keep = \
-        np.ascontiguousarray(keep_arr, dtype=np.bool_).view(np.uint8)
     if se.shape[0] != n or width.shape[0] != n or keep.shape[0] != n or out.shape[0] != n:
         raise ValueError("v, se, width, keep and out differ in length")
+    if n == 0:
+        return
     cdef unsigned char[::1] corner = np.empty(n, np.uint8)
     with nogil:
-        _smooth_rows(v, se, width, keep, max_jump_px, out, corner)
+        _smooth_rows(&v[0], &se[0], &width[0], &keep[0], n, max_jump_px, &out[0],
+                     &corner[0])

@@ -29,6 +29,7 @@ from slitcli.laser._c.fields cimport (
     F_TR,
     F_WIDTH,
     F_Z,
+    N_FIELDS,
 )
 
 # (the constants of slitcli.laser.judge and slitcli.laser.profile; constants() returns
@@ -127,31 +128,30 @@ cdef inline double _median(double* a, Py_ssize_t n) noexcept nogil:
     return (lo + hi) / 2
 
 
-cdef void _model_tests(const double[:, :, ::1] cand, Py_ssize_t height_px, double s_max,
+cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, double s_max,
                        double max_chi2, double min_th, double min_delta_th,
-                       unsigned char[:, ::1] ok) noexcept nogil:
+                       unsigned char* ok) noexcept nogil:
     """The tests of one fit on its own (place, width, shape, Eq. 2 on the light its core
-    adds) into ``ok`` (W, K)."""
-    cdef Py_ssize_t u, q
+    adds) of the ``n`` fits of ``cand`` (n, N_FIELDS) into ``ok`` (n,)."""
+    cdef Py_ssize_t i
     cdef const double* c
     cdef double pos, s, tr, tg, tb, tot
     cdef bint sat, good, eq2
-    for u in range(ok.shape[0]):
-        for q in range(ok.shape[1]):
-            c = &cand[u, q, 0]
-            pos = c[F_POS]
-            s = c[F_WIDTH]
-            sat = c[F_SAT] > 0
-            good = isfinite(pos) and pos >= -0.5 and pos <= height_px - 0.5 and \
-                s >= MIN_SIGMA_PX and s <= s_max and \
-                (sat or c[F_FLAT] > 0 or c[F_CHI2] <= max_chi2)
-            tr = c[F_TR]
-            tg = c[F_TG]
-            tb = c[F_TB]
-            tot = tr + tg + tb
-            eq2 = tot > 0 and tr / tot > min_th and \
-                tr / tot - pmax(tg, tb) / tot > min_delta_th
-            ok[u, q] = good and (eq2 or (sat and not c[F_NCORE] > 0))
+    for i in range(n):
+        c = cand + i * N_FIELDS
+        pos = c[F_POS]
+        s = c[F_WIDTH]
+        sat = c[F_SAT] > 0
+        good = isfinite(pos) and pos >= -0.5 and pos <= height_px - 0.5 and \
+            s >= MIN_SIGMA_PX and s <= s_max and \
+            (sat or c[F_FLAT] > 0 or c[F_CHI2] <= max_chi2)
+        tr = c[F_TR]
+        tg = c[F_TG]
+        tb = c[F_TB]
+        tot = tr + tg + tb
+        eq2 = tot > 0 and tr / tot > min_th and \
+            tr / tot - pmax(tg, tb) / tot > min_delta_th
+        ok[i] = good and (eq2 or (sat and not c[F_NCORE] > 0))
 
 
 cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
@@ -175,21 +175,21 @@ cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
     return False
 
 
-cdef bint _laser_colour(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
+cdef bint _laser_colour(const double* cand, Py_ssize_t n, const unsigned char* ok,
                         double min_z, double* g, double* b, double* laser) noexcept nogil:
     """The laser's colour (RGB, red 1) into ``laser`` from the frame's strong unclipped
-    candidates (median of their core contrast over its red; ``g``, ``b`` scratch of W K
-    entries); False with fewer than ``COLOUR_SUPPORT`` of them."""
-    cdef Py_ssize_t u, q, m = 0
+    candidates among the ``n`` of ``cand`` (median of their core contrast over its red;
+    ``g``, ``b`` scratch of n entries); False with fewer than ``COLOUR_SUPPORT`` of
+    them."""
+    cdef Py_ssize_t i, m = 0
     cdef const double* c
-    for u in range(ok.shape[0]):
-        for q in range(ok.shape[1]):
-            c = &cand[u, q, 0]
-            if ok[u, q] and c[F_Z] >= COLOUR_Z * min_z and c[F_SAT] == 0 and \
-                    c[F_NCORE] > 0 and c[F_TR] > 0:
-                g[m] = c[F_TG] / c[F_TR]
-                b[m] = c[F_TB] / c[F_TR]
-                m += 1
+    for i in range(n):
+        c = cand + i * N_FIELDS
+        if ok[i] and c[F_Z] >= COLOUR_Z * min_z and c[F_SAT] == 0 and \
+                c[F_NCORE] > 0 and c[F_TR] > 0:
+            g[m] = c[F_TG] / c[F_TR]
+            b[m] = c[F_TB] / c[F_TR]
+            m += 1
     if m < COLOUR_SUPPORT:
         return False
     laser[0] = 1.0
@@ -198,31 +198,59 @@ cdef bint _laser_colour(const double[:, :, ::1] cand, const unsigned char[:, ::1
     return True
 
 
-cdef void _sheet_tests(const double[:, :, ::1] cand, const double[:, :] sheet_px,
+cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
                        double strong_z, double sheet_tolerance, Py_ssize_t sheet_support,
-                       unsigned char[:, ::1] ok, double* vals) noexcept nogil:
-    """The sheet's thickness test of :func:`shape_tests` into ``ok`` (``vals`` scratch of
-    W K entries)."""
-    cdef Py_ssize_t w = ok.shape[0], k = ok.shape[1], u, q, m = 0
+                       unsigned char* ok, double* vals) noexcept nogil:
+    """The sheet's thickness test of :func:`shape_tests` of the ``n`` fits of ``cand``
+    (``sheet_px`` (n,)) into ``ok`` (``vals`` scratch of n entries)."""
+    cdef Py_ssize_t i, m = 0
+    cdef const double* c
     cdef double s, ratio, ref
     # the sheet's thickness relative to the parameter's; where the frame shows its own
     # clearly (a stripe's worth of strong unclipped columns: a few strong columns beside
     # a clipped core are widened by it), that is a second reference
-    for u in range(w):
-        for q in range(k):
-            s = cand[u, q, F_WIDTH]
-            ratio = sqrt(pmax(s * s - PIXEL_VAR, 0.01)) / sheet_px[u, q]
-            if ok[u, q] and not cand[u, q, F_SAT] > 0 and cand[u, q, F_Z] >= strong_z \
-                    and isfinite(ratio):
-                vals[m] = ratio
-                m += 1
+    for i in range(n):
+        c = cand + i * N_FIELDS
+        s = c[F_WIDTH]
+        ratio = sqrt(pmax(s * s - PIXEL_VAR, 0.01)) / sheet_px[i]
+        if ok[i] and not c[F_SAT] > 0 and c[F_Z] >= strong_z and isfinite(ratio):
+            vals[m] = ratio
+            m += 1
     ref = _median(vals, m) if m >= (sheet_support if sheet_support > COLOUR_SUPPORT
                                     else COLOUR_SUPPORT) else 1.0
-    for u in range(w):
-        for q in range(k):
-            if ok[u, q] and not cand[u, q, F_SAT] > 0:
-                ok[u, q] = _fits_sheet(cand[u, q, F_WIDTH], cand[u, q, F_SE_POS],
-                                       sheet_px[u, q], ref, sheet_tolerance)
+    for i in range(n):
+        c = cand + i * N_FIELDS
+        if ok[i] and not c[F_SAT] > 0:
+            ok[i] = _fits_sheet(c[F_WIDTH], c[F_SE_POS], sheet_px[i], ref, sheet_tolerance)
+
+
+cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
+                       Py_ssize_t height_px, double s_max, double min_z, double max_chi2,
+                       double min_th, double min_delta_th, double sheet_tolerance,
+                       Py_ssize_t sheet_support, double width_spread, unsigned char* ok,
+                       double* work, double* laser) noexcept nogil:
+    """:func:`shape_tests` of the ``n`` fits of ``cand`` (``sheet_px`` (n,) or NULL;
+    ``work`` scratch of 3 n entries); returns whether the frame shows the laser's
+    colour."""
+    cdef Py_ssize_t i, m = 0
+    cdef const double* c
+    cdef double strong_z = COLOUR_Z * min_z, widest
+    _model_tests(cand, n, height_px, s_max, max_chi2, min_th, min_delta_th, ok)
+    if sheet_px != NULL:
+        _sheet_tests(cand, n, sheet_px, strong_z, sheet_tolerance, sheet_support, ok, work)
+    # the sheet's width as the frame shows it: its strong unclipped columns
+    for i in range(n):
+        c = cand + i * N_FIELDS
+        if ok[i] and not c[F_SAT] > 0 and c[F_Z] >= strong_z:
+            work[m] = c[F_WIDTH]
+            m += 1
+    if m >= COLOUR_SUPPORT:
+        widest = width_spread * _median(work, m)
+        for i in range(n):
+            c = cand + i * N_FIELDS
+            if not c[F_SAT] > 0:
+                ok[i] = ok[i] and c[F_WIDTH] <= widest
+    return _laser_colour(cand, n, ok, min_z, work + n, work + 2 * n, laser)
 
 
 def shape_tests(const double[:, :, ::1] cand, sheet_px, Py_ssize_t height_px, double s_max,
@@ -251,41 +279,28 @@ width_spread
         The laser's colour (RGB, red 1) from the frame's strong unclipped candidates;
         None with fewer than ``COLOUR_SUPPORT`` of them.
     """
-    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], u, q, m = 0
+    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], n = w * k
     ok_arr = np.empty((w, k), np.bool_)
-    cdef unsigned char[:, ::1] ok = ok_arr.view(np.uint8)
-    cdef const double[:, :] sheet = np.empty((0, 0)) if sheet_px is None else \
-        np.asarray(sheet_px, np.float64)
-    cdef bint has_sheet = sheet_px is not None
-    if has_sheet and (sheet.shape[0] != w or sheet.shape[1] != k):
-        raise ValueError(f"sheet_px is {(sheet.shape[0], sheet.shape[1])}, the "
-                         f"candidates {(w, k)}")
-    cdef double[::1] vals = np.empty(w * k)
-    cdef double[::1] g = np.empty(w * k)
-    cdef double[::1] b = np.empty(w * k)
-    laser_arr = np.empty(3)
-    cdef double[::1] laser = laser_arr
-    cdef double strong_z = COLOUR_Z * min_z, widest
+    if n == 0:
+        return ok_arr, None
+    cdef unsigned char[:, ::1] ok = ok_arr
+    cdef const double[:, ::1] sheet
+    cdef const double* sheet_ptr = NULL
+    if sheet_px is not None:
+        sheet = np.ascontiguousarray(sheet_px, np.float64)
+        if sheet.shape[0] != w or sheet.shape[1] != k:
+            raise ValueError(f"sheet_px is {(sheet.shape[0], sheet.shape[1])}, the "
+                             f"candidates {(w, k)}")
+        sheet_ptr = &sheet[0, 0]
+    # (scratch for the medians, and the laser's colour after it)
+    work_arr = np.empty(3 * n + 3)
+    cdef double[::1] work = work_arr
     cdef bint found
     with nogil:
-        _model_tests(cand, height_px, s_max, max_chi2, min_th, min_delta_th, ok)
-        if has_sheet:
-            _sheet_tests(cand, sheet, strong_z, sheet_tolerance, sheet_support, ok,
-                         &vals[0])
-        # the sheet's width as the frame shows it: its strong unclipped columns
-        for u in range(w):
-            for q in range(k):
-                if ok[u, q] and not cand[u, q, F_SAT] > 0 and cand[u, q, F_Z] >= strong_z:
-                    vals[m] = cand[u, q, F_WIDTH]
-                    m += 1
-        if m >= COLOUR_SUPPORT:
-            widest = width_spread * _median(&vals[0], m)
-            for u in range(w):
-                for q in range(k):
-                    if not cand[u, q, F_SAT] > 0:
-                        ok[u, q] = ok[u, q] and cand[u, q, F_WIDTH] <= widest
-        found = _laser_colour(cand, ok, min_z, &g[0], &b[0], &laser[0])
-    return ok_arr, (laser_arr if found else None)
+        found = _shape_tests(&cand[0, 0, 0], n, sheet_ptr, height_px, s_max, min_z,
+                             max_chi2, min_th, min_delta_th, sheet_tolerance, sheet_support,
+                             width_spread, &ok[0, 0], &work[0], &work[3 * n])
+    return ok_arr, (work_arr[3 * n:].copy() if found else None)
 
 
 cdef inline double _dot3(double a0, double a1, double a2, const double* b) noexcept nogil:
@@ -380,7 +395,7 @@ def laser_share(const double[::1] t, const double[::1] k, const double[::1] lase
 
 def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
                  const double[::1] lu, double channel_sigma_dn, double colour_error,
-                 double share_z, ok_arr) -> None:
+                 double share_z, unsigned char[:, ::1] ok) -> None:
     """The colour tests of :func:`slitcli.laser.judge.valid_candidates` on the
     candidates that show a core, applied to ``ok_arr`` (W, K, bool, in place).
 
@@ -396,10 +411,9 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
         The colour residual allowed beyond the noise, as a share of the contrast.
     share_z : float
         Significance of the laser's share (:func:`laser_share`); 0 skips that test.
-    ok_arr : ndarray, shape (W, K), bool, C-contiguous
+    ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that passed so far; those that fail are set False.
     """
-    cdef unsigned char[:, ::1] ok = ok_arr.view(np.uint8)
     if ok.shape[0] != cand.shape[0] or ok.shape[1] != cand.shape[1]:
         raise ValueError("ok_arr and cand differ in shape")
     if laser.shape[0] != 3 or lu.shape[0] != 3:
@@ -429,30 +443,33 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
                                             channel_sigma_dn, share_z)
 
 
-cdef inline bint _side_colour(const unsigned char[:, :, :] img_t, Py_ssize_t col, double pos,
-                              double edge, double* tot) noexcept nogil:
-    """Sum (B, G, R) into ``tot`` of column ``col`` of ``img_t`` at the two rows
-    ``rint(pos + edge)`` and ``rint(pos + edge +- 1)`` (away from ``pos``); False where
-    one of them lies outside the image."""
-    cdef Py_ssize_t n_rows = img_t.shape[1], ri, c
+cdef inline bint _side_colour(const unsigned char* img_t, Py_ssize_t n_rows, Py_ssize_t col,
+                              double pos, double edge, double* tot) noexcept nogil:
+    """Sum (B, G, R) into ``tot`` of column ``col`` of ``img_t`` (W, n_rows, 3) at the two
+    rows ``rint(pos + edge)`` and ``rint(pos + edge +- 1)`` (away from ``pos``); False
+    where one of them lies outside the image."""
+    cdef Py_ssize_t ri, c
     cdef bint inside = True
     cdef double step = 1.0 if edge > 0 else -1.0, r
     cdef int extra
+    cdef const unsigned char* px
     tot[0] = tot[1] = tot[2] = 0.0
     for extra in range(2):
         r = rint(pos + step * (fabs(edge) + extra))
         inside = inside and 0 <= r and r < n_rows
         ri = <Py_ssize_t>pmin(pmax(r, 0.0), <double>(n_rows - 1))
+        px = img_t + (col * n_rows + ri) * 3
         for c in range(3):
-            tot[c] += <double>img_t[col, ri, c]
+            tot[c] += <double>px[c]
     return inside
 
 
-cdef bint _breaks(const unsigned char[:, :, :] img_t, Py_ssize_t u, double pos, double off,
-                  double channel_sigma_dn) noexcept nogil:
-    """Whether the surfaces above and below row ``pos`` of column ``u`` (``off`` rows
-    away) differ in colour, in the neighbouring columns too."""
-    cdef Py_ssize_t n_cols = img_t.shape[0], col, shift, c
+cdef bint _breaks(const unsigned char* img_t, Py_ssize_t n_cols, Py_ssize_t n_rows,
+                  Py_ssize_t u, double pos, double off, double channel_sigma_dn) noexcept nogil:
+    """Whether the surfaces above and below row ``pos`` of column ``u`` of ``img_t``
+    (n_cols, n_rows, 3; ``off`` rows away) differ in colour, in the neighbouring columns
+    too."""
+    cdef Py_ssize_t col, shift, c
     cdef double up[3]
     cdef double dn[3]
     cdef double s_up, s_dn, d, noise
@@ -463,8 +480,8 @@ cdef bint _breaks(const unsigned char[:, :, :] img_t, Py_ssize_t u, double pos, 
     for shift in range(-1, 2):
         col = u + shift
         col = 0 if col < 0 else (n_cols - 1 if col > n_cols - 1 else col)
-        inside = _side_colour(img_t, col, pos, -off, up)
-        inside = _side_colour(img_t, col, pos, off, dn) and inside
+        inside = _side_colour(img_t, n_rows, col, pos, -off, up)
+        inside = _side_colour(img_t, n_rows, col, pos, off, dn) and inside
         s_up = up[0] + up[1] + up[2]
         s_dn = dn[0] + dn[1] + dn[2]
         if not (inside and s_up >= 6.0 * SURFACE_MIN_DN and s_dn >= 6.0 * SURFACE_MIN_DN):
@@ -480,48 +497,57 @@ cdef bint _breaks(const unsigned char[:, :, :] img_t, Py_ssize_t u, double pos, 
     return True
 
 
-def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, :] img_t,
-                  Py_ssize_t row0, double channel_sigma_dn, need_arr):
-    """:func:`slitcli.laser.judge.surface_continues` of the candidates where ``need_arr``.
+def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] img_t,
+                  Py_ssize_t row0, double channel_sigma_dn,
+                  const unsigned char[:, ::1] need):
+    """:func:`slitcli.laser.judge.surface_continues` of the candidates where ``need``.
 
     Parameters
     ----------
-    cand : ndarray, shape (W, K, N_FIELDS), float64
+    cand : ndarray, shape (W, K, N_FIELDS), float64, C-contiguous
         The candidate table, rows from the image's top.
-    img_t : ndarray, shape (W, H', 3), uint8, BGR
+    img_t : ndarray, shape (W, H', 3), uint8, BGR, C-contiguous
         The image transposed (one column per array row), rows from ``row0``.
     row0 : int
         Image row of ``img_t``'s first row.
     channel_sigma_dn : float
         Noise sigma of one channel, DN.
-    need_arr : ndarray, shape (W, K), bool
+    need : ndarray, shape (W, K), bool, C-contiguous
         The candidates to judge.
 
     Returns
     -------
     ndarray, shape (W, K), bool
         True where the surface continues, where it cannot be told, and where not
-        ``need_arr``.
+        ``need``.
     """
-    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], u, q
-    cdef const unsigned char[:, ::1] need = \
-        np.ascontiguousarray(need_arr, dtype=np.bool_).view(np.uint8)
+    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], n_cols = img_t.shape[0]
+    cdef Py_ssize_t n_rows = img_t.shape[1], i
     if need.shape[0] != w or need.shape[1] != k:
         raise ValueError("need and cand differ in shape")
-    if img_t.shape[2] != 3 or img_t.shape[0] < 1:
+    if img_t.shape[2] != 3:
         raise ValueError("img_t must be a (W, H', 3) image")
     out_arr = np.empty((w, k), np.bool_)
-    cdef unsigned char[:, ::1] out = out_arr.view(np.uint8)
+    if w * k == 0:
+        return out_arr
+    if n_cols == 0 or n_rows == 0:
+        out_arr[...] = True
+        return out_arr
+    cdef unsigned char[:, ::1] out = out_arr
+    cdef unsigned char* o = &out[0, 0]
+    cdef const unsigned char* nd = &need[0, 0]
+    cdef const unsigned char* im = &img_t[0, 0, 0]
+    cdef const double* c
     cdef double pos, wid, off
     with nogil:
-        for u in range(w):
-            for q in range(k):
-                pos = cand[u, q, F_POS] - row0
-                out[u, q] = True
-                if not need[u, q] or not isfinite(pos):
-                    continue
-                wid = cand[u, q, F_WIDTH]
-                # (an integer number of rows, as numba's math.ceil gave)
-                off = <double><long long>ceil(EQ_WIDTH * (1.0 if isnan(wid) else wid) + 2.0)
-                out[u, q] = not _breaks(img_t, u, pos, off, channel_sigma_dn)
+        for i in range(w * k):
+            c = &cand[0, 0, 0] + i * N_FIELDS
+            pos = c[F_POS] - row0
+            o[i] = True
+            if not nd[i] or not isfinite(pos):
+                continue
+            wid = c[F_WIDTH]
+            # (an integer number of rows, as numba's math.ceil gave)
+            off = <double><long long>ceil(EQ_WIDTH * (1.0 if isnan(wid) else wid) + 2.0)
+            o[i] = not _breaks(im, n_cols, n_rows, i // k, pos, off, channel_sigma_dn)
     return out_arr
