@@ -180,7 +180,7 @@ cdef inline Work _work(double* wd, Py_ssize_t* wi, Py_ssize_t w, Py_ssize_t k) n
 
 
 def best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
-              const double[::1] prev_v, double z_weak, double beta, double continuity_px,
+              prev_v, double z_weak, double beta, double continuity_px,
               double max_jump_px, Py_ssize_t[::1] pick) -> None:
     """Eq. 4 along the stripe: the choice of one candidate or none per column.
 
@@ -196,8 +196,8 @@ def best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
         The candidate table.
     ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that may be chosen.
-    prev_v : ndarray, shape (W,) or (0,), float64
-        The previous frame's rows, px (NaN none); empty: none.
+    prev_v : array_like, shape (W,) or (0,), float
+        The previous frame's rows, px (NaN none); another length (empty): none.
     z_weak, beta, continuity_px, max_jump_px : float
         Eq. 4's terms (:class:`~slitcli.laser.params.LaserParams`).
     pick : ndarray, shape (W,), int64
@@ -211,7 +211,9 @@ def best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
         return
     cdef double[::1] wd = np.empty(w * k + w)
     cdef Py_ssize_t[::1] wi = np.empty(w * k + 2 * w, np.intp)
-    cdef Table t = _table(cand, prev_v)
+    # (a contiguous copy of a strided prev_v lives as long as pv)
+    cdef const double[::1] pv = np.ascontiguousarray(prev_v, dtype=np.float64)
+    cdef Table t = _table(cand, pv)
     cdef Work ws = _work(&wd[0], &wi[0], w, k)
     with nogil:
         _best_path(&t, &ok[0, 0], z_weak, beta, continuity_px, max_jump_px, &ws, &pick[0])
@@ -307,7 +309,7 @@ cdef Py_ssize_t _choose_rounds(const Table* t, unsigned char* allowed, double be
 
 
 def choose_stripe(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
-                  const double[::1] prev_v, double beta, double z_weak, double continuity_px,
+                  prev_v, double beta, double z_weak, double continuity_px,
                   double max_jump_px, Py_ssize_t min_segment_cols, double min_z,
                   double strong_z, Py_ssize_t min_stripe_cols, Py_ssize_t rounds,
                   double[::1] v_out, double[::1] amp_out, unsigned char[::1] sat_out) -> None:
@@ -333,8 +335,8 @@ def choose_stripe(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
         The candidate table, rows in px from the image's top.
     ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that pass :mod:`slitcli.laser.judge`'s tests (not changed).
-    prev_v : ndarray, shape (W,) or (0,), float64
-        The previous frame's rows, px (NaN none); empty: none.
+    prev_v : array_like, shape (W,) or (0,), float
+        The previous frame's rows, px (NaN none); another length (empty): none.
     beta, z_weak, continuity_px, max_jump_px, min_segment_cols, min_z, strong_z, \
 min_stripe_cols, rounds
         As above and :class:`~slitcli.laser.params.LaserParams`.
@@ -367,7 +369,9 @@ min_stripe_cols, rounds
     cdef unsigned char* keep = &wu[w * k]
     cdef unsigned char* dropped = &wu[w * k + w]
     cdef unsigned char* corner = &wu[w * k + 2 * w]
-    cdef Table t = _table(cand, prev_v)
+    # (a contiguous copy of a strided prev_v lives as long as pv)
+    cdef const double[::1] pv = np.ascontiguousarray(prev_v, dtype=np.float64)
+    cdef Table t = _table(cand, pv)
     cdef Work ws = _work(&wd[3 * w], &wi[w], w, k)
     cdef const double* c
     with nogil:
