@@ -155,6 +155,32 @@ def test_sheet_test_bounds_the_width_by_the_sheet(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
+    """A core contrast in the plane of the laser's and the surface's colours passes; one
+    leaving it by more than COLOUR_SIGMAS noise sigmas of the core's mean plus
+    colour_error of its size fails, by less passes."""
+    rng = np.random.default_rng(seed)
+    laser = np.array([1.0, *rng.uniform(0, 0.4, 2)])
+    lu = laser / np.linalg.norm(laser)
+    n = 40
+    c = np.zeros((n, 1, N_FIELDS))
+    k = rng.uniform(30, 200, (n, 3))
+    t = rng.uniform(10, 60, (n, 1)) * laser + rng.uniform(-0.3, 0.3, (n, 1)) * k
+    across = np.cross(laser, k)
+    across /= np.linalg.norm(across, axis=1, keepdims=True)
+    ncore, chan, colour_error = 4.0, 2.0, 0.05
+    lim = judge.COLOUR_SIGMAS * chan / math.sqrt(ncore) + colour_error * np.linalg.norm(t, axis=1)
+    share = np.tile([0.0, 0.0, 0.5, 2.0], n // 4)  # in the plane, inside, beyond the limit
+    t_off = t + (share * lim)[:, None] * across
+    c[:, 0, [F_TR, F_TG, F_TB]] = t_off
+    c[:, 0, [F_KR, F_KG, F_KB]] = k
+    c[:, 0, F_NCORE] = ncore
+    ok = np.ones((n, 1), bool)
+    c_judge.colour_tests(c, laser, lu, chan, colour_error, 0.0, ok)
+    assert np.array_equal(ok[:, 0], share < 1.0)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_laser_share_tells_the_surfaces_own_light(seed):
     """On a grey surface, light of the surface's own colour (a brighter patch) well
     above the noise is not the laser's; red light of the same size is; on a red surface

@@ -203,6 +203,8 @@ def best_path(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
     pick : ndarray, shape (W,), int64
         Out: the chosen candidate of each column, -1 none.
     """
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
     cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1]
     if ok.shape[0] != w or ok.shape[1] != k or pick.shape[0] != w:
         raise ValueError("ok, pick and cand differ in shape")
@@ -347,6 +349,8 @@ min_stripe_cols, rounds
     sat_out : ndarray, shape (W,), bool
         Out: whether its core is clipped.
     """
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
     cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], u, longest
     if ok.shape[0] != w or ok.shape[1] != k or v_out.shape[0] != w or \
             amp_out.shape[0] != w or sat_out.shape[0] != w:

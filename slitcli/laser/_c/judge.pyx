@@ -279,6 +279,8 @@ width_spread
         The laser's colour (RGB, red 1) from the frame's strong unclipped candidates;
         None with fewer than ``COLOUR_SUPPORT`` of them.
     """
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
     cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], n = w * k
     ok_arr = np.empty((w, k), np.bool_)
     if n == 0:
@@ -414,6 +416,8 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
     ok : ndarray, shape (W, K), bool, C-contiguous
         The candidates that passed so far; those that fail are set False.
     """
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
     if ok.shape[0] != cand.shape[0] or ok.shape[1] != cand.shape[1]:
         raise ValueError("ok_arr and cand differ in shape")
     if laser.shape[0] != 3 or lu.shape[0] != 3:
@@ -521,6 +525,8 @@ def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] i
         True where the surface continues, where it cannot be told, and where not
         ``need``.
     """
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
     cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], n_cols = img_t.shape[0]
     cdef Py_ssize_t n_rows = img_t.shape[1], i
     if need.shape[0] != w or need.shape[1] != k:
