@@ -15,11 +15,9 @@ import math
 import numpy as np
 from numba import njit
 
-from slitcli.laser._c.judge import colour_tests, laser_share, shape_tests, surface_table
+from slitcli.laser._c.judge import colour_tests, shape_tests, surface_table
+from slitcli.laser._c.judge import laser_share as laser_share  # (re-exported)
 from slitcli.laser.profile import F_GNOISE, F_POS, F_SAT, F_WIDTH, MIN_SIGMA_PX
-
-__all__ = ["laser_share", "own_light", "own_light_candidates", "surface_continues",
-           "valid_candidates"]
 
 #: a Gaussian's equivalent width (sum over peak) in sigmas, rounded
 EQ_WIDTH = 2.5
