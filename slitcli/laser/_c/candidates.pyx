@@ -14,11 +14,12 @@ from libc.float cimport DBL_MAX
 from libc.math cimport INFINITY, NAN, ceil, exp, fabs, isfinite, isnan, rint, sqrt
 
 from slitcli.laser._c.light cimport OWN_REACH_PX, own_light
-from slitcli.laser._c.profile cimport (CONVERGED_PX, F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB,
-                                       F_KG, F_KR, F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS,
-                                       F_TB, F_TG, F_TR, F_WIDTH, F_Z, MAX_ITER, MIN_ROWS,
-                                       MIN_SIGMA_PX, N_FIELDS, N_PAR, fit_gaussian, flat_top,
-                                       gaussian_rows, imax, imin, plateau_centre, pmax, pmin)
+from slitcli.laser._c.fields cimport (F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB, F_KG, F_KR,
+                                      F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS, F_TB, F_TG,
+                                      F_TR, F_WIDTH, F_Z, N_FIELDS)
+from slitcli.laser._c.profile cimport (CONVERGED_PX, MAX_ITER, MIN_ROWS, MIN_SIGMA_PX, N_PAR,
+                                       fit_gaussian, flat_top, gaussian_rows, imax, imin,
+                                       plateau_centre, pmax, pmin)
 from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
                                      NOISE_HALF, _local_sigma, _seeds)
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from libc.math cimport isfinite, isnan
 
-from slitcli.laser._c.profile cimport F_GNOISE, F_POS, F_SAT, F_WIDTH, N_FIELDS
+from slitcli.laser._c.fields cimport F_GNOISE, F_POS, F_SAT, F_WIDTH, N_FIELDS
 
 
 def own_light_table(const double[:, :, ::1] cand, const float[:, ::1] y,

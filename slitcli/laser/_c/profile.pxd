@@ -10,33 +10,12 @@ where the C compiler may not reorder sums.
 
 from libc.math cimport exp, fabs, floor, sqrt
 
-# (the fields and sizes of slitcli.laser.profile; tests/test_laser_kernels.py checks that
-# the two agree)
+# the fit's sizes (slitcli.laser.profile's; tests/test_laser_kernels.py checks that the two
+# agree); the fields of the candidate table are in fields.pxd
 cdef enum:
     N_PAR = 5
     MAX_ITER = 6
     MIN_ROWS = 6
-
-#: fields of one fit (last axis of the candidate table)
-cdef enum:
-    F_POS = 0
-    F_AMP = 1
-    F_WIDTH = 2
-    F_Z = 3
-    F_SE_POS = 4
-    F_CHI2 = 5
-    F_SAT = 6
-    F_NOISE = 7
-    F_TR = 8
-    F_TG = 9
-    F_TB = 10
-    F_KR = 11
-    F_KG = 12
-    F_KB = 13
-    F_NCORE = 14
-    F_FLAT = 15
-    F_GNOISE = 16
-    N_FIELDS = 17
 
 cdef extern from *:
     """
