@@ -517,3 +517,32 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
                 _warp_row(&gr[0, 0], &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
             _zncc_row(&gl[0, 0], height, width, &ring[0, 0], y, r, &s[0], &h[0], &out[y, 0])
     return out_arr
+
+
+def window_min(const float[::1] v, Py_ssize_t radius):
+    """The running minimum the depth-edge test takes of a row's candidates.
+
+    Parameters
+    ----------
+    v : (W,) float32
+        One row of values.
+    radius : int
+        Half width of the window (px, >= 0).
+
+    Returns
+    -------
+    (W,) float32
+        ``out[x]`` = min of ``v`` over columns x - radius .. x + radius; columns outside
+        the row count as 3e38 (cv2.erode with that border value).
+    """
+    if radius < 0:
+        raise ValueError("window_min: radius must be >= 0")
+    cdef Py_ssize_t width = v.shape[0]
+    out_arr = np.empty(width, np.float32)
+    cdef float[::1] out = out_arr
+    cdef float[:, ::1] pad = np.empty((2, width + 2 * radius), np.float32)
+    if width == 0:
+        return out_arr
+    with nogil:
+        _window_min(&v[0], width, radius, &out[0], &pad[0, 0], &pad[1, 0])
+    return out_arr
