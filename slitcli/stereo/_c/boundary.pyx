@@ -13,7 +13,7 @@ threads.
 
 import numpy as np
 
-from libc.math cimport INFINITY, fabsf, fmaf, rintf, sqrtf
+from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf, sqrtf
 
 from slitcli.stereo._c.zncc cimport fmax_nb, fmin_nb, zncc_blocks
 
@@ -28,6 +28,10 @@ REASON_BOUNDARY = _BOUNDARY
 
 # "no candidate"
 cdef float BIG = 3e38
+# the largest float32 at or below 1e-3: a float32 den is above 1e-3 (numba compared
+# them in float64) exactly when it is above FLAT
+cdef float FLAT = (<float>1e-3 if <double><float>1e-3 <= 1e-3
+                   else nextafterf(<float>1e-3, 0.0))
 # Neighbours on one surface have nearly the same disparity: a candidate within this of
 # one already tried on the same side would give nearly the same residual.
 cdef float SAME_PX = 0.25
@@ -227,18 +231,62 @@ cdef void _warp_row(const float* gr, const float* disp, Py_ssize_t y, Py_ssize_t
         out[x] = fmaf(t, row[x0 + 1], (1.0 - t) * row[x0])
 
 
-cdef void _acc(float* s, const float* a, Py_ssize_t n) noexcept nogil:
-    """``s += a`` over n elements."""
-    cdef Py_ssize_t i
-    for i in range(n):
-        s[i] = s[i] + a[i]
-
-
-cdef void _acc_prod(float* s, const float* a, const float* b, Py_ssize_t n) noexcept nogil:
-    """``s += a b`` over n elements (one rounding: numba fused it)."""
-    cdef Py_ssize_t i
-    for i in range(n):
-        s[i] = fmaf(a[i], b[i], s[i])
+cdef extern from *:
+    """
+    /* The window sums' row loops, with restrict: the five sums and the two rows never
+       overlap, and without the promise gcc versions every loop on run-time overlap
+       checks. One rounding per product (fmaf), as numba fused them. */
+    static inline void slitcli_acc_rows(
+            float *restrict s0, float *restrict s1, float *restrict s2,
+            float *restrict s3, float *restrict s4, const float *restrict a,
+            const float *restrict b, Py_ssize_t n) {
+        for (Py_ssize_t i = 0; i < n; i++) {
+            float x = a[i], y = b[i];
+            s0[i] = s0[i] + x;
+            s1[i] = s1[i] + y;
+            s2[i] = fmaf(x, x, s2[i]);
+            s3[i] = fmaf(y, y, s3[i]);
+            s4[i] = fmaf(x, y, s4[i]);
+        }
+    }
+    static inline void slitcli_acc(float *restrict s, const float *restrict a,
+                                   Py_ssize_t n) {
+        for (Py_ssize_t i = 0; i < n; i++)
+            s[i] = s[i] + a[i];
+    }
+    /* The correlations from the window sums h (5 rows of n: a, b, aa, bb, ab) of
+       windows 2r+1 wide (clipped) and `rows` tall. Three divisions by the count:
+       numba (arcp) took one reciprocal and fused each product. Branch-free, all
+       float (a float32 den is above numba's float64 1e-3 exactly when it is above
+       `flat`), int column counts: gcc vectorises it. */
+    static inline void slitcli_zncc_finish(const float *restrict h, Py_ssize_t n,
+                                           Py_ssize_t r, float rows, float flat,
+                                           float *restrict out) {
+        const float *h0 = h, *h1 = h + n, *h2 = h + 2 * n, *h3 = h + 3 * n,
+                    *h4 = h + 4 * n;
+        int w = (int)n, ri = (int)r;
+        for (int x = 0; x < w; x++) {
+            int hi = x + ri + 1 < w ? x + ri + 1 : w;
+            int lo = x - ri > 0 ? x - ri : 0;
+            float cnt = rows * (float)(hi - lo);
+            float rc = 1.0f / cnt;
+            float sa = h0[x], sb = h1[x];
+            float va = fmaf(-(sa * sa), rc, h2[x]);
+            float vb = fmaf(-(sb * sb), rc, h3[x]);
+            float cov = fmaf(-(sa * sb), rc, h4[x]);
+            float den = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
+            float q = cov / den;
+            out[x] = den > flat ? q : 0.0f;
+        }
+    }
+    """
+    void _acc_rows "slitcli_acc_rows"(float* s0, float* s1, float* s2, float* s3,
+                                       float* s4, const float* a, const float* b,
+                                       Py_ssize_t n) noexcept nogil
+    void _acc "slitcli_acc"(float* s, const float* a, Py_ssize_t n) noexcept nogil
+    void _zncc_finish "slitcli_zncc_finish"(const float* h, Py_ssize_t width, Py_ssize_t r,
+                                             float rows, float flat,
+                                             float* out) noexcept nogil
 
 
 cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
@@ -253,7 +301,6 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     cdef Py_ssize_t yy, q, k, x, i
     cdef const float* a
     cdef const float* b
-    cdef float rows, cnt, rc, sa, sb, va, vb, cov, den
     for i in range(5 * sw):
         s[i] = 0.0
     for i in range(5 * width):
@@ -261,27 +308,13 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     for yy in range(y0, y1):
         a = gl + yy * width
         b = ring + (yy % k2) * width
-        _acc(s + r, a, width)
-        _acc(s + sw + r, b, width)
-        _acc_prod(s + 2 * sw + r, a, a, width)
-        _acc_prod(s + 3 * sw + r, b, b, width)
-        _acc_prod(s + 4 * sw + r, a, b, width)
+        _acc_rows(s + r, s + sw + r, s + 2 * sw + r, s + 3 * sw + r, s + 4 * sw + r, a, b,
+                  width)
     # window sums along x: 2r+1 shifted adds of the zero-padded column sums
     for q in range(5):
         for k in range(k2):
             _acc(h + q * width, s + q * sw + k, width)
-    rows = <float>(y1 - y0)
-    for x in range(width):
-        cnt = rows * <float>(min(width, x + r + 1) - max(0, x - r))
-        # three divisions by cnt: numba (arcp) took one reciprocal, fused each product
-        rc = 1.0 / cnt
-        sa = h[x]
-        sb = h[width + x]
-        va = fmaf(-(sa * sa), rc, h[2 * width + x])
-        vb = fmaf(-(sb * sb), rc, h[3 * width + x])
-        cov = fmaf(-(sa * sb), rc, h[4 * width + x])
-        den = sqrtf(fmax_nb(va, 0.0) * fmax_nb(vb, 0.0))
-        out[x] = cov / den if den > 1e-3 else 0.0
+    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, out)
 
 
 cdef void _support_codes(const unsigned char* reason, const float* zncc, double smin,
