@@ -13,7 +13,7 @@ threads.
 
 import numpy as np
 
-from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf, sqrtf
+from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf
 
 from slitcli.stereo._c.zncc cimport fmax_nb, fmin_nb, zncc_blocks
 
@@ -233,6 +233,7 @@ cdef void _warp_row(const float* gr, const float* disp, Py_ssize_t y, Py_ssize_t
 
 cdef extern from *:
     """
+    #include <math.h>
     /* The window sums' row loops, with restrict: the five sums and the two rows never
        overlap, and without the promise gcc versions every loop on run-time overlap
        checks. One rounding per product (fmaf), as numba fused them. */
@@ -298,7 +299,7 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     2r) and ``h``: (5, width) work arrays."""
     cdef Py_ssize_t k2 = 2 * r + 1, sw = width + 2 * r
     cdef Py_ssize_t y0 = max(0, y - r), y1 = min(height, y + r + 1)
-    cdef Py_ssize_t yy, q, k, x, i
+    cdef Py_ssize_t yy, q, k, i
     cdef const float* a
     cdef const float* b
     for i in range(5 * sw):
