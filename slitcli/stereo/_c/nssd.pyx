@@ -1,6 +1,8 @@
-# cflags: -fno-math-errno
-# (-fno-math-errno: sqrtf need not set errno, so its loops vectorise; it changes no value,
-# only drops the errno store of a negative argument, which these loops never take)
+# cflags: -fno-math-errno -fno-trapping-math -funroll-loops
+# (value-preserving: sqrtf need not set errno and no operation traps, so the compiler may
+# compute a quotient or root on lanes that a select then discards and the loops vectorise,
+# as they did under LLVM; no reassociation, no contraction: every result keeps its bits;
+# unrolled as LLVM unrolls its vector loops)
 """The compiled Eq. 10 matcher: cost, winner-take-all, subpixel, uniqueness, left-right
 and texture tests, for a band of rows (:func:`nssd_rows`).
 
@@ -196,8 +198,10 @@ cdef inline float _masked_norm(float sl, float sr) noexcept nogil:
     branch-free."""
     cdef bint low_l = sl < <float>0.5
     cdef bint low_r = sr < <float>0.5
-    cdef float inv = <float>1.0 / sqrtf(fmax_(sl, sr) if low_l or low_r else sl * sr)
-    return BIG_INV * (BIG_INV if low_l and low_r else inv) if low_l or low_r else inv
+    # bitwise & and | (Cython's `and`/`or` branch): the loops over it vectorise
+    cdef bint low = low_l | low_r
+    cdef float inv = <float>1.0 / sqrtf(fmax_(sl, sr) if low else sl * sr)
+    return BIG_INV * (BIG_INV if low_l & low_r else inv) if low else inv
 
 
 cdef void _diagonal_norms(fp g, const double *cly_hi, const double *cly_lo, float sr,
@@ -257,6 +261,7 @@ cdef int32_t _fast_px(fp col, cfp col_out, fp ssum, ip cb, cfp ra_r, cfp rs_r, i
     keys ``rkey`` (``irr``: their inverse window norms). Returns the pixel's best
     packed (cost | index) key."""
     cdef Py_ssize_t i
+    cdef int32_t j      # a 32-bit index: its vector needs no narrowing from 64 bits
     cdef float t, u, c
     cdef int32_t k, key, rk
     cdef int32_t lk = KEY_MAX
@@ -266,13 +271,13 @@ cdef int32_t _fast_px(fp col, cfp col_out, fp ssum, ip cb, cfp ra_r, cfp rs_r, i
         c = col[i] + (wa * (t * t) - ws * (u * u))
         col[i] = c
         ssum[i] += c - col_out[i]
-    for i in range(n):
-        k = bits((ssum[i] + SSD_EPS) * f * irr[i])
-        cb[i] = k
-        key = (k & key_mask) | <int32_t>i
+    for j in range(<int32_t>n):
+        k = bits((ssum[j] + SSD_EPS) * f * irr[j])
+        cb[j] = k
+        key = (k & key_mask) | j
         lk = key if key < lk else lk
-        rk = rkey[i]
-        rkey[i] = key if key < rk else rk
+        rk = rkey[j]
+        rkey[j] = key if key < rk else rk
     return lk
 
 
@@ -287,11 +292,11 @@ cdef int32_t _keys(cip cb, ip rkey, Py_ssize_t i0, int32_t key_mask,
                    Py_ssize_t n) noexcept nogil:
     """Best packed (cost | index) key of the n disparities from index i0, lowering
     the right pixels' keys."""
-    cdef Py_ssize_t k
+    cdef int32_t k      # 32-bit: see _fast_px
     cdef int32_t key, rk
     cdef int32_t lk = KEY_MAX
-    for k in range(n):
-        key = (cb[k] & key_mask) | <int32_t>(i0 + k)
+    for k in range(<int32_t>n):
+        key = (cb[k] & key_mask) | (<int32_t>i0 + k)
         lk = key if key < lk else lk
         rk = rkey[k]
         rkey[k] = key if key < rk else rk
@@ -305,10 +310,10 @@ cdef int32_t _second_bits(cip cb, Py_ssize_t lo, Py_ssize_t hi, int32_t bi) noex
     cdef int32_t sb = INF_BITS
     cdef int32_t s32 = bi - 1
     cdef int32_t v
-    cdef Py_ssize_t i
-    for i in range(lo, hi):
+    cdef int32_t i      # 32-bit: see _fast_px
+    for i in range(<int32_t>lo, <int32_t>hi):
         v = cb[i]
-        v = INF_BITS if <uint32_t>(<int32_t>i - s32) <= 2 else v
+        v = INF_BITS if <uint32_t>(i - s32) <= 2 else v
         sb = v if v < sb else sb
     return sb
 
@@ -340,6 +345,9 @@ cdef void _finish_row(Band *b, Py_ssize_t y) noexcept nogil:
     cdef uint8_t reason, r_valid = REASON_VALID, r_none = REASON_NO_CANDIDATE
     cdef uint8_t r_tex = REASON_TEXTURE, r_uniq = REASON_UNIQUENESS
     cdef uint8_t r_lr = REASON_LEFT_RIGHT
+    # 32-bit ints where an int becomes a float (exact either way, below 2**24): AVX2
+    # converts 32-bit vectors, not 64-bit ones
+    cdef int32_t xi, dmin32 = <int32_t>dmin, m32 = <int32_t>m, w1 = <int32_t>width - 1
     for x in range(width):
         i = best_i[x]
         c1v = c_0[x]
@@ -351,7 +359,7 @@ cdef void _finish_row(Band *b, Py_ssize_t y) noexcept nogil:
         delta = <float>(0.5 * (cm - cp) / den)
         delta = delta if refine else <float>0.0
         found = (i >= 0) & (c1v < INF)
-        disp_o[x] = (<float>(dmin + i) + delta) if found else NAN
+        disp_o[x] = (<float>(dmin32 + i) + delta) if found else NAN
     for x in range(width):
         cost_o[x] = c_0[x]
     for x in range(width):
@@ -362,16 +370,16 @@ cdef void _finish_row(Band *b, Py_ssize_t y) noexcept nogil:
         dd = dd if dd >= 0 else -dd
         bad = lr_on & ((xr < 0) | (xr >= width) | (<double>dd > lr_tol))
         lr_o[x] = 1 if bad else 0
-    for x in range(width):
-        i = best_i[x]
-        c1v = c_0[x]
-        cols_x = <float>(min(x + m, width - 1) - max(x - m, 0) + 1)
-        flat = tex_on & (el[x] < tex * (rows_y * cols_x))
+    for xi in range(<int32_t>width):
+        i = best_i[xi]
+        c1v = c_0[xi]
+        cols_x = <float>(min(xi + m32, w1) - max(xi - m32, 0) + 1)
+        flat = tex_on & (el[xi] < tex * (rows_y * cols_x))
         reason = r_tex if flat else r_valid
-        reason = r_lr if lr_o[x] != 0 else reason
-        reason = r_uniq if uniq_on & (second[x] < c1v * uniq1) else reason
+        reason = r_lr if lr_o[xi] != 0 else reason
+        reason = r_uniq if uniq_on & (second[xi] < c1v * uniq1) else reason
         found = (i >= 0) & (c1v < INF)
-        reason_o[x] = reason if found else r_none
+        reason_o[xi] = reason if found else r_none
 
 
 cdef void _fast_run(Band *b, Py_ssize_t x0, Py_ssize_t x1) noexcept nogil:
