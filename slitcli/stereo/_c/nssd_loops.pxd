@@ -36,14 +36,14 @@ cdef extern from *:
 
 cdef inline int32_t bits(float x) noexcept nogil:
     """The bit pattern of a float32 (non-negative floats order like it)."""
-    cdef int32_t k
+    cdef int32_t k = 0
     memcpy(&k, &x, 4)
     return k
 
 
 cdef inline float from_bits(int32_t k) noexcept nogil:
     """The float32 whose bit pattern is ``k`` (inverse of :func:`bits`)."""
-    cdef float x
+    cdef float x = 0
     memcpy(&x, &k, 4)
     return x
 
