@@ -183,15 +183,36 @@ cdef double _median_of(const double* v, Py_ssize_t n, double* sel) noexcept nogi
     all of it: a histogram of ``MEDIAN_BINS`` bins over its range finds the bins of the
     middle order statistics, and only their values are ordered (``sel``: scratch of
     ``n`` values)."""
-    cdef double lo = v[0], hi = v[0], scale, s_lo, s_hi, a, b
-    cdef Py_ssize_t t, k1, k2, b1, b2, m, bb
+    cdef double lo, hi, scale, s_lo, s_hi, a, b
+    cdef double lo4[4]
+    cdef double hi4[4]
+    cdef Py_ssize_t t, k1, k2, b1, b2, m, bb, q
     cdef int64_t below, through
     cdef int64_t counts[_BINS]
-    for t in range(n):
-        lo = v[t] if v[t] < lo else lo
-        hi = v[t] if v[t] > hi else hi
+    # the range in four independent lanes (no chain of dependent compares); a NaN never
+    # enters unless it is v[0], as in a plain running minimum
+    for q in range(4):
+        lo4[q] = v[0]
+        hi4[q] = v[0]
+    t = 0
+    while t + 4 <= n:
+        for q in range(4):
+            lo4[q] = v[t + q] if v[t + q] < lo4[q] else lo4[q]
+            hi4[q] = v[t + q] if v[t + q] > hi4[q] else hi4[q]
+        t += 4
+    while t < n:
+        lo4[0] = v[t] if v[t] < lo4[0] else lo4[0]
+        hi4[0] = v[t] if v[t] > hi4[0] else hi4[0]
+        t += 1
+    lo = lo4[0]
+    hi = hi4[0]
+    for q in range(1, 4):
+        lo = lo4[q] if lo4[q] < lo else lo
+        hi = hi4[q] if hi4[q] > hi else hi
     if not hi > lo:
-        return lo
+        # all equal: a running minimum keeps v[0] (whatever the sign of a zero)
+        return v[0]
+    # (a lane may hold -0.0 where a running minimum holds 0.0: the bins are the same)
     scale = _BINS / (hi - lo)
     memset(counts, 0, sizeof(counts))
     for t in range(n):
@@ -210,10 +231,10 @@ cdef double _median_of(const double* v, Py_ssize_t n, double* sel) noexcept nogi
         through += counts[b2]
     m = 0
     for t in range(n):
+        # (every value written, kept when in the bins: no branch to mispredict)
         bb = _bin(v[t], lo, scale)
-        if b1 <= bb <= b2:
-            sel[m] = v[t]
-            m += 1
+        sel[m] = v[t]
+        m += (bb >= b1) & (bb <= b2)
     # many equal values (a quantised or clipped quantity) need no ordering
     s_lo = sel[0]
     s_hi = sel[0]
