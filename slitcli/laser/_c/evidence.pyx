@@ -59,10 +59,38 @@ cdef inline void _max3(const uint8_t* a, const uint8_t* b, const uint8_t* c, uin
         d[t] = u if u > w else w
 
 
+cdef inline void _min2(const uint8_t* a, const uint8_t* b, uint8_t* d,
+                       Py_ssize_t m) noexcept nogil:
+    """``d[t] = min(a[t], b[t])`` for ``t < m``."""
+    cdef Py_ssize_t t
+    cdef uint8_t u, v
+    for t in range(m):
+        u = a[t]
+        v = b[t]
+        d[t] = u if u < v else v
+
+
+cdef inline void _max2(const uint8_t* a, const uint8_t* b, uint8_t* d,
+                       Py_ssize_t m) noexcept nogil:
+    """``d[t] = max(a[t], b[t])`` for ``t < m``."""
+    cdef Py_ssize_t t
+    cdef uint8_t u, v
+    for t in range(m):
+        u = a[t]
+        v = b[t]
+        d[t] = u if u > v else v
+
+
 cdef inline void _join3(const uint8_t* src, uint8_t* dst, Py_ssize_t m, Py_ssize_t sh1,
                         Py_ssize_t sh2, bint is_max) noexcept nogil:
-    """``dst[t] = min(src[t], src[t + sh1], src[t + sh2])`` (max with ``is_max``)."""
-    if is_max:
+    """``dst[t] = min(src[t], src[t + sh1], src[t + sh2])`` (max with ``is_max``); two
+    inputs when the shifts are equal (the doubling passes)."""
+    if sh1 == sh2:
+        if is_max:
+            _max2(src, src + sh1, dst, m)
+        else:
+            _min2(src, src + sh1, dst, m)
+    elif is_max:
         _max3(src, src + sh1, src + sh2, dst, m)
     else:
         _min3(src, src + sh1, src + sh2, dst, m)
