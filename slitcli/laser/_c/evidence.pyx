@@ -312,6 +312,42 @@ def _median(const double[::1] v) -> float:
 # ---------------------------------------------------------------------------------------
 # the evidence and its share of the surface colour
 
+cdef Py_ssize_t _texture_split(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg,
+                               const uint8_t[:, ::1] mask, int64_t sat_dn, Py_ssize_t step,
+                               double* along, double* across) noexcept nogil:
+    """The contrast of every ``step``-th column and second row of :func:`texture_share`,
+    split into its length along the surface colour (``along``) and its squared length
+    across it (``across``); returns how many pixels entered."""
+    cdef Py_ssize_t n_cols = img.shape[0], n = img.shape[1], i, ii, j, m = 0
+    cdef double kr, kg, kb, tr, tg, tb, tk, q
+    cdef const uint8_t* xi
+    cdef const uint8_t* b_b
+    cdef const uint8_t* b_g
+    cdef const uint8_t* b_r
+    for ii in range((n_cols + step - 1) // step):
+        i = ii * step
+        b_b = &bg[3 * i, 0]
+        b_g = &bg[3 * i + 1, 0]
+        b_r = &bg[3 * i + 2, 0]
+        xi = &img[i, 0, 0]
+        for j in range(0, n, 2):
+            if not mask[i, j] or xi[3 * j + 2] >= sat_dn or xi[3 * j + 1] >= sat_dn or \
+                    xi[3 * j] >= sat_dn:
+                continue
+            kr = b_r[j] + 0.5
+            kg = b_g[j] + 0.5
+            kb = b_b[j] + 0.5
+            tr = <double> xi[3 * j + 2] - b_r[j]
+            tg = <double> xi[3 * j + 1] - b_g[j]
+            tb = <double> xi[3 * j] - b_b[j]
+            tk = (tr * kr + tg * kg + tb * kb) / sqrt(kr * kr + kg * kg + kb * kb)
+            along[m] = tk
+            q = tr * tr + tg * tg + tb * tb - tk * tk
+            across[m] = 0.0 if 0.0 > q else q  # Python's max(q, 0.0)
+            m += 1
+    return m
+
+
 def texture_share(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg,
                   const uint8_t[:, ::1] mask, int64_t sat_dn, Py_ssize_t step,
                   double max_share) -> float:
@@ -340,45 +376,24 @@ def texture_share(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg,
     -------
     float
     """
-    cdef Py_ssize_t n_cols = img.shape[0], n = img.shape[1], i, ii, j, m = 0
+    cdef Py_ssize_t n_cols = img.shape[0], n = img.shape[1], m
     if step < 1:
         raise ValueError(f"step must be at least 1, not {step}")
+    if mask.shape[0] != n_cols or mask.shape[1] != n or bg.shape[0] != 3 * n_cols \
+            or bg.shape[1] != n:
+        raise ValueError("bg must be (3 W, H), mask (W, H) for img (W, H, 3)")
     cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * ((n + 1) // 2)
     cdef double* along = <double*> malloc((cap + 1) * sizeof(double))
     cdef double* across = <double*> malloc((cap + 1) * sizeof(double))
     cdef double* sel = <double*> malloc((cap + 1) * sizeof(double))
-    cdef double kr, kg, kb, tr, tg, tb, tk, q, s, var_n, out
-    cdef const uint8_t* xi
-    cdef const uint8_t* b_b
-    cdef const uint8_t* b_g
-    cdef const uint8_t* b_r
+    cdef double s, var_n, out
     if along == NULL or across == NULL or sel == NULL:
         free(along)
         free(across)
         free(sel)
         raise MemoryError()
     with nogil:
-        for ii in range((n_cols + step - 1) // step):
-            i = ii * step
-            b_b = &bg[3 * i, 0]
-            b_g = &bg[3 * i + 1, 0]
-            b_r = &bg[3 * i + 2, 0]
-            xi = &img[i, 0, 0]
-            for j in range(0, n, 2):
-                if not mask[i, j] or xi[3 * j + 2] >= sat_dn or xi[3 * j + 1] >= sat_dn or \
-                        xi[3 * j] >= sat_dn:
-                    continue
-                kr = b_r[j] + 0.5
-                kg = b_g[j] + 0.5
-                kb = b_b[j] + 0.5
-                tr = <double> xi[3 * j + 2] - b_r[j]
-                tg = <double> xi[3 * j + 1] - b_g[j]
-                tb = <double> xi[3 * j] - b_b[j]
-                tk = (tr * kr + tg * kg + tb * kb) / sqrt(kr * kr + kg * kg + kb * kb)
-                along[m] = tk
-                q = tr * tr + tg * tg + tb * tb - tk * tk
-                across[m] = 0.0 if 0.0 > q else q  # Python's max(q, 0.0)
-                m += 1
+        m = _texture_split(img, bg, mask, sat_dn, step, along, across)
         if m < 16:
             out = max_share
         else:
@@ -454,6 +469,8 @@ def robust_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
     cdef Py_ssize_t n_cols = x.shape[0], n = x.shape[1], i, ii, j, m = 0
     if step < 1:
         raise ValueError(f"step must be at least 1, not {step}")
+    if mask.shape[0] != n_cols or mask.shape[1] != n:
+        raise ValueError("mask must have the shape of x")
     cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * (n - 4 if n > 4 else 0)
     cdef double* vals = <double*> malloc((cap + 1) * sizeof(double))
     cdef double* sel = <double*> malloc((cap + 1) * sizeof(double))
@@ -542,6 +559,8 @@ def spread_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
     cdef Py_ssize_t n_cols = x.shape[0], n = x.shape[1], i, ii, j, m = 0
     if step < 1:
         raise ValueError(f"step must be at least 1, not {step}")
+    if mask.shape[0] != n_cols or mask.shape[1] != n:
+        raise ValueError("mask must have the shape of x")
     cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * n
     cdef double* vals = <double*> malloc((cap + 1) * sizeof(double))
     cdef double* sel = <double*> malloc((cap + 1) * sizeof(double))
