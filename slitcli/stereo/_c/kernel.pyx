@@ -60,42 +60,56 @@ def reproject(const float[:, ::1] disp, const float[:, :, ::1] rays_s, double fb
             or obstacle_out.shape[1] != width or feature_out.shape[0] != height \
             or feature_out.shape[1] != width:
         raise ValueError("reproject: rays_s and pts_out (H, W, 3), the others (H, W)")
-    cdef float fb32 = <float> fb, h32 = <float> height_m, d, dep, px, py, pz
-    cdef float nan32 = NAN
-    cdef double floor_z, dep64
+    cdef float fb32 = <float> fb, h32 = <float> height_m
     cdef double inv_fb, max_r2
-    cdef bint not_floor
     with nogil:
         # numba's fastmath (arcp, contract) divided by fb as a product with its
         # reciprocal and fused these multiply-adds; spelt out, the bits stay the same
         inv_fb = 1.0 / fb
         max_r2 = max_range_m * max_range_m
         for y in range(height):
-            for x in range(width):
-                d = disp[y, x]
-                if not (d > 0):
-                    depth_out[y, x] = nan32
-                    pts_out[y, x, 0] = nan32
-                    pts_out[y, x, 1] = nan32
-                    pts_out[y, x, 2] = nan32
-                    obstacle_out[y, x] = False
-                    feature_out[y, x] = False
-                    continue
-                dep = fb32 / d
-                px = rays_s[y, x, 0] * dep
-                py = rays_s[y, x, 1] * dep
-                pz = fmaf(rays_s[y, x, 2], dep, h32)
-                depth_out[y, x] = dep
-                pts_out[y, x, 0] = px
-                pts_out[y, x, 1] = py
-                pts_out[y, x, 2] = pz
-                dep64 = dep
-                floor_z = fma(two_sigma_d * <double> fabsf(rays_s[y, x, 2]) * dep64 * dep64,
-                              inv_fb, floor_margin_m)
-                not_floor = pz >= floor_z
-                feature_out[y, x] = not_floor
-                obstacle_out[y, x] = (not_floor and pz < robot_height_m and px > 0
-                                      and fmaf(px, px, py * py) <= max_r2)
+            _reproject_row(&disp[y, 0], &rays_s[y, 0, 0], width, fb32, h32, inv_fb,
+                           floor_margin_m, two_sigma_d, robot_height_m, max_r2,
+                           &depth_out[y, 0], &pts_out[y, 0, 0], &obstacle_out[y, 0],
+                           &feature_out[y, 0])
+
+
+cdef inline void _reproject_row(const float* disp, const float* rays, Py_ssize_t width,
+                                float fb32, float h32, double inv_fb, double floor_margin_m,
+                                double two_sigma_d, double robot_height_m, double max_r2,
+                                float* depth, float* pts, uint8_t* obstacle,
+                                uint8_t* feature) noexcept nogil:
+    """One image row of :func:`reproject` (rays and points: 3 floats a pixel)."""
+    cdef Py_ssize_t x
+    cdef float d, dep, px, py, pz
+    cdef float nan32 = NAN
+    cdef double floor_z, dep64
+    cdef bint not_floor
+    for x in range(width):
+        d = disp[x]
+        if not (d > 0):
+            depth[x] = nan32
+            pts[3 * x] = nan32
+            pts[3 * x + 1] = nan32
+            pts[3 * x + 2] = nan32
+            obstacle[x] = False
+            feature[x] = False
+            continue
+        dep = fb32 / d
+        px = rays[3 * x] * dep
+        py = rays[3 * x + 1] * dep
+        pz = fmaf(rays[3 * x + 2], dep, h32)
+        depth[x] = dep
+        pts[3 * x] = px
+        pts[3 * x + 1] = py
+        pts[3 * x + 2] = pz
+        dep64 = dep
+        floor_z = fma(two_sigma_d * <double> fabsf(rays[3 * x + 2]) * dep64 * dep64, inv_fb,
+                      floor_margin_m)
+        not_floor = pz >= floor_z
+        feature[x] = not_floor
+        obstacle[x] = (not_floor and pz < robot_height_m and px > 0
+                       and fmaf(px, px, py * py) <= max_r2)
 
 
 cdef inline bint _split(double r_near, double r_far, double fb, double gap_px) noexcept nogil:
