@@ -211,6 +211,7 @@ def bin_percentile(const float[:, :, ::1] pts, const uint8_t[:, ::1] obstacle,
     cdef int32_t[:, ::1] hist = hist_arr
     cdef int64_t bi
     cdef float r
+    cdef double q
     with nogil:
         for b in range(nbins):
             obstacle_px[b] = 0
@@ -224,8 +225,10 @@ def bin_percentile(const float[:, :, ::1] pts, const uint8_t[:, ::1] obstacle,
                     feature_px[bi] += 1
                 if obstacle[y, x]:
                     r = sqrtf(pts[y, x, 0] * pts[y, x, 0] + pts[y, x, 1] * pts[y, x, 1])
-                    c = <Py_ssize_t> (r / step_m)
-                    c = c if c < cells - 1 else cells - 1
+                    # (the far cell also takes a NaN point, which an obstacle pixel
+                    # never is: no cell index from an undefined conversion)
+                    q = r / step_m
+                    c = <Py_ssize_t> q if q < cells - 1 else cells - 1
                     hist[bi, c] += 1
                     obstacle_px[bi] += 1
         for b in range(nbins):
