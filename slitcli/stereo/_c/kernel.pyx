@@ -98,6 +98,7 @@ cdef inline void _reproject_row(const float* disp, const float* rays, Py_ssize_t
         dep = fb32 / d
         px = rays[3 * x] * dep
         py = rays[3 * x + 1] * dep
+        # the fused multiply-adds numba's fastmath (contract) compiled these to
         pz = fmaf(rays[3 * x + 2], dep, h32)
         depth[x] = dep
         pts[3 * x] = px
