@@ -23,6 +23,7 @@ from slitcli.laser import (
     detect_laser,
     evidence,
     extract_stripe,
+    geometry,
     is_grey,
     nearest_range_per_bin,
     stripe_absence,
@@ -334,6 +335,33 @@ def test_triangulation_design_worked_check():
     x, _, _, _ = triangulate_stripe(RIG, np.full(12, 80.0), v)
     expect = 0.6 / np.tan(math.radians(20.0) + np.arctan((v - 119.5) / 250.0))
     np.testing.assert_allclose(x, expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_triangulate_columns_is_triangulate_stripe(seed):
+    # the compiled per-frame pass (LaserGeometry's rays and plane) gives the points of
+    # the reference ray/plane intersection: rows from above the horizon (rays that miss
+    # the plane: NaN) to below the image, and NaN rows; in_band is the range band
+    rng = np.random.default_rng(seed)
+    w = RIG.width_px
+    v = rng.uniform(-40.0, RIG.height_px + 40.0, w)
+    v[rng.random(w) < 0.2] = np.nan
+    out = np.empty((4, w))
+    in_band = np.empty(w, bool)
+    geometry.triangulate_columns(v, GEOM.ray_x, GEOM.ray_y_coeffs, GEOM.plane_cam,
+                                 GEOM.sensor_from_cam, RIG.laser.min_range_m,
+                                 RIG.laser.max_range_m, out, in_band)
+    ref = np.array(triangulate_stripe(RIG, np.arange(w, dtype=float), v))
+    # a ray meeting the plane behind the camera or nearly parallel to it is NaN in both
+    missed = np.isnan(ref[0])
+    assert missed.any() and (~missed).any()
+    np.testing.assert_array_equal(np.isnan(out[0]), missed)
+    # metres and degrees; both are a few float64 operations from the same terms
+    np.testing.assert_allclose(out[:3, ~missed], ref[:3, ~missed], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out[3, ~missed], ref[3, ~missed], rtol=0, atol=1e-9)
+    with np.errstate(invalid="ignore"):
+        band = (ref[2] >= RIG.laser.min_range_m) & (ref[2] <= RIG.laser.max_range_m)
+    np.testing.assert_array_equal(in_band, band)
 
 
 @pytest.mark.parametrize("seed", range(5))

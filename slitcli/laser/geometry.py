@@ -4,19 +4,22 @@ via DESIGN §4).
 :class:`LaserGeometry` holds what the extractor needs from a rig (computed once per rig
 and parameter set); :func:`triangulate_stripe` intersects stripe pixels' rays with the
 laser plane; :func:`laser_sight_range_m` is the nearest range at which the laser is in
-sight, per bearing.
+sight, per bearing. :func:`triangulate_columns`, the same intersection over one frame's
+found columns, is compiled ahead of time (Cython, :mod:`slitcli.laser._c.geometry`) and
+re-exported here.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from slitcli.laser._c.geometry import triangulate_columns
 from slitcli.laser.params import LaserParams
 from slitcli.rig import Rig
+
+__all__ = ["LaserGeometry", "laser_sight_range_m", "triangulate_columns", "triangulate_stripe"]
 
 
 @dataclass(frozen=True)
@@ -104,41 +107,6 @@ def triangulate_stripe(rig: Rig, u_px: np.ndarray, v_px: np.ndarray) -> tuple[np
     pts = rig.cam_to_sensor(rig.intersect_laser_plane(rig.pixel_rays_cam(u_px, v_px)))
     x, y = pts[..., 0], pts[..., 1]
     return x, y, np.hypot(x, y), np.degrees(np.arctan2(y, x))
-
-
-@njit(cache=True, nogil=True)
-def triangulate_columns(v_px: np.ndarray, ray_x: np.ndarray, ray_y: np.ndarray,
-                        plane: np.ndarray, sensor_from_cam: np.ndarray, min_range_m: float,
-                        max_range_m: float, out: np.ndarray,
-                        in_band: np.ndarray) -> None:  # pragma: no cover
-    """:func:`triangulate_stripe` for one frame's rows ``v_px`` (W,), column by column:
-    ``out`` (4, W) gets x_m, y_m, range_m, bearing_deg (NaN where the row is NaN or the
-    ray misses the plane), ``in_band`` whether the range lies in ``[min_range_m,
-    max_range_m]``. Geometry as :class:`LaserGeometry`."""
-    for u in range(v_px.shape[0]):
-        out[:, u] = np.nan
-        in_band[u] = False
-        v = v_px[u]
-        if not np.isfinite(v):
-            continue
-        rx = ray_x[u]
-        ry = v * ray_y[0] + ray_y[1]
-        den = plane[0] * rx + plane[1] * ry + plane[2]
-        if abs(den) <= 1e-12:
-            continue
-        s = plane[3] / den
-        if not s > 0.0:
-            continue
-        cx, cy, cz = s * rx, s * ry, s
-        m = sensor_from_cam
-        x = m[0, 0] * cx + m[0, 1] * cy + m[0, 2] * cz + m[0, 3]
-        y = m[1, 0] * cx + m[1, 1] * cy + m[1, 2] * cz + m[1, 3]
-        r = math.hypot(x, y)
-        out[0, u] = x
-        out[1, u] = y
-        out[2, u] = r
-        out[3, u] = math.degrees(math.atan2(y, x))
-        in_band[u] = min_range_m <= r <= max_range_m
 
 
 def laser_sight_range_m(rig: Rig, bearing_deg: np.ndarray, *, margin_px: float = 2.0,
