@@ -138,7 +138,20 @@ class MatcherParams:
 
 
 def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) -> None:
-    """Raise :class:`SlitcliError` naming the option for impossible parameters."""
+    """Raise :class:`SlitcliError` naming the option for impossible parameters (with
+    ``image_width_px``, also for a window or disparity range the image cannot hold)."""
+    _check_names(p)
+    _check_sgm(p)
+    _check_sizes(p)
+    _check_filters(p)
+    _check_opencv(p)
+    if image_width_px is not None:
+        _check_image(p, image_width_px)
+
+
+
+def _check_names(p: MatcherParams) -> None:
+    """The matcher, prefilter and aggregation are known ones."""
     if p.matcher not in MATCHERS:
         raise SlitcliError(f"`matcher` {p.matcher!r} is unknown; use one of "
                            f"{', '.join(MATCHERS)}", param="matcher")
@@ -148,6 +161,10 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if p.aggregation not in AGGREGATIONS:
         raise SlitcliError(f"`aggregation` {p.aggregation!r} is unknown; use one of "
                            f"{', '.join(AGGREGATIONS)}", param="aggregation")
+
+
+def _check_sgm(p: MatcherParams) -> None:
+    """Semi-global aggregation's own settings, and that it aggregates the Eq. 10 cost."""
     if p.aggregation == "sgm" and p.matcher != "nssd":
         raise SlitcliError(f"`aggregation` 'sgm' aggregates the Eq. 10 cost of `matcher` "
                            f"'nssd', not {p.matcher!r}; use `matcher` 'nssd' or "
@@ -167,6 +184,10 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if not 0 <= p.sgm_p2_edge_dn <= 255:
         raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
                            "(0 = a constant sgm_p2)")
+
+
+def _check_sizes(p: MatcherParams) -> None:
+    """Subpixel mode, disparity count, window and prefilter sizes."""
     if p.subpixel not in SUBPIXEL:
         raise SlitcliError(f"`subpixel` {p.subpixel!r} is unknown; use one of "
                            f"{', '.join(SUBPIXEL)}", param="subpixel")
@@ -186,6 +207,10 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
                            param="prefilter_cap_dn")
     if not p.log_sigma_px > 0:
         raise SlitcliError(f"log_sigma_px {p.log_sigma_px} must be > 0 px")
+
+
+def _check_filters(p: MatcherParams) -> None:
+    """The validity filters' thresholds (0 = off where the option says so)."""
     if not p.texture_min_dn >= 0:
         raise SlitcliError(f"`texture_min_dn` {p.texture_min_dn} must be >= 0 DN (0 = off)",
                            param="texture_min_dn")
@@ -211,6 +236,10 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     if p.speckle_window_px < 0 or not p.speckle_range_px >= 0:
         raise SlitcliError("`speckle_window_px` and `speckle_range_px` must be >= 0 (0 = off)",
                            param=("speckle_window_px", "speckle_range_px"))
+
+
+def _check_opencv(p: MatcherParams) -> None:
+    """What OpenCV's StereoBM / StereoSGBM need of the disparities and window."""
     if p.matcher in ("bm", "sgbm"):
         if p.num_disparities % 16:
             raise SlitcliError(f"`num_disparities` {p.num_disparities} must be a multiple of "
@@ -224,17 +253,20 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
         if p.matcher == "bm" and not 5 <= p.window_w_px <= 255:
             raise SlitcliError(f"`window_w_px` {p.window_w_px}: `matcher` bm needs 5..255 px",
                                param=("window_w_px", "matcher"))
-    if image_width_px is not None:
-        if p.window_w_px > image_width_px:
-            raise SlitcliError(f"`window_w_px` {p.window_w_px} is wider than the image "
-                               f"({image_width_px} px); use a smaller odd window",
-                               param="window_w_px")
-        if p.min_disparity_px + p.num_disparities > image_width_px or \
-                p.min_disparity_px <= -image_width_px:
-            raise SlitcliError(f"`num_disparities` {p.num_disparities} (from "
-                               f"`min_disparity_px` {p.min_disparity_px} px) exceeds the "
-                               f"image width {image_width_px} px; use fewer disparities",
-                               param=("num_disparities", "min_disparity_px"))
+
+
+def _check_image(p: MatcherParams, image_width_px: int) -> None:
+    """A window and disparity range that an image ``image_width_px`` wide holds."""
+    if p.window_w_px > image_width_px:
+        raise SlitcliError(f"`window_w_px` {p.window_w_px} is wider than the image "
+                           f"({image_width_px} px); use a smaller odd window",
+                           param="window_w_px")
+    if p.min_disparity_px + p.num_disparities > image_width_px or \
+            p.min_disparity_px <= -image_width_px:
+        raise SlitcliError(f"`num_disparities` {p.num_disparities} (from "
+                           f"`min_disparity_px` {p.min_disparity_px} px) exceeds the "
+                           f"image width {image_width_px} px; use fewer disparities",
+                           param=("num_disparities", "min_disparity_px"))
 
 
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
