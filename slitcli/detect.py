@@ -469,19 +469,8 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if todo.step != 1 or not 0 <= todo.start <= todo.stop <= n:
         raise SlitcliError(f"`frames` {todo} is not a sub-range of the input's {n} frames",
                            param="frames")
-    manifest = {"command": "detect", "format": 4, "input": src.manifest(), "rig": rig.to_dict(),
-                "params": manifest_value(asdict(params)), "save_images": save_images}
-    subs = ("disparity", "distance", "mask") if save_images else ()
-    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
-                       hold_lock=lock)
-    # where the input lies, for `slitcli report`; not part of the identity, so a moved
-    # input still resumes
-    write_text_atomic(batch.dir / "source.json",
-                      json.dumps({"path": str(Path(source).resolve())}))
+    batch = _open_batch(source, out, src, rig, params, save_images, overwrite, lock)
     kinds = ("rows", "laser") if save_images else ("rows",)
-    if save_images:
-        for sub in IMAGE_FOLDERS:
-            (batch.out / sub).mkdir(exist_ok=True)
     # a finished frame is kept while its input (bytes, name, time) is unchanged
     finished = batch.resume({i: frame_identity(src, i) for i in todo}, kinds)
     done = len(finished)
@@ -508,6 +497,27 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     if on_progress is not None:
         on_progress(n, n)
     return _finish(batch, src, params, save_images, len(finished), t0)
+
+
+def _open_batch(source: str | Path, out: str | Path, src: FrameSource, rig: Rig,
+                params: DetectParams, save_images: bool, overwrite: bool,
+                lock: bool) -> FrameBatch:
+    """The run's working folder in ``out`` (its settings: the input, rig and parameters,
+    so that a re-run with the same ones resumes), with the image folders when
+    ``save_images``."""
+    manifest = {"command": "detect", "format": 4, "input": src.manifest(), "rig": rig.to_dict(),
+                "params": manifest_value(asdict(params)), "save_images": save_images}
+    subs = ("disparity", "distance", "mask") if save_images else ()
+    batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
+                       hold_lock=lock)
+    # where the input lies, for `slitcli report`; not part of the identity, so a moved
+    # input still resumes
+    write_text_atomic(batch.dir / "source.json",
+                      json.dumps({"path": str(Path(source).resolve())}))
+    if save_images:
+        for sub in IMAGE_FOLDERS:
+            (batch.out / sub).mkdir(exist_ok=True)
+    return batch
 
 
 def _finish(batch: FrameBatch, src: FrameSource, params: DetectParams, save_images: bool,

@@ -181,18 +181,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     -------
     StripeColumns
     """
-    img = np.asarray(left_bgr)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    img, mask, prev = _checked_inputs(left_bgr, search_mask, previous_v_px)
     h, w = img.shape[:2]
-    mask = np.ones((h, w), bool) if search_mask is None else \
-        np.asarray(search_mask, dtype=bool)
-    if mask.shape != (h, w):
-        raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
-    prev = np.empty(0) if previous_v_px is None else \
-        np.asarray(previous_v_px, dtype=np.float64)
-    if prev.size not in (0, w):
-        raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
     nan = np.full(w, np.nan)
     rows = np.flatnonzero(mask.any(axis=1))
     if rows.size == 0:
@@ -212,14 +202,59 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                             params.beta, params.gamma, params.continuity_px, max_w, v, amp)
         return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
     ev = _evidence(sub, img_t, mask_t, chan, win, params)
-    y, y_avg, clipped, bg_t = ev.y, ev.y_avg, ev.clipped, ev.bg_t
-    sigma_y, sigma_avg, noise_avg, chan = ev.sigma_y, ev.sigma_avg, ev.noise_avg, ev.chan
-    chan_sigma = float(np.sort(chan)[1])  # (the median of three)
-    seed = params.seed_z * noise_avg
+    y, y_avg, clipped = ev.y, ev.y_avg, ev.clipped
+    sigma_y, sigma_avg = ev.sigma_y, ev.sigma_avg
+    seed = params.seed_z * ev.noise_avg
     s_max = max_w / judge.EQ_WIDTH
+    cand, ok, laser = _judged_candidates(img_t, mask_t, r0, ev, seed, s_max, px_per_m, params)
+    v = np.empty(w)
+    amp = np.empty(w)
+    sat = np.empty(w, bool)
+    choose.choose_stripe(cand, ok, prev, params.beta, params.weak_z, params.continuity_px,
+                         params.max_jump_px, params.min_segment_cols(w), params.min_z,
+                         STRONG_SHARE * params.min_z,
+                         round(params.min_stripe_share * int(mask.any(axis=0).sum())),
+                         choose.CHOICE_ROUNDS, v, amp, sat)
+    # columns without a stripe inside a segment, where the stripe must pass
+    candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
+                         float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
+                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
+    return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
+
+
+def _checked_inputs(left_bgr: np.ndarray, search_mask: np.ndarray | None,
+                    previous_v_px: np.ndarray | None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`extract_stripe`'s inputs as arrays of the layout its kernels read: the image
+    (H, W, 3) uint8, the search mask (H, W) bool (everywhere if none) and the previous
+    rows (W,) float64 (empty if none); ValueError naming the one that does not fit."""
+    img = np.asarray(left_bgr)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    h, w = img.shape[:2]
+    mask = np.ones((h, w), bool) if search_mask is None else \
+        np.asarray(search_mask, dtype=bool)
+    if mask.shape != (h, w):
+        raise ValueError(f"search_mask is {mask.shape}, the image {(h, w)}")
+    prev = np.empty(0) if previous_v_px is None else \
+        np.asarray(previous_v_px, dtype=np.float64)
+    if prev.size not in (0, w):
+        raise ValueError(f"previous_v_px has {prev.size} entries, the image {w} columns")
+    return img, mask, prev
+
+
+def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evidence,
+                       seed: float, s_max: float, px_per_m: np.ndarray | None,
+                       params: LaserParams) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Steps 3-4: every column's candidates (W, K_BEST, N_FIELDS; rows from the image's
+    top) fitted where the evidence passes ``seed``, which of them can be the laser
+    (W, K) bool, and the laser colour the tests used (None: not measured)."""
+    w, h = img_t.shape[0], img_t.shape[1] + r0
+    y, y_avg, clipped, chan = ev.y, ev.y_avg, ev.clipped, ev.chan
+    chan_sigma = float(np.sort(chan)[1])  # (the median of three)
     cand = np.empty((w, K_BEST, N_FIELDS))
-    candidates.column_candidates(img_t, bg_t, y, y_avg, clipped, mask_t, sigma_y, sigma_avg,
-                                 seed, STRONG_SHARE * params.min_z,
+    candidates.column_candidates(img_t, ev.bg_t, y, y_avg, clipped, mask_t, ev.sigma_y,
+                                 ev.sigma_avg, seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
                                  params.max_chi2, params.weak_z, cand)
     cand[..., F_POS] += r0
@@ -239,19 +274,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)
     ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
-    ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(sigma_y),
+    ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(ev.sigma_y),
                                       params.shape_error, need)
-    v = np.empty(w)
-    amp = np.empty(w)
-    sat = np.empty(w, bool)
-    choose.choose_stripe(cand, ok, prev, params.beta, params.weak_z, params.continuity_px,
-                         params.max_jump_px, params.min_segment_cols(w), params.min_z,
-                         STRONG_SHARE * params.min_z,
-                         round(params.min_stripe_share * int(mask.any(axis=0).sum())),
-                         choose.CHOICE_ROUNDS, v, amp, sat)
-    # columns without a stripe inside a segment, where the stripe must pass
-    candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
-                         float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
-                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
-    return StripeColumns(v, amp, sat, float(sigma_y), float(seed), chan, laser)
+    return cand, ok, laser
 
