@@ -155,7 +155,8 @@ def table(result: dict) -> str:
     b = result["breakdown_cpu_s"]
     lines += ["", "| warm detect, CPU inside the process | s |", "|---|---|"]
     labels = {"numpy": "numpy import", "cv2": "OpenCV import",
-              "compiled": f"loading the {result['compiled_modules']} compiled kernel modules",
+              "compiled": f"the {result['compiled_modules']} compiled kernel modules "
+                          "(with the packages that hold them)",
               "modules": "slitcli's command line and detect modules (import)",
               "command": "the command: reading, the frame's work, writing",
               "total": "total"}
