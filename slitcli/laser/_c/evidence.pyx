@@ -460,6 +460,26 @@ def laser_evidence(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg, int64
 # ---------------------------------------------------------------------------------------
 # the noise
 
+cdef int _sample_buffers(const uint8_t[:, ::1] mask, Py_ssize_t n_cols, Py_ssize_t n,
+                         Py_ssize_t step, Py_ssize_t per_column, double** vals,
+                         double** sel) except -1:
+    """Check a sampling of every ``step``-th column of an (n_cols, n) array under ``mask``
+    and allocate its two buffers (values, selection scratch) for ``per_column`` values a
+    sampled column; the caller frees both."""
+    if step < 1:
+        raise ValueError(f"step must be at least 1, not {step}")
+    if mask.shape[0] != n_cols or mask.shape[1] != n:
+        raise ValueError("mask must have the shape of x")
+    cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * per_column
+    vals[0] = <double*> malloc((cap + 1) * sizeof(double))
+    sel[0] = <double*> malloc((cap + 1) * sizeof(double))
+    if vals[0] == NULL or sel[0] == NULL:
+        free(vals[0])
+        free(sel[0])
+        raise MemoryError()
+    return 0
+
+
 def robust_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
                  Py_ssize_t step) -> float:
     """Noise sigma of ``x`` (W, H) float32 or float64 from the median absolute lag-2
@@ -467,18 +487,10 @@ def robust_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
     at all five rows used (the residual of float32 values sums its two neighbours in
     float32, as the numba kernel did)."""
     cdef Py_ssize_t n_cols = x.shape[0], n = x.shape[1], i, ii, j, m = 0
-    if step < 1:
-        raise ValueError(f"step must be at least 1, not {step}")
-    if mask.shape[0] != n_cols or mask.shape[1] != n:
-        raise ValueError("mask must have the shape of x")
-    cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * (n - 4 if n > 4 else 0)
-    cdef double* vals = <double*> malloc((cap + 1) * sizeof(double))
-    cdef double* sel = <double*> malloc((cap + 1) * sizeof(double))
+    cdef double* vals
+    cdef double* sel
     cdef double out = 0.0
-    if vals == NULL or sel == NULL:
-        free(vals)
-        free(sel)
-        raise MemoryError()
+    _sample_buffers(mask, n_cols, n, step, n - 4 if n > 4 else 0, &vals, &sel)
     with nogil:
         for ii in range((n_cols + step - 1) // step):
             i = ii * step
@@ -557,18 +569,10 @@ def spread_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
     absolute deviation): noise and all the scene structure that the evidence does not
     cancel (clutter)."""
     cdef Py_ssize_t n_cols = x.shape[0], n = x.shape[1], i, ii, j, m = 0
-    if step < 1:
-        raise ValueError(f"step must be at least 1, not {step}")
-    if mask.shape[0] != n_cols or mask.shape[1] != n:
-        raise ValueError("mask must have the shape of x")
-    cdef Py_ssize_t cap = ((n_cols + step - 1) // step) * n
-    cdef double* vals = <double*> malloc((cap + 1) * sizeof(double))
-    cdef double* sel = <double*> malloc((cap + 1) * sizeof(double))
+    cdef double* vals
+    cdef double* sel
     cdef double out = 0.0
-    if vals == NULL or sel == NULL:
-        free(vals)
-        free(sel)
-        raise MemoryError()
+    _sample_buffers(mask, n_cols, n, step, n, &vals, &sel)
     with nogil:
         for ii in range((n_cols + step - 1) // step):
             i = ii * step
