@@ -14,6 +14,8 @@ from libc.string cimport memcpy, memset
 
 from cython cimport floating
 
+from slitcli.laser._c.select cimport select_kth
+
 import numpy as np
 
 #: 2 ln 2: the median of |n|^2 for isotropic Gaussian noise n of variance sigma^2 per
@@ -166,41 +168,6 @@ def vertical_opening(const uint8_t[:, ::1] x, Py_ssize_t k, uint8_t[:, ::1] out)
 # ---------------------------------------------------------------------------------------
 # the median
 
-cdef void _select(double* a, Py_ssize_t m, Py_ssize_t k) noexcept nogil:
-    """Reorder ``a[:m]`` so that ``a[k]`` holds its ``k``-th smallest value, none before
-    it larger, none after it smaller (quickselect; median-of-three pivots)."""
-    cdef Py_ssize_t lo = 0, hi = m - 1, i, j, mid
-    cdef double p, t
-    while hi > lo:
-        mid = lo + (hi - lo) // 2
-        # order a[lo], a[mid], a[hi]; the median of the three is the pivot
-        if a[mid] < a[lo]:
-            t = a[mid]; a[mid] = a[lo]; a[lo] = t
-        if a[hi] < a[lo]:
-            t = a[hi]; a[hi] = a[lo]; a[lo] = t
-        if a[hi] < a[mid]:
-            t = a[hi]; a[hi] = a[mid]; a[mid] = t
-        p = a[mid]
-        i = lo
-        j = hi
-        while i <= j:
-            while a[i] < p:
-                i += 1
-            while p < a[j]:
-                j -= 1
-            if i <= j:
-                t = a[i]; a[i] = a[j]; a[j] = t
-                i += 1
-                j -= 1
-        # a[lo..j] <= p <= a[i..hi], and a[j+1..i-1] == p
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            return
-
-
 cdef inline Py_ssize_t _bin(double x, double lo, double scale) noexcept nogil:
     cdef int64_t b = <int64_t> ((x - lo) * scale)
     return b if b < _BINS - 1 else _BINS - 1
@@ -271,7 +238,7 @@ cdef double _median_of(const double* v, Py_ssize_t n, double* sel) noexcept nogi
         s_hi = sel[t] if sel[t] > s_hi else s_hi
     if s_lo == s_hi:
         return s_lo
-    _select(sel, m, k1 - below)
+    select_kth(sel, m, k1 - below)
     a = sel[k1 - below]
     if k2 == k1:
         b = a

@@ -31,6 +31,8 @@ from slitcli.laser._c.fields cimport (
     F_Z,
     N_FIELDS,
 )
+from slitcli.laser._c.profile cimport pmax, pmin
+from slitcli.laser._c.select cimport median_inplace
 
 # (the constants of slitcli.laser.judge and slitcli.laser.profile; constants() returns
 # them and tests/test_laser_kernels.py checks that the two sides agree)
@@ -71,61 +73,6 @@ def constants() -> dict:
             "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_TR": F_TR, "F_TG": F_TG, "F_TB": F_TB,
             "F_KR": F_KR, "F_KG": F_KG, "F_KB": F_KB, "F_NCORE": F_NCORE,
             "F_FLAT": F_FLAT}
-
-
-cdef inline double pmax(double a, double b) noexcept nogil:
-    """Python's ``max(a, b)``: ``b`` only where strictly larger (a NaN ``a`` is kept)."""
-    return b if b > a else a
-
-
-cdef inline double pmin(double a, double b) noexcept nogil:
-    """Python's ``min(a, b)``."""
-    return b if b < a else a
-
-
-cdef inline double _select(double* a, Py_ssize_t n, Py_ssize_t k) noexcept nogil:
-    """The ``k``-th smallest (0-based) of ``a[:n]`` (no NaN), reordering ``a`` so that
-    no entry after ``k`` is smaller (Hoare's selection, middle pivot)."""
-    cdef Py_ssize_t lo = 0, hi = n - 1, i, j
-    cdef double pivot, t
-    while hi > lo:
-        pivot = a[(lo + hi) >> 1]
-        i = lo
-        j = hi
-        while i <= j:
-            while a[i] < pivot:
-                i += 1
-            while a[j] > pivot:
-                j -= 1
-            if i <= j:
-                t = a[i]
-                a[i] = a[j]
-                a[j] = t
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
-    return a[k]
-
-
-cdef inline double _median(double* a, Py_ssize_t n) noexcept nogil:
-    """The median of ``a[:n]`` (n >= 1, no NaN; reorders ``a``) as numpy's: the mean of
-    the two middle values of an even count, ``(a + b) / 2``. (The values are order
-    statistics: any selection gives the same bits.)"""
-    cdef Py_ssize_t half = n >> 1, j
-    cdef double lo, hi
-    if n & 1:
-        return _select(a, n, half)
-    lo = _select(a, n, half - 1)
-    hi = a[half]
-    for j in range(half + 1, n):
-        if a[j] < hi:
-            hi = a[j]
-    return (lo + hi) / 2
 
 
 cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, double s_max,
@@ -193,8 +140,8 @@ cdef bint _laser_colour(const double* cand, Py_ssize_t n, const unsigned char* o
     if m < COLOUR_SUPPORT:
         return False
     laser[0] = 1.0
-    laser[1] = pmin(pmax(_median(g, m), 0.0), MAX_LASER_GB)
-    laser[2] = pmin(pmax(_median(b, m), 0.0), MAX_LASER_GB)
+    laser[1] = pmin(pmax(median_inplace(g, m), 0.0), MAX_LASER_GB)
+    laser[2] = pmin(pmax(median_inplace(b, m), 0.0), MAX_LASER_GB)
     return True
 
 
@@ -216,7 +163,7 @@ cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
         if ok[i] and not c[F_SAT] > 0 and c[F_Z] >= strong_z and isfinite(ratio):
             vals[m] = ratio
             m += 1
-    ref = _median(vals, m) if m >= (sheet_support if sheet_support > COLOUR_SUPPORT
+    ref = median_inplace(vals, m) if m >= (sheet_support if sheet_support > COLOUR_SUPPORT
                                     else COLOUR_SUPPORT) else 1.0
     for i in range(n):
         c = cand + i * N_FIELDS
@@ -245,7 +192,7 @@ cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
             work[m] = c[F_WIDTH]
             m += 1
     if m >= COLOUR_SUPPORT:
-        widest = width_spread * _median(work, m)
+        widest = width_spread * median_inplace(work, m)
         for i in range(n):
             c = cand + i * N_FIELDS
             if not c[F_SAT] > 0:
