@@ -30,6 +30,46 @@ cdef extern from *:
     ctypedef int32_t *ip "int32_t *__restrict__"
     ctypedef const int32_t *cip "const int32_t *__restrict__"
 
+cdef extern from *:
+    """
+    /* The winner step's keys (s_a + s_b) << 9 | i of one pixel's n disparities into
+       keys (SGM_NO_KEY where the cost is top: no partner or no energy): one minimum
+       gives the winner and, among equal sums, the smallest disparity. Returns the best
+       key. In C with a mask for the choice: gcc (12) leaves the loop scalar with a
+       conditional expression or with Cython's branches. */
+    static inline int32_t sgm_pixel_keys(const uint16_t *restrict sa,
+                                         const uint16_t *restrict sb,
+                                         const uint16_t *restrict cost,
+                                         int32_t *restrict keys, uint16_t top,
+                                         Py_ssize_t n) {
+        int32_t best = SGM_NO_KEY;
+        for (int32_t i = 0; i < (int32_t)n; i++) {
+            int32_t k = (((int32_t)sa[i] + (int32_t)sb[i]) << SGM_KEY_SHIFT) | i;
+            int32_t m = -(int32_t)(cost[i] < top);
+            k = (k & m) | (SGM_NO_KEY & ~m);
+            keys[i] = k;
+            best = k < best ? k : best;
+        }
+        return best;
+    }
+    /* The smallest key outside indices lo..hi. */
+    static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
+                                         int32_t hi, Py_ssize_t n) {
+        int32_t second = SGM_NO_KEY;
+        for (int32_t i = 0; i < (int32_t)n; i++) {
+            int32_t m = -(int32_t)((i < lo) | (i > hi));
+            int32_t k = (keys[i] & m) | (SGM_NO_KEY & ~m);
+            second = k < second ? k : second;
+        }
+        return second;
+    }
+    """
+    int32_t pixel_keys "sgm_pixel_keys" (const uint16_t *sa, const uint16_t *sb,
+                                         const uint16_t *cost, int32_t *keys, uint16_t top,
+                                         Py_ssize_t n) noexcept nogil
+    int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
+                                         Py_ssize_t n) noexcept nogil
+
 
 cdef inline void column_slide(fp col, cfp ra, cfp rs, float a, float b,
                               Py_ssize_t n) noexcept nogil:
@@ -102,21 +142,6 @@ cdef inline int32_t path_pair(csp c, sp o, csp ap, sp ac, int32_t am, csp bp, sp
     return ma
 
 
-cdef inline int32_t pixel_keys(cup sa, cup sb, cup cost, ip keys, uint16_t top,
-                               Py_ssize_t n) noexcept nogil:
-    """Keys ``(s_a + s_b) << 9 | i`` of one pixel's n disparities into ``keys`` (NO_KEY
-    where the cost is ``top``: no partner or no energy): one minimum gives the winner
-    and, among equal sums, the smallest disparity. Returns the best key."""
-    cdef int32_t best = NO_KEY, k
-    cdef Py_ssize_t i
-    for i in range(n):
-        k = (((<int32_t>sa[i] + <int32_t>sb[i]) << KEY_SHIFT) | <int32_t>i
-             if cost[i] < top else NO_KEY)
-        keys[i] = k
-        best = best if best < k else k
-    return best
-
-
 cdef inline void lower_keys(ip rkey, cip keys, Py_ssize_t n) noexcept nogil:
     """``rkey = min(rkey, keys)``: the right view's best keys."""
     cdef Py_ssize_t i
@@ -127,12 +152,3 @@ cdef inline void lower_keys(ip rkey, cip keys, Py_ssize_t n) noexcept nogil:
         rkey[i] = a if a < b else b
 
 
-cdef inline int32_t second_key(cip keys, Py_ssize_t lo, Py_ssize_t hi,
-                               Py_ssize_t n) noexcept nogil:
-    """Smallest key outside indices lo..hi."""
-    cdef int32_t second = NO_KEY, k
-    cdef Py_ssize_t i
-    for i in range(n):
-        k = keys[i] if (i < lo) | (i > hi) else NO_KEY
-        second = second if second < k else k
-    return second
