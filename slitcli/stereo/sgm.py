@@ -18,13 +18,12 @@ with one more step, the bracket test (:data:`SGM_FILTERS`, slitcli.stereo._brack
 a pixel whose own neighbourhood does not carry the match is kept where valid pixels
 on both sides of it agree with each other and with it.
 
-Cost: with D a multiple of 16 (slitcli.stereo._sgm_lanes, explicit 16-lane vectors)
-two fused passes: the costs of each row with the top-down sweep over them, then the
-bottom-up sweep with each row's winner step; two volumes of H x W x D uint16 (20 MB at
-320 x 240 x 64; with a second thread three phases and a third volume, _match_fused).
-Other D: the scalar kernels (slitcli.stereo._sgm), cost and winner in bands of rows
-over the frame's threads, the two sweeps on two threads, three volumes. Both give
-the same disparities bit for bit.
+Cost: two fused passes (compiled kernels, slitcli/stereo/_c/sgm.pyx): the costs of each
+row with the top-down sweep over them, then the bottom-up sweep with each row's winner
+step; two volumes of H x W x D uint16 (20 MB at 320 x 240 x 64; with a second thread
+three phases and a third volume, _match_fused). The separate stages
+(:func:`cost_volume`, :func:`aggregate`, slitcli.stereo._sgm.winners_rows) give the
+same disparities bit for bit.
 """
 
 from __future__ import annotations
@@ -77,14 +76,12 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Quantised Eq. 10 costs (H, W, D) uint16 of prefiltered images, with the left
     window energies and pixel counts (H, W) float32 (for the texture test)."""
-    from slitcli.stereo import _sgm, _sgm_lanes
-    from slitcli.stereo._lanes import LANES32
+    from slitcli.stereo import _sgm
 
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
     cost = np.empty((h, w, c["num"]), np.uint16)
-    # explicit 8-lane kernel where D allows (same costs bit for bit)
-    kernel = _sgm_lanes.cost_rows_lanes if c["num"] % LANES32 == 0 else _sgm.cost_rows
+    kernel = _sgm.cost_rows
     args = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], c["num"],
             c["m"], c["n"], COST_MAX, COST_SCALE)
     run_row_bands(lambda y0, y1: kernel(*args, y0, y1, cost), h, pool, threads,
@@ -99,8 +96,7 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
 
     ``grey`` (H, W) uint8, the left image: with ``sgm_p2_edge_dn`` > 0 each step's P2
     is ``sgm_p2 g / (g + |grey step|)`` (at least P1 + 1), ``g = sgm_p2_edge_dn``."""
-    from slitcli.stereo import _sgm, _sgm_lanes
-    from slitcli.stereo._lanes import LANES16
+    from slitcli.stereo import _sgm
 
     p1 = round(params.sgm_p1 * COST_SCALE)
     p2 = round(params.sgm_p2 * COST_SCALE)
@@ -110,9 +106,7 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
         grey = np.zeros(cost.shape[:2], np.uint8)
     s_a = np.empty_like(cost)
     s_b = np.empty_like(cost)
-    # explicit 16-lane kernels where D allows (same sums bit for bit)
-    kernel = (_sgm_lanes.aggregate_pass_lanes if cost.shape[2] % LANES16 == 0
-              else _sgm.aggregate_pass)
+    kernel = _sgm.aggregate_pass
     if pool is not None:
         job = pool.submit(kernel, cost, p1, p2, eight, True, s_b, grey, g)
         kernel(cost, p1, p2, eight, False, s_a, grey, g)
@@ -157,8 +151,8 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
 def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np.ndarray,
                  tests: tuple, outputs: tuple, pool: ThreadPoolExecutor | None = None,
                  threads: int = 1) -> None:
-    """Cost, SGM and the winner step in two fused passes over the rows (D a multiple of
-    16; slitcli.stereo._sgm_lanes): the costs of each row and the top-down sweep over
+    """Cost, SGM and the winner step in two fused passes over the rows
+    (slitcli/stereo/_c/sgm.pyx): the costs of each row and the top-down sweep over
     them while they are in cache; then the bottom-up sweep with each row's winner step,
     its sums kept for one row only. Two H x W x D volumes instead of three, each read
     once more instead of three times: in a frame the volumes do not stay in cache,
@@ -170,7 +164,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     top-down sweep over the bottom part, the other the bottom-up sweep over it (sums
     into a third volume); (3) this thread the bottom part's winners, the other the
     bottom-up sweep and winners of the top part. The same results bit for bit."""
-    from slitcli.stereo import _sgm_lanes
+    from slitcli.stereo._c import sgm as _k
 
     c = _cost_inputs(pl, pr, params)
     h, w = pl.shape
@@ -191,8 +185,8 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
              c["n"], COST_MAX, COST_SCALE)
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
     if one_thread:
-        _sgm_lanes.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
-        _sgm_lanes.second_sweep_winners(cost, s_a, *bargs)
+        _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
+        _k.second_sweep_winners(cost, s_a, *bargs)
         return
     # the split row balances the phases: this thread's top rows carry costs and the
     # sweep, the other's bottom rows costs only; in phase 3 the other thread sweeps and
@@ -201,22 +195,22 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     half = 2 * h // 5
     col = np.zeros((w + 1, num), np.float32)
     hs = np.zeros(num, np.float32)
-    state_a = _sgm_lanes._sweep_state(w, num)
-    state_b = _sgm_lanes._sweep_state(w, num)
+    state_a = _k.sweep_state(w, num)
+    state_b = _k.sweep_state(w, num)
     s_b = volumes[2]
-    job = pool.submit(_sgm_lanes.cost_rows_lanes, *cargs, half, h, cost)
-    _sgm_lanes._cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
-    _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
+    job = pool.submit(_k.cost_rows, *cargs, half, h, cost)
+    _k.cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
+    _k.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
                                 hs, *state_a)
     job.result()
-    job = pool.submit(_sgm_lanes.second_sweep_rows, cost, s_a, *bargs, 0, h - half, False, s_b,
+    job = pool.submit(_k.second_sweep_rows, cost, s_a, *bargs, 0, h - half, False, s_b,
                       *state_b)
-    _sgm_lanes.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, half, h, False, col,
+    _k.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, half, h, False, col,
                                 hs, *state_a)
     job.result()
-    job = pool.submit(_sgm_lanes.second_sweep_rows, cost, s_a, *bargs, h - half, h, True, s_b,
+    job = pool.submit(_k.second_sweep_rows, cost, s_a, *bargs, h - half, h, True, s_b,
                       *state_b)
-    _sgm_lanes.winners_rows_lanes(s_a, s_b, cost, c["el"], c["count"], *tests, half, h,
+    _k.winners_rows(s_a, s_b, cost, c["el"], c["count"], *tests, half, h,
                                   *outputs)
     job.result()
 
@@ -237,8 +231,6 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     DisparityResult
         ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
     """
-    from slitcli.stereo import _sgm
-    from slitcli.stereo._lanes import LANES16
     from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
 
     h, w = left_grey.shape
@@ -258,15 +250,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
                  float(params.lr_max_diff_px), params.subpixel == "parabola",
                  np.float32(energy_min), top, np.float32(COST_SCALE))
         grey = np.ascontiguousarray(left_grey)
-        if params.num_disparities % LANES16 == 0:
-            _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
-                         threads)
-        else:
-            cost, el, count = cost_volume(pl, pr, params, pool, threads)
-            s_a, s_b = aggregate(cost, params, pool, grey)
-            run_row_bands(lambda y0, y1: _sgm.winners_rows(s_a, s_b, cost, el, count, *tests,
-                                                           y0, y1, disp, mcost, reason, rdisp),
-                          h, pool, threads)
+        _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
+                     threads)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
                                            rdisp, pool, threads), SGM_FILTERS)
     return DisparityResult(disp, reason, mcost)

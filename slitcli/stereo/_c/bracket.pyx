@@ -1,0 +1,93 @@
+"""Compiled kernel of the SGM bracket test (slitcli.stereo.sgm).
+
+A pixel that semi-global aggregation matched but whose own neighbourhood does not carry
+the match (the support test rejected it: weak texture) is kept when supported pixels
+on both sides of it, along its row or along its column and within ``reach`` pixels,
+bracket its disparity: ``min(d_a, d_b) - tol <= d <= max(d_a, d_b) + tol``. On a
+smooth surface (plain, slanted or not) the aggregated disparity runs between those of
+its textured borders; where the aggregation carried a neighbour's disparity across an
+edge onto a plain surface (a floor's or a wall's disparity into a plain box, whose
+own silhouette matched at the box's disparity) the box's borders do not bracket it.
+"""
+
+from libc.math cimport fabsf
+from libc.stdint cimport int64_t, uint8_t
+
+import numpy as np
+
+cdef extern from "math.h":
+    const float NAN
+
+
+cdef inline bint _between(float d, float a, float b, float tol, float span) noexcept nogil:
+    """``min(a, b) - tol <= d <= max(a, b) + tol`` and ``|a - b| <= span``."""
+    cdef float lo = b if b < a else a
+    cdef float hi = b if b > a else a
+    return (d >= lo - tol) and (d <= hi + tol) and fabsf(a - b) <= span
+
+
+def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int code_valid,
+                 const uint8_t[::1] weak, Py_ssize_t reach, float tol, float span,
+                 uint8_t[:, ::1] keep):
+    """Set ``keep`` (H, W) bool where a pixel whose code is marked in ``weak`` (bool per
+    code, 256) is bracketed along its row or its column by pixels of code
+    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module).
+
+    ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
+    written (False for the other non-valid pixels; valid pixels untouched)."""
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y, lx, rx
+    cdef float[::1] left = np.empty(width, np.float32)
+    # column scans: the last valid disparity above (and its row) per column
+    cdef float[:, ::1] up_d = np.full((height, width), np.nan, np.float32)
+    cdef float[::1] last_d = np.full(width, np.nan, np.float32)
+    cdef int64_t[::1] last_y = np.full(width, -(1 << 30), np.int64)
+    cdef float d, a, ld, rd
+    cdef uint8_t r
+    with nogil:
+        for y in range(height):
+            for x in range(width):
+                if reason[y, x] == code_valid:
+                    last_d[x] = disp[y, x]
+                    last_y[x] = y
+                elif y - last_y[x] <= reach:
+                    up_d[y, x] = last_d[x]
+        for x in range(width):
+            last_d[x] = NAN
+            last_y[x] = 1 << 30
+        for y in range(height - 1, -1, -1):
+            for x in range(width):
+                r = reason[y, x]
+                if r == code_valid:
+                    last_d[x] = disp[y, x]
+                    last_y[x] = y
+                    continue
+                keep[y, x] = False
+                if not weak[r]:
+                    continue
+                a = up_d[y, x]
+                if last_y[x] - y <= reach and a == a:
+                    keep[y, x] = _between(disp[y, x], a, last_d[x], tol, span)
+        for y in range(height):
+            ld = NAN
+            lx = -(1 << 30)
+            for x in range(width):
+                if reason[y, x] == code_valid:
+                    ld = disp[y, x]
+                    lx = x
+                    left[x] = NAN
+                else:
+                    left[x] = ld if x - lx <= reach else NAN
+            rd = NAN
+            rx = 1 << 30
+            for x in range(width - 1, -1, -1):
+                r = reason[y, x]
+                if r == code_valid:
+                    rd = disp[y, x]
+                    rx = x
+                    continue
+                if not weak[r] or keep[y, x]:
+                    continue
+                a = left[x]
+                if rx - x <= reach and a == a:
+                    d = disp[y, x]
+                    keep[y, x] = _between(d, a, rd, tol, span)

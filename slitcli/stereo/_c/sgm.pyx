@@ -1,0 +1,557 @@
+# cflags: -fno-math-errno -fno-trapping-math -funroll-loops
+# (value-preserving: sqrtf need not set errno and no operation traps, so the per-pixel
+# loops vectorise; no reassociation, no contraction: every cost keeps its bits)
+"""Compiled kernels of semi-global aggregation (Hirschmueller's SGM) over the Eq. 10 cost.
+
+- :func:`window_inputs`: left window energies and pixel counts, the right image's rows
+  reversed and padded with its window energies and their inverse square roots;
+- :func:`cost_rows`: the Eq. 10 normalised cost ``C = (E_l + E_r - 2 X) / sqrt(E_l E_r)``
+  of every pixel and disparity (window sums of the prefiltered images, zeros outside
+  the image), quantised to ``round(min(C, c_max) scale)`` in a uint16 volume (H, W, D);
+  a candidate whose partner leaves the right image or whose window has no energy costs
+  ``c_max scale``;
+- :func:`aggregate_pass`: the sum of the path costs ``L_r(p, d) = C(p, d) + min(L_r(p-r,
+  d), L_r(p-r, d+-1) + P1, min_k L_r(p-r, k) + P2) - min_k L_r(p-r, k)`` of one sweep
+  over the rows: top-down (left to right, top, and with 8 paths top-left and
+  top-right) or bottom-up (the same on the image turned by 180 degrees);
+- :func:`winners_rows`: winner-take-all over the sum of both sweeps with the tests that
+  need the whole cost curve (texture energy, uniqueness, left-right consistency from
+  the same sums) and the subpixel parabola;
+- the fused passes of slitcli.stereo.sgm._match_fused (:func:`cost_and_first_sweep`,
+  :func:`second_sweep_winners` and their row-range pieces for two threads): each
+  row's costs with the top-down sweep over it while it is in cache, then the bottom-up
+  sweep with each row's winner step, its sums kept for one row only.
+
+Every kernel releases the GIL (slitcli.stereo.sgm calls them from row-band threads)
+and works for any disparity count D >= 2; the per-pixel loops (sgm_loops.pxd) are
+vectorised by the compiler. The results do not depend on D's divisibility, on the
+bands or on the fusion: the same integer and float operations in the same order.
+"""
+
+from libc.math cimport fabsf, rint, sqrtf
+from libc.stdlib cimport llabs
+from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
+
+from slitcli.stereo._c.sgm_loops cimport (
+    KEY_SHIFT,
+    NO_KEY,
+    SENTINEL,
+    column_slide,
+    lower_keys,
+    path_pair,
+    pixel_costs,
+    pixel_keys,
+    second_key,
+)
+
+import numpy as np
+
+from slitcli.stereo.reasons import Reason
+
+cdef extern from "math.h":
+    const float NAN
+    const float INFINITY
+
+cdef int R_VALID = int(Reason.VALID)
+cdef int R_NO_CANDIDATE = int(Reason.NO_CANDIDATE)
+cdef int R_TEXTURE = int(Reason.TEXTURE)
+cdef int R_UNIQUENESS = int(Reason.UNIQUENESS)
+cdef int R_LEFT_RIGHT = int(Reason.LEFT_RIGHT)
+
+
+def window_inputs(const float[:, ::1] pl, const float[:, ::1] pr, Py_ssize_t m,
+                  Py_ssize_t n, Py_ssize_t pad, float[:, ::1] el, float[:, ::1] count,
+                  float[:, ::1] prr_pad, float[:, ::1] err_pad, float[:, ::1] irr_pad):
+    """The cost kernels' inputs in one pass: window energies and pixel counts of the
+    left image (``el``, ``count``, (H, W) float32), and the right image's rows reversed
+    into the padded rows of ``prr_pad`` (H, W + 2 pad) with its window energies
+    ``err_pad`` and their inverse square roots ``irr_pad`` (0 where no energy); the
+    padding is left untouched.
+
+    The (2m+1) x (2n+1) window sums (zeros outside the image) run in float64 and are
+    rounded to float32 once, as ``cv2.boxFilter`` does for float32 images: the
+    prefiltered images hold whole numbers (quarter DN), so the running sums are exact
+    and the energies equal the box filter's bit for bit."""
+    cdef Py_ssize_t height = pl.shape[0], width = pl.shape[1]
+    cdef double[::1] cl = np.zeros(width, np.float64)
+    cdef double[::1] cr = np.zeros(width, np.float64)
+    cdef Py_ssize_t x, y, yy, ya, ys, xa, xs, rows, j
+    cdef double a, b, sl, sr
+    cdef float e
+    with nogil:
+        for yy in range(min(n, height)):
+            for x in range(width):
+                a = pl[yy, x]
+                b = pr[yy, x]
+                cl[x] += a * a
+                cr[x] += b * b
+        for y in range(height):
+            ya = y + n
+            ys = y - n - 1
+            if ya < height:
+                for x in range(width):
+                    a = pl[ya, x]
+                    b = pr[ya, x]
+                    cl[x] += a * a
+                    cr[x] += b * b
+            if ys >= 0:
+                for x in range(width):
+                    a = pl[ys, x]
+                    b = pr[ys, x]
+                    cl[x] -= a * a
+                    cr[x] -= b * b
+            rows = min(height - 1, ya) - max(0, y - n) + 1
+            sl = 0.0
+            sr = 0.0
+            for x in range(min(m, width)):
+                sl += cl[x]
+                sr += cr[x]
+            for x in range(width):
+                xa = x + m
+                xs = x - m - 1
+                if xa < width:
+                    sl += cl[xa]
+                    sr += cr[xa]
+                if xs >= 0:
+                    sl -= cl[xs]
+                    sr -= cr[xs]
+                el[y, x] = <float>sl
+                count[y, x] = <float>(rows * (min(width - 1, xa) - max(0, x - m) + 1))
+                e = <float>sr
+                j = pad + width - 1 - x
+                prr_pad[y, j] = pr[y, x]
+                err_pad[y, j] = e
+                irr_pad[y, j] = <float>1.0 / sqrtf(e) if e > 0 else <float>0.0
+
+
+cdef struct CostIn:
+    # what the cost rows read (see cost_rows)
+    const float *pl
+    const float *prr
+    const float *el
+    const float *err
+    const float *irr
+    Py_ssize_t height, width, stride, pad, dmin, num, m, n
+    float c_max, scale
+    uint16_t top
+
+
+cdef CostIn _cost_in(const float[:, ::1] pl, const float[:, ::1] prr_pad,
+                     const float[:, ::1] el, const float[:, ::1] err_pad,
+                     const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
+                     Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max, double scale):
+    cdef CostIn c
+    c.pl = &pl[0, 0]
+    c.prr = &prr_pad[0, 0]
+    c.el = &el[0, 0]
+    c.err = &err_pad[0, 0]
+    c.irr = &irr_pad[0, 0]
+    c.height = pl.shape[0]
+    c.width = pl.shape[1]
+    c.stride = prr_pad.shape[1]
+    c.pad = pad
+    c.dmin = dmin
+    c.num = num
+    c.m = m
+    c.n = n
+    c.c_max = <float>c_max
+    c.scale = <float>scale
+    c.top = <uint16_t>rint(c_max * scale)   # numba's round(): half to even
+    return c
+
+
+cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil:
+    """The vertical window sums of the cross term at row ``y0 - 1`` (rows y0-1-n ..
+    y0-1+n) into ``col`` ((W + 1) x D, row 0 the zero column)."""
+    cdef Py_ssize_t yy, x
+    cdef const float *ra
+    for yy in range(max(0, y0 - 1 - c.n), min(c.height, y0 + c.n)):
+        for x in range(c.width):
+            ra = c.prr + yy * c.stride + c.pad + c.width - 1 - x + c.dmin
+            column_slide(col + (x + 1) * c.num, ra, ra, c.pl[yy * c.width + x], 0.0, c.num)
+
+
+cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
+                    uint16_t *o_row) noexcept nogil:
+    """Row ``y`` of the quantised costs into ``o_row`` (W x D), the column sums ``col``
+    slid one row down first."""
+    cdef Py_ssize_t width = c.width, num = c.num, height = c.height
+    cdef Py_ssize_t ya = y + c.n, ys = y - c.n - 1, x, xx, xa, xs, i, base, k
+    cdef float a, b, wa, ws, e1, r1
+    if ya < height or ys >= 0:
+        for x in range(width):
+            base = c.pad + width - 1 - x + c.dmin
+            a = c.pl[ya * width + x] if ya < height else <float>0.0
+            b = c.pl[ys * width + x] if ys >= 0 else <float>0.0
+            column_slide(col + (x + 1) * num, c.prr + min(ya, height - 1) * c.stride + base,
+                         c.prr + max(ys, 0) * c.stride + base, a, b, num)
+    for i in range(num):
+        hs[i] = 0.0
+    for xx in range(min(c.m, width)):
+        for i in range(num):
+            hs[i] += col[(xx + 1) * num + i]
+    for x in range(width):
+        xa = x + c.m
+        xs = x - c.m - 1
+        wa = <float>1.0 if xa < width else <float>0.0
+        ws = <float>1.0 if xs >= 0 else <float>0.0
+        e1 = c.el[y * width + x]
+        r1 = <float>1.0 / sqrtf(e1) if e1 > 0 else <float>0.0
+        k = y * c.stride + c.pad + width - 1 - x + c.dmin
+        pixel_costs(hs, col + (min(xa, width - 1) + 1) * num, col + (max(xs, -1) + 1) * num,
+                    wa, ws, e1, r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max,
+                    o_row + x * num, num)
+
+
+def cost_start(const float[:, ::1] pl, const float[:, ::1] prr_pad, Py_ssize_t pad,
+               Py_ssize_t dmin, Py_ssize_t num, Py_ssize_t n, Py_ssize_t y0,
+               float[:, ::1] col):
+    """The vertical window sums of the cross term at row ``y0 - 1`` into ``col``
+    ((W + 1, D) float32, zeros on entry): the state :func:`first_sweep_rows` starts
+    from."""
+    cdef CostIn c = _cost_in(pl, prr_pad, pl, prr_pad, prr_pad, pad, dmin, num, 0, n,
+                             2.0, 1.0)
+    with nogil:
+        _cost_start(&c, y0, &col[0, 0])
+
+
+def cost_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad, const float[:, ::1] el,
+              const float[:, ::1] err_pad, const float[:, ::1] irr_pad, Py_ssize_t pad,
+              Py_ssize_t dmin, Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
+              double scale, Py_ssize_t y0, Py_ssize_t y1, uint16_t[:, :, ::1] out):
+    """Quantised Eq. 10 costs of rows y0..y1-1 into ``out`` (H, W, D) uint16.
+
+    ``pl``: (H, W) float32 prefiltered left image; ``prr_pad``: (H, W + 2 pad) the
+    prefiltered right image reversed along x, with ``pad`` zero columns each side, so
+    right column ``x - d`` is ``prr_pad[:, pad + W - 1 - x + d]`` and the disparities of
+    a pixel are contiguous; ``el``: (H, W) left window energies; ``err_pad``,
+    ``irr_pad``: (H, W + 2 pad) the right window energies and their inverse square
+    roots, reversed and padded likewise (0 where the window has no energy or the centre
+    is outside the image). (2m+1) x (2n+1) windows, D = ``num`` from ``dmin``.
+    """
+    cdef CostIn c = _cost_in(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n,
+                             c_max, scale)
+    cdef float[:, ::1] col = np.zeros((c.width + 1, num), np.float32)
+    cdef float[::1] hs = np.zeros(num, np.float32)
+    cdef Py_ssize_t y
+    with nogil:
+        _cost_start(&c, y0, &col[0, 0])
+        for y in range(y0, y1):
+            _cost_row(&c, y, &col[0, 0], &hs[0], &out[y, 0, 0])
+
+
+def sweep_state(Py_ssize_t width, Py_ssize_t num):
+    """A sweep's state: its path rows (6 W + 3, D + 2) int16 (rows of the vertical,
+    the two diagonal paths for the previous and the current image row, the horizontal
+    path's two, and a path's first previous row: zeros), all sentinels but the zeros,
+    and the path minima (3, 2, W) int32."""
+    paths = np.full((6 * width + 3, num + 2), SENTINEL, np.int16)
+    paths[6 * width + 2, 1:num + 1] = 0
+    return paths, np.zeros((3, 2, width), np.int32)
+
+
+cdef struct Tests:
+    # the winner step's parameters (see winners_rows) and row buffers: keys (W x D),
+    # the right view's keys (W + 2 pad), the winners (W)
+    Py_ssize_t dmin
+    float uniq
+    double lr_tol
+    bint subpixel
+    float energy_min
+    uint16_t top
+    float scale
+    int32_t *keys
+    int32_t *rkey
+    int32_t *best_i
+
+
+cdef inline int32_t _p2(int32_t p1, int32_t p2, float g, uint8_t a,
+                        uint8_t b) noexcept nogil:
+    """P2 for a step between two pixels of grey levels a and b: ``P2 g / (g + |a - b|)``
+    (Hirschmueller: a disparity jump is likelier across an intensity edge), at least
+    P1 + 1; ``g`` <= 0: P2 itself. (int times float32 is float64, as in numpy.)"""
+    if g <= 0:
+        return p2
+    cdef int32_t q = <int32_t>(<double>p2 * <double>g
+                               / <double>(g + fabsf(<float>a - <float>b)))
+    return q if q > p1 + 1 else p1 + 1
+
+
+cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
+                    Py_ssize_t width, Py_ssize_t num, Py_ssize_t y, Py_ssize_t yy,
+                    Py_ssize_t ys, bint reverse, int32_t p1, int32_t p2, float g, bint eight,
+                    int16_t *paths, int32_t *mins) noexcept nogil:
+    """One row of a sweep (the ``y``-th row visited: image row ``yy``, its vertical
+    paths coming from row ``ys``): path rows carried in ``paths`` and their minima in
+    ``mins`` (:func:`sweep_state`); the row's path sum into ``o_row`` (W x D)."""
+    cdef Py_ssize_t stride = num + 2, x, xx, xs, src = y & 1, dst = 1 - (y & 1), hs
+    cdef int16_t *pv = paths
+    cdef int16_t *pd = paths + 2 * width * stride
+    cdef int16_t *pe = paths + 4 * width * stride
+    cdef int16_t *ph = paths + 6 * width * stride
+    cdef const int16_t *zero = paths + (6 * width + 2) * stride
+    cdef int32_t *mv = mins
+    cdef int32_t *md = mins + 2 * width
+    cdef int32_t *me = mins + 4 * width
+    cdef const int16_t *c
+    cdef const int16_t *prev_a
+    cdef const int16_t *prev_b
+    cdef int16_t *o
+    cdef int32_t hmin = 0, ma, mb, p2a, p2b
+    cdef bint adapt = g > 0, first, last
+    cdef const uint8_t *row = grey + yy * width
+    cdef const uint8_t *above = grey + ys * width
+    for x in range(width):
+        xx = width - 1 - x if reverse else x
+        xs = xx + 1 if reverse else xx - 1
+        hs = x & 1
+        c = c_row + xx * num
+        o = o_row + xx * num
+        prev_a = zero if x == 0 else ph + hs * stride
+        prev_b = zero if y == 0 else pv + (src * width + x) * stride
+        ma = 0 if y == 0 else mv[src * width + x]
+        p2a = p2
+        p2b = p2
+        if adapt:
+            if x > 0:
+                p2a = _p2(p1, p2, g, row[xx], row[xs])
+            if y > 0:
+                p2b = _p2(p1, p2, g, row[xx], above[xx])
+        hmin = path_pair(c, o, prev_a, ph + (1 - hs) * stride, hmin, prev_b,
+                         pv + (dst * width + x) * stride, ma, p1, p2a, p2b, False, num,
+                         &mv[dst * width + x])
+        if eight:
+            first = y == 0 or x == 0
+            last = y == 0 or x == width - 1
+            prev_a = zero if first else pd + (src * width + x - 1) * stride
+            prev_b = zero if last else pe + (src * width + x + 1) * stride
+            ma = 0 if first else md[src * width + x - 1]
+            mb = 0 if last else me[src * width + x + 1]
+            p2a = p2
+            p2b = p2
+            if adapt:
+                if not first:
+                    p2a = _p2(p1, p2, g, row[xx], above[xs])
+                if not last:
+                    p2b = _p2(p1, p2, g, row[xx], above[2 * xx - xs])
+            md[dst * width + x] = path_pair(c, o, prev_a, pd + (dst * width + x) * stride, ma,
+                                            prev_b, pe + (dst * width + x) * stride, mb, p1,
+                                            p2a, p2b, True, num, &me[dst * width + x])
+
+
+cdef void winner_row(const Tests *t, const uint16_t *sa, const uint16_t *sb,
+                     const uint16_t *c, const float *el, const float *count,
+                     Py_ssize_t width, Py_ssize_t num, float *disp, float *mcost,
+                     uint8_t *reason, float *rdisp) noexcept nogil:
+    """One row of :func:`winners_rows`: ``sa``, ``sb``, ``c`` the row's W x D sums and
+    costs, the outputs the row's (W,) arrays."""
+    cdef Py_ssize_t dmin = t.dmin, pad = num + llabs(t.dmin) + 1, x, x0, xr, base, bi
+    cdef int32_t *keys = t.keys
+    cdef int32_t *rkey = t.rkey
+    cdef int32_t best, km, kp, sk, k, imask = (1 << KEY_SHIFT) - 1
+    cdef float bv, delta, cm, cp, den
+    cdef int code
+    cdef bint ok
+    for x in range(width + 2 * pad):
+        rkey[x] = NO_KEY
+    for x in range(width):
+        base = x * num
+        best = pixel_keys(sa + base, sb + base, c + base, keys + base, t.top, num)
+        if best == NO_KEY:
+            t.best_i[x] = -1
+            disp[x] = NAN
+            mcost[x] = INFINITY
+            reason[x] = R_NO_CANDIDATE
+            continue
+        bi = best & imask
+        t.best_i[x] = bi
+        bv = <float>(best >> KEY_SHIFT)
+        delta = 0.0
+        if t.subpixel and 0 < bi < num - 1:
+            km = keys[base + bi - 1]
+            kp = keys[base + bi + 1]
+            if km != NO_KEY and kp != NO_KEY:
+                cm = <float>(km >> KEY_SHIFT)
+                cp = <float>(kp >> KEY_SHIFT)
+                den = cm - <float>2.0 * bv + cp
+                if den > 0:
+                    delta = <float>0.5 * (cm - cp) / den
+        disp[x] = <float>(dmin + bi) + delta
+        mcost[x] = <float>c[base + bi] / t.scale
+        code = R_VALID
+        if t.energy_min > 0 and el[x] < t.energy_min * count[x]:
+            code = R_TEXTURE
+        if t.uniq > 0:
+            sk = second_key(keys + base, bi - 1, bi + 1, num)
+            if sk != NO_KEY and <float>(sk >> KEY_SHIFT) < bv * (<float>1.0 + t.uniq):
+                code = R_UNIQUENESS + 100
+        reason[x] = code
+    # the right view: pixel x's keys lower the right pixels x - d, windows one element
+    # apart for neighbouring x; taken 16 columns apart, so that no vector load waits
+    # for an overlapping store just before it
+    for x0 in range(16):
+        for x in range(x0, width, 16):
+            lower_keys(rkey + pad + width - 1 - x + dmin, keys + x * num, num)
+    for xr in range(width):
+        k = rkey[pad + width - 1 - xr]
+        rdisp[xr] = <float>(dmin + (k & imask)) if k != NO_KEY else NAN
+    for x in range(width):
+        bi = t.best_i[x]
+        if bi < 0:
+            continue
+        code = reason[x]
+        if code >= 100:
+            reason[x] = code - 100
+            continue
+        if t.lr_tol >= 0:
+            xr = x - dmin - bi
+            ok = (xr >= 0) and (xr < width)
+            if ok:
+                k = rkey[pad + width - 1 - xr]
+                ok = k != NO_KEY and <double>llabs((k & imask) - bi) <= t.lr_tol
+            if not ok:
+                reason[x] = R_LEFT_RIGHT
+
+
+def aggregate_pass(uint16_t[:, :, ::1] cost, int p1, int p2, bint eight, bint reverse,
+                   uint16_t[:, :, ::1] out, const uint8_t[:, ::1] grey, double p2_grad):
+    """Sum of the path costs of one sweep over the rows, (H, W, D) uint16 into ``out``.
+
+    ``reverse`` False: the top-down sweep, paths left to right and from the top (and,
+    with ``eight``, from the top-left and top-right); True: the same on the image
+    turned by 180 degrees. ``p1``, ``p2``: the penalties in cost units (1/256 of Eq.
+    10); ``grey`` (H, W) with ``p2_grad`` > 0: P2 adapted to the grey step along each
+    path, ``P2 g / (g + |grey step|)``, at least P1 + 1. Needs D >= 2.
+    """
+    cdef Py_ssize_t height = cost.shape[0], width = cost.shape[1], num = cost.shape[2]
+    paths_, mins_ = sweep_state(width, num)
+    cdef int16_t[:, ::1] paths = paths_
+    cdef int32_t[:, :, ::1] mins = mins_
+    cdef Py_ssize_t y, yy
+    cdef float g = <float>p2_grad
+    with nogil:
+        for y in range(height):
+            yy = height - 1 - y if reverse else y
+            sweep_row(<int16_t *>&cost[yy, 0, 0], <int16_t *>&out[yy, 0, 0], &grey[0, 0],
+                      width, num, y, yy, yy + 1 if reverse else yy - 1, reverse, p1, p2, g,
+                      eight, &paths[0, 0], &mins[0, 0, 0])
+
+
+def _winner_buffers(Py_ssize_t width, Py_ssize_t num, Py_ssize_t dmin):
+    return np.empty((3, max(width * num, width + 2 * (num + abs(dmin) + 1))), np.int32)
+
+
+def winners_rows(uint16_t[:, :, ::1] s_a, uint16_t[:, :, ::1] s_b, uint16_t[:, :, ::1] cost,
+                 const float[:, ::1] el, const float[:, ::1] count, Py_ssize_t dmin,
+                 float uniq, double lr_tol, bint subpixel, float energy_min, uint16_t top,
+                 float scale, Py_ssize_t y0, Py_ssize_t y1, float[:, ::1] disp_out,
+                 float[:, ::1] cost_out, uint8_t[:, ::1] reason_out,
+                 float[:, ::1] rdisp_out):
+    """Winner-take-all over ``s_a + s_b`` for rows y0..y1-1 with the validity tests.
+
+    ``cost``: the quantised Eq. 10 volume (a pixel without any candidate below ``top``
+    has no candidate); ``el``, ``count``: window energy and pixel count (texture test:
+    ``el < energy_min count``); ``uniq``: no disparity more than 1 px from the winner
+    may have a sum below ``(1 + uniq)`` times the winner's; ``lr_tol`` < 0: no
+    left-right test (the right pixel's own best left match from the same sums must lie
+    within ``lr_tol`` px of the winner). Writes disparity (float32 px, NaN where none),
+    the winner's Eq. 10 cost (``cost / scale``, inf where none), the reason code
+    (uniqueness over left-right over texture) and the right view's integer disparities.
+    """
+    cdef Py_ssize_t width = s_a.shape[1], num = s_a.shape[2], y
+    cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
+    cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
+                         &buf[1, 0], &buf[2, 0])
+    with nogil:
+        for y in range(y0, y1):
+            winner_row(&t, &s_a[y, 0, 0], &s_b[y, 0, 0], &cost[y, 0, 0], &el[y, 0],
+                    &count[y, 0], width, num, &disp_out[y, 0], &cost_out[y, 0],
+                    &reason_out[y, 0], &rdisp_out[y, 0])
+
+
+def first_sweep_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad,
+                     const float[:, ::1] el, const float[:, ::1] err_pad,
+                     const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
+                     Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max, double scale,
+                     int p1, int p2, bint eight, const uint8_t[:, ::1] grey, double p2_grad,
+                     uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, Py_ssize_t y0,
+                     Py_ssize_t y1, bint with_cost, float[:, ::1] col, float[::1] hs,
+                     int16_t[:, ::1] paths, int32_t[:, :, ::1] mins):
+    """Rows y0..y1-1 of the top-down sweep into ``s_a``, each row's costs first (with
+    ``with_cost``; the column sums ``col`` at row y0 - 1, :func:`cost_start`) or read
+    from ``cost`` (computed by another thread). ``paths``, ``mins``: the sweep's state
+    (:func:`sweep_state`), carried from the rows before."""
+    cdef CostIn c = _cost_in(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n,
+                             c_max, scale)
+    cdef Py_ssize_t y, width = c.width
+    cdef float g = <float>p2_grad
+    with nogil:
+        for y in range(y0, y1):
+            if with_cost:
+                _cost_row(&c, y, &col[0, 0], &hs[0], &cost[y, 0, 0])
+            sweep_row(<int16_t *>&cost[y, 0, 0], <int16_t *>&s_a[y, 0, 0], &grey[0, 0],
+                      width, num, y, y, y - 1, False, p1, p2, g, eight, &paths[0, 0],
+                      &mins[0, 0, 0])
+
+
+def cost_and_first_sweep(const float[:, ::1] pl, const float[:, ::1] prr_pad,
+                         const float[:, ::1] el, const float[:, ::1] err_pad,
+                         const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
+                         Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
+                         double scale, int p1, int p2, bint eight,
+                         const uint8_t[:, ::1] grey, double p2_grad,
+                         uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a):
+    """Costs (H, W, D) uint16 into ``cost`` and the top-down sweep's sums into ``s_a``
+    (:func:`cost_rows` and :func:`aggregate_pass`, row by row, while each row's costs
+    are in cache)."""
+    width = pl.shape[1]
+    col = np.zeros((width + 1, num), np.float32)
+    hs = np.zeros(num, np.float32)
+    paths, mins = sweep_state(width, num)
+    cost_start(pl, prr_pad, pad, dmin, num, n, 0, col)
+    first_sweep_rows(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
+                     p1, p2, eight, grey, p2_grad, cost, s_a, 0, pl.shape[0], True, col, hs,
+                     paths, mins)
+
+
+def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1, int p2,
+                      bint eight, const uint8_t[:, ::1] grey, double p2_grad,
+                      const float[:, ::1] el, const float[:, ::1] count, Py_ssize_t dmin,
+                      float uniq, double lr_tol, bint subpixel, float energy_min,
+                      uint16_t top, float scale, float[:, ::1] disp_out,
+                      float[:, ::1] cost_out, uint8_t[:, ::1] reason_out,
+                      float[:, ::1] rdisp_out, Py_ssize_t v0, Py_ssize_t v1, bint winners,
+                      uint16_t[:, :, ::1] s_b, int16_t[:, ::1] paths,
+                      int32_t[:, :, ::1] mins):
+    """Visits v0..v1-1 of the bottom-up sweep (image row H - 1 - v), state ``paths``,
+    ``mins`` carried from the visits before. ``winners``: each row's winner step over
+    ``s_a`` + the row's sums (:func:`winners_rows`); else the sums into ``s_b``."""
+    cdef Py_ssize_t height = cost.shape[0], width = cost.shape[1], num = cost.shape[2]
+    cdef Py_ssize_t y, yy
+    cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
+    cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
+                         &buf[1, 0], &buf[2, 0])
+    cdef uint16_t[::1] row = np.empty(width * num, np.uint16)
+    cdef uint16_t *o_row
+    cdef float g = <float>p2_grad
+    with nogil:
+        for y in range(v0, v1):
+            yy = height - 1 - y
+            o_row = &row[0] if winners else &s_b[yy, 0, 0]
+            sweep_row(<int16_t *>&cost[yy, 0, 0], <int16_t *>o_row, &grey[0, 0], width, num,
+                      y, yy, yy + 1, True, p1, p2, g, eight, &paths[0, 0], &mins[0, 0, 0])
+            if winners:
+                winner_row(&t, &s_a[yy, 0, 0], o_row, &cost[yy, 0, 0], &el[yy, 0],
+                        &count[yy, 0], width, num, &disp_out[yy, 0], &cost_out[yy, 0],
+                        &reason_out[yy, 0], &rdisp_out[yy, 0])
+
+
+def second_sweep_winners(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq,
+                         lr_tol, subpixel, energy_min, top, scale, disp_out, cost_out,
+                         reason_out, rdisp_out):
+    """The bottom-up sweep (:func:`aggregate_pass`, ``reverse``) and, row by row, the
+    winner step over ``s_a`` + its sums (:func:`winners_rows`)."""
+    paths, mins = sweep_state(cost.shape[1], cost.shape[2])
+    second_sweep_rows(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq, lr_tol,
+                      subpixel, energy_min, top, scale, disp_out, cost_out, reason_out,
+                      rdisp_out, 0, cost.shape[0], True, cost, paths, mins)

@@ -1,0 +1,215 @@
+"""The per-pixel loops of semi-global aggregation (slitcli/stereo/_c/sgm.pyx), each over
+one pixel's disparities.
+
+Each loop is a function of its own over ``__restrict__`` pointers (what it writes never
+overlaps what it reads), so gcc vectorises it, 16 int16 or 8 float32 disparities per
+AVX2 operation, for any disparity count (a scalar tail takes the rest). Integer
+operations wrap in 16 bits where the casts say so; float operations are the IEEE
+float32 operations written, in that order, without contraction, so the costs and
+sums are the same bits whatever the vector width.
+"""
+
+from libc.stdint cimport int16_t, int32_t, uint16_t
+
+cdef extern from *:
+    """
+    /* above any path cost (< c_max scale + P2 <= 2 x 256 + 8 x 256) */
+    #define SGM_SENTINEL ((int16_t)0x3FFF)
+    #define SGM_KEY_SHIFT 9
+    #define SGM_NO_KEY ((int32_t)0x7FFFFFFF)
+    """
+    const int16_t SENTINEL "SGM_SENTINEL"
+    const int KEY_SHIFT "SGM_KEY_SHIFT"
+    const int32_t NO_KEY "SGM_NO_KEY"
+    ctypedef float *fp "float *__restrict__"
+    ctypedef const float *cfp "const float *__restrict__"
+    ctypedef int16_t *sp "int16_t *__restrict__"
+    ctypedef const int16_t *csp "const int16_t *__restrict__"
+    ctypedef const uint16_t *cup "const uint16_t *__restrict__"
+    ctypedef uint16_t *up "uint16_t *__restrict__"
+    ctypedef int32_t *ip "int32_t *__restrict__"
+    ctypedef const int32_t *cip "const int32_t *__restrict__"
+
+cdef extern from *:
+    """
+    /* The winner step's keys (s_a + s_b) << 9 | i of one pixel's n disparities into
+       keys (SGM_NO_KEY where the cost is top: no partner or no energy): one minimum
+       gives the winner and, among equal sums, the smallest disparity. Returns the best
+       key. In C with a mask for the choice: gcc (12) leaves the loop scalar with a
+       conditional expression or with Cython's branches. */
+    static inline int32_t sgm_pixel_keys(const uint16_t *restrict sa,
+                                         const uint16_t *restrict sb,
+                                         const uint16_t *restrict cost,
+                                         int32_t *restrict keys, uint16_t top,
+                                         Py_ssize_t n) {
+        int32_t best = SGM_NO_KEY;
+        for (int32_t i = 0; i < (int32_t)n; i++) {
+            int32_t k = (((int32_t)sa[i] + (int32_t)sb[i]) << SGM_KEY_SHIFT) | i;
+            int32_t m = -(int32_t)(cost[i] < top);
+            k = (k & m) | (SGM_NO_KEY & ~m);
+            keys[i] = k;
+            best = k < best ? k : best;
+        }
+        return best;
+    }
+    /* One path at one pixel, d = 0..n-1: L = C + min(prev, prev -+ 1 + P1, min prev + P2)
+       - min prev (Hirschmueller) with prev from index 1 (a sentinel at both ends),
+       int16 throughout (every value stays below SGM_SENTINEL + P2 < 2^15). */
+    #define SGM_STEP(prev, h, pm, l) do { \
+            int16_t v_ = prev[i + 1], t_ = (int16_t)(prev[i] + q1); \
+            v_ = t_ < v_ ? t_ : v_; \
+            t_ = (int16_t)(prev[i + 2] + q1); \
+            v_ = t_ < v_ ? t_ : v_; \
+            v_ = h < v_ ? h : v_; \
+            l = (int16_t)((int16_t)(c[i] + v_) - pm); \
+        } while (0)
+    /* Paths a and b at one pixel: rows into ac, bc (from index 1), their sum into o
+       (added to it with acc); returns min L of path a, that of b into bmin. In C:
+       the two loops (acc or not) each vectorise as one, Cython's branch in the loop
+       kept gcc from unswitching it well. */
+    #ifdef __AVX2__
+    #include <immintrin.h>
+    #define SGM_VSTEP(prev, q, h, pm, cv) _mm256_sub_epi16(_mm256_add_epi16(cv, \
+        _mm256_min_epi16(_mm256_min_epi16(_mm256_min_epi16( \
+            _mm256_loadu_si256((const __m256i *)(prev + i + 1)), \
+            _mm256_add_epi16(_mm256_loadu_si256((const __m256i *)(prev + i)), q)), \
+            _mm256_add_epi16(_mm256_loadu_si256((const __m256i *)(prev + i + 2)), q)), h)), \
+        pm)
+    /* the smallest of 16 int16 lanes (minpos works on unsigned: flip the sign bit) */
+    static inline int16_t sgm_hmin16(__m256i v) {
+        __m128i m = _mm_min_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+        m = _mm_minpos_epu16(_mm_xor_si128(m, _mm_set1_epi16((short)0x8000)));
+        return (int16_t)(_mm_extract_epi16(m, 0) ^ 0x8000);
+    }
+    /* sgm_path_pair for n a multiple of 16 in AVX2 16-lane vectors: the same int16
+       operations (wrapping adds, signed minima), so the same rows; the compiler's
+       vector loop pays an overlap check, a 16-byte and a scalar tail each call, and
+       took 1.3-1.5 times as long (measured at D = 64) */
+    static inline int32_t sgm_path_pair16(
+            const int16_t *restrict c, int16_t *restrict o, const int16_t *restrict ap,
+            int16_t *restrict ac, int32_t am, const int16_t *restrict bp,
+            int16_t *restrict bc, int32_t bm, int32_t p1, int32_t p2a, int32_t p2b,
+            int acc, Py_ssize_t n, int32_t *bmin) {
+        __m256i q = _mm256_set1_epi16((short)p1);
+        __m256i ha = _mm256_set1_epi16((short)(am + p2a)), pa = _mm256_set1_epi16((short)am);
+        __m256i hb = _mm256_set1_epi16((short)(bm + p2b)), pb = _mm256_set1_epi16((short)bm);
+        __m256i ma = _mm256_set1_epi16(0x7FFF), mb = ma;
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            __m256i cv = _mm256_loadu_si256((const __m256i *)(c + i));
+            __m256i la = SGM_VSTEP(ap, q, ha, pa, cv);
+            __m256i lb = SGM_VSTEP(bp, q, hb, pb, cv);
+            _mm256_storeu_si256((__m256i *)(ac + i + 1), la);
+            _mm256_storeu_si256((__m256i *)(bc + i + 1), lb);
+            __m256i s = _mm256_add_epi16(la, lb);
+            if (acc)
+                s = _mm256_add_epi16(_mm256_loadu_si256((const __m256i *)(o + i)), s);
+            _mm256_storeu_si256((__m256i *)(o + i), s);
+            ma = _mm256_min_epi16(ma, la);
+            mb = _mm256_min_epi16(mb, lb);
+        }
+        *bmin = sgm_hmin16(mb);
+        return sgm_hmin16(ma);
+    }
+    #endif
+    static inline int32_t sgm_path_pair(
+            const int16_t *restrict c, int16_t *restrict o, const int16_t *restrict ap,
+            int16_t *restrict ac, int32_t am, const int16_t *restrict bp,
+            int16_t *restrict bc, int32_t bm, int32_t p1, int32_t p2a, int32_t p2b,
+            int acc, Py_ssize_t n, int32_t *bmin) {
+    #ifdef __AVX2__
+        if (n % 16 == 0)
+            return sgm_path_pair16(c, o, ap, ac, am, bp, bc, bm, p1, p2a, p2b, acc, n, bmin);
+    #endif
+        int16_t q1 = (int16_t)p1, ha = (int16_t)(am + p2a), pa = (int16_t)am;
+        int16_t hb = (int16_t)(bm + p2b), pb = (int16_t)bm, ma = 0x7FFF, mb = 0x7FFF;
+        if (acc) {
+            for (Py_ssize_t i = 0; i < n; i++) {
+                int16_t la, lb;
+                SGM_STEP(ap, ha, pa, la);
+                SGM_STEP(bp, hb, pb, lb);
+                ac[i + 1] = la;
+                bc[i + 1] = lb;
+                o[i] = (int16_t)(o[i] + (int16_t)(la + lb));
+                ma = la < ma ? la : ma;
+                mb = lb < mb ? lb : mb;
+            }
+        } else {
+            for (Py_ssize_t i = 0; i < n; i++) {
+                int16_t la, lb;
+                SGM_STEP(ap, ha, pa, la);
+                SGM_STEP(bp, hb, pb, lb);
+                ac[i + 1] = la;
+                bc[i + 1] = lb;
+                o[i] = (int16_t)(la + lb);
+                ma = la < ma ? la : ma;
+                mb = lb < mb ? lb : mb;
+            }
+        }
+        *bmin = mb;
+        return ma;
+    }
+    /* The smallest key outside indices lo..hi. */
+    static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
+                                         int32_t hi, Py_ssize_t n) {
+        int32_t second = SGM_NO_KEY;
+        for (int32_t i = 0; i < (int32_t)n; i++) {
+            int32_t m = -(int32_t)((i < lo) | (i > hi));
+            int32_t k = (keys[i] & m) | (SGM_NO_KEY & ~m);
+            second = k < second ? k : second;
+        }
+        return second;
+    }
+    """
+    int32_t pixel_keys "sgm_pixel_keys" (const uint16_t *sa, const uint16_t *sb,
+                                         const uint16_t *cost, int32_t *keys, uint16_t top,
+                                         Py_ssize_t n) noexcept nogil
+    int32_t path_pair "sgm_path_pair" (const int16_t *c, int16_t *o, const int16_t *ap,
+                                       int16_t *ac, int32_t am, const int16_t *bp,
+                                       int16_t *bc, int32_t bm, int32_t p1, int32_t p2a,
+                                       int32_t p2b, bint acc, Py_ssize_t n,
+                                       int32_t *bmin) noexcept nogil
+    int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
+                                         Py_ssize_t n) noexcept nogil
+
+
+cdef inline void column_slide(fp col, cfp ra, cfp rs, float a, float b,
+                              Py_ssize_t n) noexcept nogil:
+    """The vertical window sums of the cross term of one column, one row down:
+    ``col += a ra - b rs`` (``a``, ``b``: the left pixels entering and leaving, 0 where
+    the row is outside the image; ``ra``, ``rs``: the mirrored right rows from the
+    column's first disparity)."""
+    cdef Py_ssize_t i
+    for i in range(n):
+        col[i] += a * ra[i] - b * rs[i]
+
+
+cdef inline void pixel_costs(fp hs, cfp col_in, cfp col_out, float wa, float ws, float e1,
+                             float r1, cfp err, cfp irr, uint16_t top, float scale,
+                             float c_max, up out, Py_ssize_t n) noexcept nogil:
+    """Slide the window's cross sums ``hs`` one column (``wa``, ``ws``: 0 or 1) and write
+    the quantised Eq. 10 costs ``round(min((E_l + E_r - 2 X) / sqrt(E_l E_r), c_max)
+    scale)``; ``irr`` = 0 (a partner outside the image or a window without energy) or
+    ``r1`` = 0 gives ``top``."""
+    cdef Py_ssize_t i
+    cdef float x, w, c, q
+    for i in range(n):
+        x = hs[i] + wa * col_in[i] - ws * col_out[i]
+        hs[i] = x
+        w = r1 * irr[i]
+        c = (e1 + err[i] - <float>2.0 * x) * w
+        c = c if c > <float>0.0 else <float>0.0
+        c = c if c < c_max else c_max
+        q = c * scale + <float>0.5
+        out[i] = <uint16_t><int32_t>q if w > <float>0.0 else top
+
+
+cdef inline void lower_keys(ip rkey, cip keys, Py_ssize_t n) noexcept nogil:
+    """``rkey = min(rkey, keys)``: the right view's best keys."""
+    cdef Py_ssize_t i
+    cdef int32_t a, b
+    for i in range(n):
+        a = rkey[i]
+        b = keys[i]
+        rkey[i] = a if a < b else b
+
+
