@@ -52,15 +52,26 @@ def bloom_kernel(const double[:, ::1] e, double full_well_e, double share,
     step[1] = w
     step[2] = -1
     step[3] = 1
-    cdef Py_ssize_t i, y, x, k, n
+    cdef Py_ssize_t y, x, k, n
+    cdef unsigned char over
+    row_over_arr = np.empty(h, dtype=np.uint8)
+    cdef unsigned char[::1] row_over = row_over_arr
     cdef double v, excess, q, room
     cdef double* p
     with nogil:
-        for i in range(h * w):
-            # np.minimum's semantics: a NaN stays NaN
-            v = src[i]
-            out[i] = full_well_e if v > full_well_e else v
         for y in range(h):
+            over = 0
+            for x in range(y * w, y * w + w):
+                # np.minimum's semantics: a NaN stays NaN
+                v = src[x]
+                out[x] = full_well_e if v > full_well_e else v
+                over |= v > full_well_e
+            row_over[y] = over
+        for y in range(h):
+            # a row with no pixel over the well spills nothing (a NaN pixel spills NaN
+            # charge, which the loop below drops: `q > 0` is false)
+            if not row_over[y]:
+                continue
             for x in range(w):
                 excess = src[y * w + x] - full_well_e
                 if excess <= 0.0:

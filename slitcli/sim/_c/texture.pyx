@@ -48,12 +48,22 @@ def octaves(const double[::1] s, const double[::1] t, const double[:, :, ::1] ta
     if n == 0 or n_o == 0:
         out_arr[:] = 0.0
         return out_arr
+    cdef double* res = &out[0]
+    cdef const double* sp = &s[0]
+    cdef const double* tp = &t[0]
+    cdef double freq, amp
     with nogil:
         for i in range(n):
-            acc = 0.0
-            for o in range(n_o):
-                x = s[i] * freqs[o]
-                y = t[i] * freqs[o]
+            res[i] = 0.0
+        # octave by octave: one lattice table at a time stays in cache; each point still
+        # sums its octaves in order from 0.0, as the numba kernel did, so the bits agree
+        for o in range(n_o):
+            freq = freqs[o]
+            amp = amps[o]
+            tb = &tables[o, 0, 0]
+            for i in range(n):
+                x = sp[i] * freq
+                y = tp[i] * freq
                 fx0 = floor(x)
                 fy0 = floor(y)
                 # int() then a mask, as numba: two's complement wraps negative cells
@@ -63,13 +73,11 @@ def octaves(const double[::1] s, const double[::1] t, const double[:, :, ::1] ta
                 fy = y - fy0
                 sx = fx * fx * fx * (fx * (fx * 6.0 - 15.0) + 10.0)
                 sy = fy * fy * fy * (fy * (fy * 6.0 - 15.0) + 10.0)
-                tb = &tables[o, 0, 0]
                 t00 = tb[ix * side + iy]
                 t10 = tb[(ix + 1) * side + iy]
                 t01 = tb[ix * side + iy + 1]
                 t11 = tb[(ix + 1) * side + iy + 1]
                 a = t00 + sx * (t10 - t00)
                 b = t01 + sx * (t11 - t01)
-                acc += amps[o] * (a + sy * (b - a))
-            out[i] = acc
+                res[i] += amp * (a + sy * (b - a))
     return out_arr
