@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from slitcli._c.prediction import contact_kernel
-from slitcli.sim._c.texture import octaves
 
+from slitcli._prediction_kernel import contact_kernel
 from slitcli.sim.camera import bloom
 from slitcli.sim.texture import TILE, _lattice_table, value_noise
+from slitcli.sim.texture import _octaves as octaves
 
 ROOT = Path(__file__).resolve().parent.parent
 SEEDS = [0, 1, 2, 3, 4]
