@@ -44,7 +44,7 @@ def octaves(const double[::1] s, const double[::1] t, const double[:, :, ::1] ta
     cdef Py_ssize_t mask = tile - 1
     cdef const double* tb
     cdef Py_ssize_t i, o, ix, iy
-    cdef double acc, x, y, fx0, fy0, fx, fy, sx, sy, a, b, t00, t10, t01, t11
+    cdef double x, y, fx0, fy0, fx, fy, sx, sy, a, b, t00, t10, t01, t11
     if n == 0 or n_o == 0:
         out_arr[:] = 0.0
         return out_arr
