@@ -1,38 +1,41 @@
-"""Compiled kernel of :mod:`slitcli.prediction` (numba; imported on first use so that
-the planner's module and ``--help`` load no compiler)."""
+"""Compiled kernel of :mod:`slitcli.prediction`: the pairs x instants x discs contact loop.
+
+The loops run in the Cython extension :mod:`slitcli._c.prediction` (built with the
+package); this module only makes its inputs the C-ordered float64 arrays the extension
+takes.
+"""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
+
+from slitcli._c.prediction import contact_kernel as _contact_kernel
 
 
-@njit(cache=True, nogil=True)
 def contact_kernel(robot: np.ndarray, disc: np.ndarray, reach: np.ndarray, t: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    # pairs x instants x discs with an early exit at the first contact: the (P, K, T)
-    # arrays of the numpy form (about 1e6 elements for a person) are never built
-    n_p, n_k = robot.shape[0], robot.shape[1]
-    n_t = disc.shape[1]
-    t_c = np.full(n_p, np.inf)
-    free = np.full(n_p, np.inf)
-    prev = np.empty(n_t)
-    for i in range(n_p):
-        for j in range(n_t):
-            dx = robot[i, 0, 0] - disc[0, j, 0]
-            dy = robot[i, 0, 1] - disc[0, j, 1]
-            prev[j] = math.sqrt(dx * dx + dy * dy)
-        for k in range(1, n_k):
-            for j in range(n_t):
-                dx = robot[i, k, 0] - disc[k, j, 0]
-                dy = robot[i, k, 1] - disc[k, j, 1]
-                gap = math.sqrt(dx * dx + dy * dy)
-                f = gap - reach[i, j]
-                if f < free[i]:
-                    free[i] = f
-                if f < 0.0 and gap < prev[j] and t_c[i] == np.inf:
-                    t_c[i] = t[k]
-                prev[j] = gap
-    return t_c, free
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """First contact time and smallest free distance of each pair against moving discs.
+
+    Parameters
+    ----------
+    robot : (P, K, 2) float
+        Robot centre of each pair at each instant, robot frame, m.
+    disc : (K, T, 2) float
+        Centre of each disc at each instant, robot frame, m.
+    reach : (P, T) float
+        Centre distance below which pair p touches disc j, m.
+    t : (K,) float
+        The instants, s.
+
+    Returns
+    -------
+    t_contact_s : (P,) float
+        First instant t_k (k >= 1) at which a centre distance is below ``reach`` and
+        shrinking since t_(k-1); inf where there is none.
+    min_gap_m : (P,) float
+        Smallest centre distance minus ``reach`` over t_1.. and all discs, m.
+    """
+    def c(a: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(a, dtype=np.float64)
+
+    return _contact_kernel(c(robot), c(disc), c(reach), c(t))

@@ -1,6 +1,6 @@
 """A warm one-frame `slitcli detect` imports neither numba (its kernels are compiled ahead
 of time), nor pandas, nor all of scipy.linalg, nor matplotlib (docs/install.md); a
-command that does load numba (SGM, the renderer) still lets it find SciPy's BLAS."""
+command that does load numba (SGM) still lets it find SciPy's BLAS."""
 
 from __future__ import annotations
 

@@ -101,7 +101,8 @@ def test_inventory_matches_the_dispatchers_the_package_defines():
                     and value.targetoptions.get("inline", "never") != "always"):
                 found.add(f"{name}.{value.py_func.__qualname__}")
     assert found == set(inventory)
-    assert len(inventory) >= 20 and len(modules) >= 5
+    # the SGM kernels (stereo._sgm, _sgm_lanes, _bracket) are the numba ones left
+    assert len(inventory) >= 20 and len(modules) >= 3
 
 
 def _env() -> dict[str, str]:

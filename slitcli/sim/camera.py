@@ -32,9 +32,9 @@ from typing import Any
 
 import cv2
 import numpy as np
-from numba import njit
 
 from slitcli.errors import SlitcliError
+from slitcli.sim._c.camera import bloom_kernel as _bloom_kernel
 
 BAYER_PATTERNS = ("none", "RGGB", "BGGR", "GRBG", "GBRG")
 DEMOSAIC_METHODS = ("bilinear", "edge_aware", "vng")
@@ -328,37 +328,6 @@ def cfa_channel(shape_hw: tuple[int, int], bayer: str) -> np.ndarray:
     tile = np.array([[code[bayer[0]], code[bayer[1]]], [code[bayer[2]], code[bayer[3]]]])
     h, w = shape_hw
     return np.tile(tile, ((h + 1) // 2, (w + 1) // 2))[:h, :w]
-
-
-@njit(cache=True, nogil=True)
-def _bloom_kernel(e: np.ndarray, full_well_e: float, share: float,
-                  column_share: float) -> np.ndarray:
-    h, w = e.shape
-    out = np.minimum(e, full_well_e)
-    dys = (-1, 1, 0, 0)
-    dxs = (0, 0, -1, 1)
-    fracs = (0.5 * column_share, 0.5 * column_share, 0.5 * (1.0 - column_share),
-             0.5 * (1.0 - column_share))
-    for y in range(h):
-        for x in range(w):
-            excess = e[y, x] - full_well_e
-            if excess <= 0.0:
-                continue
-            for k in range(4):
-                q = share * excess * fracs[k]
-                yy, xx = y + dys[k], x + dxs[k]
-                while q > 0.0 and 0 <= yy < h and 0 <= xx < w:
-                    room = full_well_e - out[yy, xx]
-                    if room >= q:
-                        out[yy, xx] += q
-                        q = 0.0
-                    else:  # fill it; it passes on `share` of the rest, drains the remainder
-                        out[yy, xx] = full_well_e
-                        q = share * (q - room)
-                        yy += dys[k]
-                        xx += dxs[k]
-    return out
-
 
 def bloom(electrons: np.ndarray, full_well_e: float, share: float,
           column_share: float) -> np.ndarray:

@@ -8,7 +8,8 @@ rendered from it are exact views of one textured world.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from slitcli.sim._c.texture import octaves as _octaves
 
 # Lattice values repeat every TILE cells; at the default 2 cm feature size the coarsest
 # octave repeats every 10 m, farther than any generated scene reaches.
@@ -19,37 +20,6 @@ def _lattice_table(seed: int) -> np.ndarray:
     """Random lattice values in [0, 1), one (TILE+1, TILE+1) table per seed (wrapped)."""
     t = np.random.default_rng(seed).random((TILE, TILE))
     return np.pad(t, ((0, 1), (0, 1)), mode="wrap")
-
-
-@njit(cache=True, nogil=True)
-def _octaves(s: np.ndarray, t: np.ndarray, tables: np.ndarray, freqs: np.ndarray,
-             amps: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    """Sum of bilinearly interpolated lattice octaves with a quintic fade.
-
-    The quintic fade is C2-continuous, so the texture has no creases along lattice lines.
-    """
-    out = np.empty(s.shape[0])
-    mask = TILE - 1
-    for i in range(s.shape[0]):
-        acc = 0.0
-        for o in range(freqs.shape[0]):
-            x = s[i] * freqs[o]
-            y = t[i] * freqs[o]
-            fx0 = np.floor(x)
-            fy0 = np.floor(y)
-            ix = int(fx0) & mask
-            iy = int(fy0) & mask
-            fx = x - fx0
-            fy = y - fy0
-            sx = fx * fx * fx * (fx * (fx * 6.0 - 15.0) + 10.0)
-            sy = fy * fy * fy * (fy * (fy * 6.0 - 15.0) + 10.0)
-            tb = tables[o]
-            a = tb[ix, iy] + sx * (tb[ix + 1, iy] - tb[ix, iy])
-            b = tb[ix, iy + 1] + sx * (tb[ix + 1, iy + 1] - tb[ix, iy + 1])
-            acc += amps[o] * (a + sy * (b - a))
-        out[i] = acc
-    return out
-
 
 def value_noise(s_m: np.ndarray, t_m: np.ndarray, *, seed: int, scale_m: float,
                 octaves: int = 3) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""Compiled (Cython) kernels of the planner's modules; built by setup.py."""

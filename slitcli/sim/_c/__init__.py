@@ -1,0 +1,1 @@
+"""Compiled (Cython) kernels of the renderer; built by setup.py."""
