@@ -3,13 +3,13 @@
 The project's metadata lives in ``pyproject.toml``; this file only lists the extensions,
 which setuptools cannot glob from ``pyproject.toml``. Cython translates each ``.pyx`` (and
 inlines the ``cdef inline`` functions of the ``.pxd`` files it cimports) to C; the C
-compiler builds it for the processor of the machine that installs slitcli, as numba did
+compiler builds it for the processor of the machine that installs slitcli
 (``-march=native``; set ``SLITCLI_PORTABLE_BUILD=1`` for a wheel that other x86-64
 machines can run). Floating-point contraction (fused multiply-add) stays off, so that a
-kernel's arithmetic is the IEEE operations its source spells, in that order. A module whose
-kernels may reorder sums (as numba's ``fastmath`` allowed) says so in a header line of its
-own, ``# cflags: -fassociative-math -fno-signed-zeros -fno-trapping-math``, read here and
-passed after the defaults.
+kernel's arithmetic is the IEEE operations its source spells, in that order. A module
+adds flags of its own in a header line, e.g. ``# cflags: -fno-math-errno
+-fno-trapping-math`` (flags that change no value but let the compiler vectorise more),
+read here and passed after the defaults.
 """
 
 from __future__ import annotations

@@ -69,7 +69,7 @@ def bench(timer) -> list[dict]:
             lambda a=grey_l, b=grey_r: bm.compute(a, b))
         ratio = laser["median_s"] / stereo["median_s"]
         rows.append({"name": f"laser detect_laser 320x240 ({name})", **laser, "ratio": ratio,
-                     "note": f"{ratio:.2f} x StereoBM (goal <= 0.5), serial numba, "
+                     "note": f"{ratio:.2f} x StereoBM (goal <= 0.5), serial compiled kernels, "
                              "interleaved"})
         rows.append({"name": f"cv2.StereoBM 64 disp 9x9 320x240 ({name})", **stereo,
                      "note": f"{cv2.getNumThreads()} OpenCV threads"})

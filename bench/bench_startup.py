@@ -1,15 +1,14 @@
 """Start-up of the command line: `slitcli --help` and a warm one-frame `slitcli detect`.
 
-Measures, after the set-up (the kernels warmed up), each over N runs (default 21):
+Measures, after the set-up (the kernels built), each over N runs (default 21):
 
 - wall and CPU time (user + sys of the child process) of `python -c pass` (the
   interpreter alone), `slitcli --help` and a warm `slitcli detect` of a one-frame
   sequence (the first frame of SEQ);
 - the CPU breakdown of that detect measured inside the process: numpy, OpenCV, loading
   the compiled (Cython) kernel modules, importing slitcli's command-line and detect
-  modules, and the command itself (reading, the frame's work, writing); whether the
-  command imported numba (it should not: the detect path is compiled ahead of time) and
-  which heavy modules it imported;
+  modules, and the command itself (reading, the frame's work, writing); which heavy
+  modules it imported;
 - `python -X importtime -c "import slitcli.detect"`: cumulative import time of the
   largest packages.
 
@@ -67,12 +66,11 @@ t_cmd = T() - t0
 print(json.dumps({
     "numpy": t_numpy, "cv2": t_cv2, "compiled": t_compiled, "n_compiled": len(compiled),
     "modules": t_modules, "command": t_cmd, "total": T() - t_start,
-    "numba": "numba" in sys.modules,
     "heavy": [m for m in HEAVY if m in sys.modules]}))
 '''.replace("HEAVY", repr(HEAVY))
 
 PARTS = ("numpy", "cv2", "compiled", "modules", "command", "total")
-IMPORTS = ("numpy", "numba", "scipy", "cv2", "yaml", "click", "pandas", "matplotlib")
+IMPORTS = ("numpy", "scipy", "cv2", "yaml", "click", "pandas", "matplotlib")
 
 
 def one_frame(seq: Path, where: Path) -> Path:
@@ -134,7 +132,6 @@ def measure(seq: Path = CORRIDOR, runs: int = 21,
             capture_output=True, text=True).stdout.splitlines()[-1]) for i in range(runs)]
     result["breakdown_cpu_s"] = {k: statistics.median(r[k] for r in rows) for k in PARTS}
     result["compiled_modules"] = rows[0]["n_compiled"]
-    result["numba_imported"] = any(r["numba"] for r in rows)
     result["heavy_modules_imported"] = rows[0]["heavy"]
     say(f"importtime x {runs}")
     imports = [_importtime() for _ in range(runs)]
@@ -161,9 +158,7 @@ def table(result: dict) -> str:
               "command": "the command: reading, the frame's work, writing",
               "total": "total"}
     lines += [f"| {labels[k]} | {b[k]:.3f} |" for k in PARTS]
-    lines += ["", "numba imported by the command: "
-              + ("yes" if result["numba_imported"] else "no"),
-              "", "heavy modules imported: " + (", ".join(result["heavy_modules_imported"])
+    lines += ["", "heavy modules imported: " + (", ".join(result["heavy_modules_imported"])
                                                 or "none of " + ", ".join(HEAVY)), "",
               "| `import slitcli.detect`: cumulative import time | s |", "|---|---|"]
     lines += [f"| {k} | {v:.3f} |" for k, v in result["importtime_s"].items()]
@@ -180,7 +175,6 @@ def bench(timer: object) -> list[dict]:
     b = result["breakdown_cpu_s"]
     rows.append({"name": "startup: warm detect CPU breakdown", "runs": result["runs"],
                  "breakdown_cpu_s": b, "compiled_modules": result["compiled_modules"],
-                 "numba_imported": result["numba_imported"],
                  "heavy_modules_imported": result["heavy_modules_imported"],
                  "note": ", ".join(f"{k} {v:.3f} s" for k, v in b.items())})
     return rows

@@ -10,8 +10,8 @@ Rows:
   holds a core, as on a machine shared with another job;
 - end to end: ``slitcli stereo`` (through click, in process) over a 60-frame sequence
   against a plain read -> StereoBM -> write-PNG loop over the same frames;
-- first call: the numba kernel's compile on an empty cache, and loading it from the
-  cache, each in a fresh interpreter;
+- first call: import and first ``compute_disparity`` in a fresh interpreter (the
+  kernels are compiled ahead of time: nothing to compile or load from a cache);
 - accuracy (no timing): Middlebury motorcycle bad2 / density for each filter setting
   (protocol of issue 5), and the rendered scene of tests/test_stereo_rendered.py.
 """
@@ -19,7 +19,6 @@ Rows:
 from __future__ import annotations
 
 import importlib.util
-import os
 import subprocess
 import sys
 import tempfile
@@ -196,18 +195,13 @@ def _first_call_rows() -> list[dict]:
             "a = np.random.default_rng(0).integers(0, 255, (240, 320)).astype(np.uint8)\n"
             "compute_disparity(a, np.roll(a, -5, 1), MatcherParams())\n"
             "print(time.perf_counter() - t)\n")
-    rows = []
-    with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        for label in ("compile (empty cache)", "load from cache"):
-            t0 = time.perf_counter()
-            out = subprocess.run([sys.executable, "-c", code], env=env, check=True,
-                                 capture_output=True, text=True, cwd=ROOT).stdout
-            wall = time.perf_counter() - t0
-            rows.append({"name": f"stereo first call, {label}",
-                         "note": f"import + first compute_disparity {float(out):.2f} s "
-                                 f"(process {wall:.2f} s)"})
-    return rows
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True, cwd=ROOT).stdout
+    wall = time.perf_counter() - t0
+    return [{"name": "stereo first call in a fresh process",
+             "note": f"import + first compute_disparity {float(out):.2f} s "
+                     f"(process {wall:.2f} s)"}]
 
 
 def _accuracy_rows() -> list[dict]:

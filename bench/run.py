@@ -22,7 +22,7 @@ from importlib import metadata
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-PACKAGES = ("numpy", "opencv-python-headless", "numba", "pandas", "scikit-image", "slitcli")
+PACKAGES = ("numpy", "opencv-python-headless", "Cython", "pandas", "scikit-image", "slitcli")
 
 
 def timer(fn: Callable[[], object], runs: int = 21, warmup: int = 1) -> dict:

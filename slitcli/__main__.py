@@ -1,5 +1,5 @@
 """``python -m slitcli``: the command line."""
 
-from slitcli.cli import run
+from slitcli.cli import main
 
-run()
+main()

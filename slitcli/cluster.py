@@ -113,7 +113,8 @@ def dask_client(spec: ClusterSpec, *, timeout_s: float = 10.0) -> Iterator[Any]:
 
 def _chunk_task(source: Path, target: Path, kwargs: dict[str, Any], chunk: Chunk
                 ) -> ChunkResult | tuple[str, str | tuple[str, ...] | None]:
-    """One chunk on a worker: one OpenCV/numba thread (the workers are the parallelism).
+    """One chunk on a worker: one thread for OpenCV and the kernels (the workers are the
+    parallelism).
 
     A :class:`SlitcliError` comes back as its message and parameter names (pickling an
     exception keeps only its message)."""

@@ -201,9 +201,6 @@ def main(argv: list[str] | None = None) -> int:
                     help="report file [docs/reproduction.md]")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from slitcli.compile_notice import announce_compiles  # a kernel not warmed up says so
-
-    announce_compiles(lambda line: print(line, file=sys.stderr, flush=True))
     try:
         run(args.out, args.figures, args.report)
     except SlitcliError as e:

@@ -76,7 +76,7 @@ def test_every_module_imports_first_in_a_clean_interpreter():
     mods = _modules()
     code = f"""
 import sys
-import numpy, cv2, pandas, numba, scipy, yaml, click  # third-party stays loaded: speed
+import numpy, cv2, pandas, scipy, yaml, click  # third-party stays loaded: speed
 bad = []
 for name in {mods!r}:
     for m in [m for m in sys.modules if m == "slitcli" or m.startswith("slitcli.")]:
@@ -146,5 +146,4 @@ def test_no_module_level_cache(module):
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
             for dec in node.decorator_list:
                 target = dec.func if isinstance(dec, ast.Call) else dec
-                # numba's njit(cache=True) caches compiled code on disk, not results
                 assert "cache" not in ast.unparse(target).lower(), (module, node.name)

@@ -412,8 +412,7 @@ def test_pair_is_converted_to_grey_once(monkeypatch):
 
 def test_pickled_geometry_stays_read_only():
     # `--jobs` workers receive the geometry by pickle, which returns writable arrays;
-    # numba types a writable array apart from a read-only one, so a worker would compile
-    # a second signature of every kernel the set-up compiled ahead
+    # the geometry is shared by every frame and must stay unchangeable there too
     import pickle
 
     geo = StereoGeometry.for_rig(paper_rig())

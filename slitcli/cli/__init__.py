@@ -9,6 +9,6 @@ too; any other exception is an internal error (exit 1, one line; the traceback w
 ``slitcli detect`` imports the detect command's.
 """
 
-from slitcli.cli.main import PARAM_FLAGS, bag_options, cli, main, run, user_message
+from slitcli.cli.main import PARAM_FLAGS, bag_options, cli, main, user_message
 
-__all__ = ["PARAM_FLAGS", "bag_options", "cli", "main", "run", "user_message"]
+__all__ = ["PARAM_FLAGS", "bag_options", "cli", "main", "user_message"]

@@ -181,8 +181,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate-dwa": ("slitcli.cli.dwa", "Closed-loop modified DWA: sense -> plan -> move, per "
                      "world and sensing range."),
     "stereo": ("slitcli.cli.stereo", "Disparity, distance and obstacle images (Eq. 10)."),
-    "warm-up": ("slitcli.cli.warmup", "Compile the numba kernels for this machine ahead of "
-                "the first run."),
 }
 
 
@@ -393,49 +391,4 @@ def bad_frame_option(f: Any) -> Any:
 
 def main() -> None:
     """Console-script entry point (also ``python -m slitcli``)."""
-    from slitcli.compile_notice import announce_compiles
-
-    announce_compiles(lambda line: click.echo(line, err=True))
     cli.main()
-
-
-def run() -> None:
-    """The ``slitcli`` program (console script and ``python -m slitcli``): :func:`main`,
-    then the process ends without the interpreter's teardown once numba is loaded
-    (:func:`_exit_now`). Code that calls the command line in its own process and goes on
-    afterwards calls :func:`main`, which raises ``SystemExit`` as usual."""
-    try:
-        main()
-    except SystemExit as done:
-        if "numba" not in sys.modules:
-            raise
-        _exit_now(done.code)
-
-
-def _exit_now(code: object) -> None:
-    """End the process once the command has finished, without the interpreter's teardown.
-
-    With numba's compiled code loaded, the interpreter's own shutdown (module teardown,
-    LLVM's) costs 0.2-0.3 s of CPU after the command's work and output are done: a
-    third of a one-frame run. The exit functions still run (temporary folders, logging,
-    worker pools' handlers), standard streams are flushed, then the process ends with
-    the status ``sys.exit`` would give.
-    """
-    import atexit
-    import os
-
-    if code is None:
-        status = 0
-    elif isinstance(code, int):
-        status = code
-    else:
-        print(code, file=sys.stderr)
-        status = 1
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe (`| head`): nothing left to say
-            if status == 0 and stream is sys.stdout:
-                status = 1
-    os._exit(status)

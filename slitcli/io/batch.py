@@ -323,9 +323,6 @@ def _worker_start(run_pid: int, initializer: Callable[[], None] | None) -> None:
     # Ctrl-C and SIGTERM go to the run, which shuts the pool down; a worker stopped
     # mid-frame by the terminal's SIGINT would only print a traceback
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from slitcli.compile_notice import announce_in_worker  # a kernel compiled here says so
-
-    announce_in_worker()
     if initializer is not None:
         initializer()
 
@@ -346,8 +343,8 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
             yield work(t)
         return
     # spawn, not fork: this process may already run threads (OpenCV, the stereo kernels'
-    # pool, numba), and a child forked while one holds a lock waits forever. Not
-    # forkserver either: its server and a worker it forked while this process was killed
+    # pool, compiled libraries), and a child forked while one holds a lock waits forever.
+    # Not forkserver either: its server and a worker it forked while this process was killed
     # keep each other alive (each holds the other's pipe), holding stdout and stderr;
     # spawned workers are this process's children, which PR_SET_PDEATHSIG can tie to it
     ctx = multiprocessing.get_context("spawn")
@@ -369,8 +366,7 @@ def run_pool(tasks: Iterable[Any], work: Callable[[Any], Any], *, jobs: int,
 
 def single_thread_worker() -> None:
     """Pool initializer: one thread for OpenCV and for the compiled kernels per worker
-    process (the pool is the parallelism; nested threads would oversubscribe the cores).
-    numba is not imported for it: no slitcli kernel uses numba's own threads."""
+    process (the pool is the parallelism; nested threads would oversubscribe the cores)."""
     import cv2
 
     from slitcli.stereo.bands import THREADS_ENV

@@ -10,8 +10,8 @@ Interruption (Ctrl-C, SIGTERM) is acted on between frames: the command line inst
 :func:`on_signal`, which only records the signal while a progress bar is open (a frame
 loop runs); the bar's next update, or its end, raises ``KeyboardInterrupt`` or
 :class:`Terminated` there, in plain Python, so the clean-up and the one line on stderr
-always happen. Raising from the handler itself could land inside numba's compiler or a
-ctypes callback, where the exception is swallowed and the run goes on. Outside a frame
+always happen. Raising from the handler itself could land inside a compiled library's
+or a ctypes callback, where the exception is swallowed and the run goes on. Outside a frame
 loop the handler raises at once; a second signal ends the process at once.
 """
 

@@ -4,7 +4,7 @@ Per-frame API for fusion and the simulator: :func:`detect_laser` (image -> per-c
 stripe rows and sensor-frame points) and :func:`nearest_range_per_bin` (points ->
 nearest range per bearing bin). The ``slitcli laser`` command is :func:`run_laser`.
 
-Names are imported on first use (the compiled kernels load numba), so importing
+Names are imported on first use (the compiled kernels and their modules), so importing
 ``slitcli.laser.params`` for the command line's defaults stays cheap.
 """
 

@@ -1,6 +1,6 @@
 """Rows in bands over threads: how the compiled stereo kernels use the cores.
 
-The compiled kernels (Cython and numba) release the GIL and each band of rows depends
+The compiled kernels release the GIL and each band of rows depends
 only on read-only inputs, so plain threads run bands in parallel (no process pool, no
 copies).
 """

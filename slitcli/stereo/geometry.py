@@ -64,8 +64,7 @@ class StereoGeometry:
 
     def __setstate__(self, state: dict) -> None:
         # a pickled array comes back writable (``--jobs`` workers get the geometry by
-        # pickle); read-only again, so the compiled kernels see the one argument type
-        # that was compiled ahead (numba types a read-only array apart)
+        # pickle); read-only again: every frame shares it, none may change it
         for value in state.values():
             if isinstance(value, np.ndarray):
                 value.setflags(write=False)
