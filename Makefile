@@ -3,41 +3,34 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-# the Cython kernels (setup.py), built into the clone by the editable install and again
-# (in place, without a fresh build environment) when a .pyx or .pxd changes; the sources'
-# bytecode is written then too (Python would not where PYTHONDONTWRITEBYTECODE is set,
-# as in many CI images, and every start would compile them again)
-EXTENSIONS := $(VENV)/.extensions
-EXTENSION_SOURCES := $(shell find slitcli -name '*.pyx' -o -name '*.pxd' 2>/dev/null)
+# the install builds the compiled kernels (setup.py: every slitcli/**/*.pyx) into the
+# clone, so it is redone when one of their sources changes
+KERNEL_SOURCES := $(shell find slitcli -name '*.pyx' -o -name '*.pxd' 2>/dev/null)
 
 .PHONY: venv reproduce-figures test bench lint clean
 
-$(STAMP): pyproject.toml setup.py
-	@echo "set-up: installing slitcli and its dependencies into $(VENV) (a few minutes)"
+$(STAMP): pyproject.toml setup.py $(KERNEL_SOURCES)
+	@echo "set-up: installing slitcli and its dependencies into $(VENV), building its kernels"
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
+	@# the sources' bytecode: Python would not write it where PYTHONDONTWRITEBYTECODE is
+	@# set (many CI images), and every start would compile them again
 	$(PY) -m compileall -q slitcli
-	touch $(STAMP) $(EXTENSIONS)
+	touch $(STAMP)
 
-$(EXTENSIONS): $(STAMP) $(EXTENSION_SOURCES)
-	@echo "set-up: building the compiled kernels (Cython and the C compiler)"
-	$(PY) -m pip install --quiet --no-build-isolation --no-deps -e .
-	$(PY) -m compileall -q slitcli
-	touch $(EXTENSIONS)
+venv: $(STAMP)
 
-venv: $(EXTENSIONS)
-
-reproduce-figures: $(EXTENSIONS)
+reproduce-figures: $(STAMP)
 	$(PY) -m slitcli.reproduce
 
 # the suite on every core (at most 4 workers: its tests are single-threaded, and each
 # worker holds its own module fixtures); `pytest tests/x.py` alone stays serial
-test: $(EXTENSIONS)
+test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/pytest -n auto --maxprocesses 4
 
-bench: $(EXTENSIONS)
+bench: $(STAMP)
 	$(PY) bench/run.py
 
 lint: $(STAMP)
