@@ -14,27 +14,9 @@ from slitcli._c.prediction import contact_kernel as _contact_kernel
 
 def contact_kernel(robot: np.ndarray, disc: np.ndarray, reach: np.ndarray, t: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """First contact time and smallest free distance of each pair against moving discs.
-
-    Parameters
-    ----------
-    robot : (P, K, 2) float
-        Robot centre of each pair at each instant, robot frame, m.
-    disc : (K, T, 2) float
-        Centre of each disc at each instant, robot frame, m.
-    reach : (P, T) float
-        Centre distance below which pair p touches disc j, m.
-    t : (K,) float
-        The instants, s.
-
-    Returns
-    -------
-    t_contact_s : (P,) float
-        First instant t_k (k >= 1) at which a centre distance is below ``reach`` and
-        shrinking since t_(k-1); inf where there is none.
-    min_gap_m : (P,) float
-        Smallest centre distance minus ``reach`` over t_1.. and all discs, m.
-    """
+    """First contact time and smallest free distance of each pair against moving discs:
+    :func:`slitcli._c.prediction.contact_kernel` (shapes, frames and units there) on
+    C-ordered float64 copies of any float arrays."""
     def c(a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a, dtype=np.float64)
 
