@@ -167,3 +167,17 @@ def test_laser_cli_names_its_flags(tmp_path, args, expected):
     line = _one_error_line(res)
     assert expected in line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["detect", "stereo"])
+@pytest.mark.parametrize("value", ["two", "0", "-1"])
+def test_a_bad_thread_setting_is_refused_before_anything_is_written(tmp_path, command,
+                                                                     value):
+    seq = Path(__file__).resolve().parent.parent / "sample_data" / "sequences" / "corridor"
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, [command, str(seq), "-o", str(out)],
+                             env={"SLITCLI_THREADS": value})
+    assert res.exit_code == 2, res.output
+    lines = [x for x in res.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and "SLITCLI_THREADS" in lines[0], res.output
+    assert not out.exists()

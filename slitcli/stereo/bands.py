@@ -20,6 +20,22 @@ from slitcli.errors import SlitcliError
 THREADS_ENV = "SLITCLI_THREADS"
 
 
+def thread_setting() -> int:
+    """Most threads a frame's kernels may use: ``SLITCLI_THREADS``, default the number of
+    cores. A value that is no positive whole number is a :class:`SlitcliError` naming the
+    variable (the stereo parameter checks call this before a run writes anything)."""
+    setting = os.environ.get(THREADS_ENV, "").strip()
+    try:
+        wanted = int(setting) if setting else (os.cpu_count() or 1)
+    except ValueError:
+        wanted = 0
+    if wanted < 1:
+        raise SlitcliError(f"{THREADS_ENV}={setting!r} is not a positive whole number of "
+                           "threads; set it to 1 or more, or unset it for every core",
+                           param=THREADS_ENV)
+    return wanted
+
+
 def kernel_threads() -> int:
     """Threads for the compiled kernels of one frame.
 
@@ -31,15 +47,7 @@ def kernel_threads() -> int:
     the 2-core development machine under a competing busy loop, a second thread made
     a frame slower, not faster (docs/notes/stereo-kernels.md).
     """
-    setting = os.environ.get(THREADS_ENV, "").strip()
-    try:
-        wanted = int(setting) if setting else (os.cpu_count() or 1)
-    except ValueError:
-        wanted = 0
-    if wanted < 1:
-        raise SlitcliError(f"{THREADS_ENV}={setting!r} is not a positive whole number of "
-                           "threads; set it to 1 or more, or unset it for every core",
-                           param=THREADS_ENV)
+    wanted = thread_setting()
     if wanted <= 1:
         return 1
     try:
@@ -84,4 +92,4 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
         f.result()
 
 
-__all__ = ["THREADS_ENV", "kernel_threads", "run_row_bands"]
+__all__ = ["THREADS_ENV", "kernel_threads", "run_row_bands", "thread_setting"]

@@ -74,7 +74,7 @@ import cv2
 import numpy as np
 
 from slitcli.errors import SlitcliError
-from slitcli.stereo.bands import kernel_threads, run_row_bands
+from slitcli.stereo.bands import kernel_threads, run_row_bands, thread_setting
 from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.reasons import Reason
@@ -141,6 +141,7 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     """Raise :class:`SlitcliError` naming the option for impossible parameters (with
     ``image_width_px``, also for a window or disparity range the image cannot hold)."""
     _check_names(p)
+    thread_setting()  # the environment's thread count, before a run writes anything
     _check_sgm(p)
     _check_sizes(p)
     _check_filters(p)
