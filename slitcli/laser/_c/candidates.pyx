@@ -49,44 +49,66 @@ def constants():
             "F_KB": F_KB, "F_NCORE": F_NCORE, "F_FLAT": F_FLAT, "F_GNOISE": F_GNOISE}
 
 
-cdef inline double _linear_z_c(const real* y, const unsigned char* use, Py_ssize_t m,
-                               Py_ssize_t j0, double v, double s, double sigma,
-                               double* e) noexcept nogil:
-    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
-    background over the used rows of ``y`` (m rows from image row ``j0``): the linear
-    least-squares amplitude over its standard error; 0 with fewer than six rows."""
+cdef inline bint _screen_sums(const real* yi, const real* ya, const unsigned char* use,
+                              Py_ssize_t m, Py_ssize_t j0, double v, double s, double* e,
+                              double* num) noexcept nogil:
+    """The seed screen of a window on two evidences at once (the Gaussian's samples ``e``
+    (m,), written here, and the line's sums are shared): the significance of a Gaussian
+    of fixed centre ``v`` and width ``s`` on a straight background over the used rows of
+    ``yi`` (m rows from image row ``j0``) is ``num[0] / (sigma num[2])``, on ``ya``
+    ``num[1] / (sigma num[2])``; False where it is 0 on any evidence (fewer than six
+    rows, or a Gaussian the line explains)."""
     cdef double n = 0.0, s2 = 0.0, se = 0.0, sd = 0.0, sdd = 0.0, sde = 0.0, sy = 0.0
-    cdef double sdy = 0.0, sey = 0.0, w, d, ej, yj, det, ae, be, ee, ey
+    cdef double sdy = 0.0, sey = 0.0, ty = 0.0, tdy = 0.0, tey = 0.0
+    cdef double w, d, ej, yj, det, ae, be, ee
     cdef Py_ssize_t jj
     gaussian_rows(j0, v, s, e, m)
     for jj in range(m):
         w = 1.0 if use[jj] else 0.0
         d = j0 + jj - v
         ej = e[jj] * w
-        yj = y[jj] * w
         n += w
         sd += d * w
         sdd += d * d * w
         se += ej
         sde += d * ej
         s2 += ej * e[jj]
+        yj = yi[jj] * w
         sy += yj
         sdy += d * yj
-        sey += ej * y[jj]
+        sey += ej * yi[jj]
+        yj = ya[jj] * w
+        ty += yj
+        tdy += d * yj
+        tey += ej * ya[jj]
     if n < 6.0:
-        return 0.0
+        return False
     # the line's normal equations (n, sd; sd, sdd) give the projections of the
     # Gaussian onto the line, which leave e_perp . e_perp and e_perp . y
     det = n * sdd - sd * sd
     if not det > 0.0:
-        return 0.0
+        return False
     ae = (sdd * se - sd * sde) / det
     be = (n * sde - sd * se) / det
     ee = s2 - (ae * se + be * sde)
-    ey = sey - (ae * sy + be * sdy)
     if not ee > 1e-12 * s2:
+        return False
+    num[0] = sey - (ae * sy + be * sdy)
+    num[1] = tey - (ae * ty + be * tdy)
+    num[2] = sqrt(ee)
+    return True
+
+
+cdef inline double _linear_z_c(const real* y, const unsigned char* use, Py_ssize_t m,
+                               Py_ssize_t j0, double v, double s, double sigma,
+                               double* e) noexcept nogil:
+    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
+    background over the used rows of ``y`` (m rows from image row ``j0``): the linear
+    least-squares amplitude over its standard error; 0 with fewer than six rows."""
+    cdef double num[3]
+    if not _screen_sums(y, y, use, m, j0, v, s, e, num):
         return 0.0
-    return ey / (sigma * sqrt(ee))
+    return num[0] / (sigma * num[2])
 
 
 def _linear_z(const real[::1] y, use, Py_ssize_t j0, double v, double s, double sigma,
@@ -176,33 +198,48 @@ cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char
                            Py_ssize_t n, const unsigned char* use, Py_ssize_t j0,
                            Py_ssize_t m, double centre, double s0, double core, double noise,
                            bint sat, const _Params* pr, double* res, double* res_avg,
-                           double* ebuf, double* sig, double* gsig, bint* flat) noexcept nogil:
+                           double* ebuf, double* escr, double* sig, double* gsig,
+                           bint* flat) noexcept nogil:
     """One seed fitted (``column_candidates``' notes) on the window's own evidence (``m``
     rows of ``yi`` from ``j0``, the column's ``n``) and, where that is less than
     ``strong_z`` significant, on the averaged ``ya``; a Gaussian that fails the shape
     test is tried as a flat top. ``res`` gets the fit kept, ``sig`` and ``gsig`` the
     noise it is judged against and that of the evidence fitted, ``flat`` whether a flat
-    top; returns whether a fit holds (a clipped core's flank fit: ``res`` is its own)."""
-    cdef double base
+    top; returns whether a fit holds (a clipped core's flank fit: ``res`` is its own).
+    ``ebuf``, ``escr`` (m,) are scratch."""
+    cdef double base, z
+    cdef double num[3]
     cdef Py_ssize_t jj
-    cdef bint ok
-    sig[0] = pmax(pr.sigma_y, _local_sigma(yi, mi, n, centre, core,
-                                           CLIP_SIGMAS * 1.2 * pr.sigma_y))
+    cdef bint ok = False, screened
     gsig[0] = pr.sigma_y
     flat[0] = False
-    ok = (sat or _linear_z_c(yi + j0, use, m, j0, centre, s0, sig[0], ebuf) >= pr.screen_z) \
-        and fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error, pr.s_max,
-                         res, ebuf)
-    if not sat and (not ok or res[3] < pr.strong_z) and \
-            _linear_z_c(ya + j0, use, m, j0, centre, s0, noise, ebuf) >= pr.screen_z:
+    if sat:
+        sig[0] = pmax(pr.sigma_y, _local_sigma(yi, mi, n, centre, core,
+                                               CLIP_SIGMAS * 1.2 * pr.sigma_y))
+        return fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error,
+                            pr.s_max, res, ebuf, NULL)
+    # one Gaussian's samples serve both screens and both fits' first steps
+    screened = _screen_sums(yi + j0, ya + j0, use, m, j0, centre, s0, escr, num)
+    # the local noise is at least the image's: a seed that fails the screen against the
+    # image's noise fails it against the local one too (IEEE division and product are
+    # monotonic), and needs no local noise
+    z = num[0] / (pr.sigma_y * num[2]) if screened else 0.0
+    if z >= pr.screen_z or not pr.screen_z > 0.0:
+        sig[0] = pmax(pr.sigma_y, _local_sigma(yi, mi, n, centre, core,
+                                               CLIP_SIGMAS * 1.2 * pr.sigma_y))
+        z = num[0] / (sig[0] * num[2]) if screened else 0.0
+        ok = z >= pr.screen_z and fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0],
+                                               pr.shape_error, pr.s_max, res, ebuf, escr)
+    z = num[1] / (noise * num[2]) if screened else 0.0
+    if (not ok or res[3] < pr.strong_z) and z >= pr.screen_z:
         if fit_gaussian(ya + j0, use, m, j0, centre, s0, noise, pr.shape_error, pr.s_max,
-                        res_avg, ebuf) and (not ok or res_avg[3] > res[3]):
+                        res_avg, ebuf, escr) and (not ok or res_avg[3] > res[3]):
             for jj in range(6):
                 res[jj] = res_avg[jj]
             sig[0] = noise
             gsig[0] = pr.sigma_avg
             ok = True
-    if not sat and ok and res[5] > pr.max_chi2:
+    if ok and res[5] > pr.max_chi2:
         base = 1e300
         for jj in range(m):
             if use[jj]:
@@ -263,7 +300,7 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
                   Py_ssize_t i, const float* yi, const float* ya, const unsigned char* ci,
                   const unsigned char* mi, Py_ssize_t n, const _Params* pr,
                   double* out, Py_ssize_t k_best, unsigned char* use, double* red,
-                  double* ebuf) noexcept nogil:
+                  double* ebuf, double* escr) noexcept nogil:
     """The candidates of column ``i`` into ``out`` (k_best, N_FIELDS), NaN-filled."""
     cdef double rank[N_SEEDS]
     cdef double noise[N_SEEDS]
@@ -293,7 +330,7 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
         for jj in range(m):
             use[jj] = mi[j0 + jj] and not ci[j0 + jj]
         ok = _fit_seed(yi, ya, mi, n, use, j0, m, centre[q], s0, 3.0 * s0 + 0.5 * (b - a),
-                       noise[q], sat, pr, res, res_avg, ebuf, &sig, &gsig, &flat)
+                       noise[q], sat, pr, res, res_avg, ebuf, escr, &sig, &gsig, &flat)
         if sat:
             _plateau(img, bg, i, a, b, centre[q], s0, sig, ok, pr, red, res)
         elif not ok:
@@ -376,10 +413,11 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     cdef unsigned char[::1] use = np.empty(n, np.uint8)
     cdef double[::1] red = np.empty(n)
     cdef double[::1] ebuf = np.empty(n)
+    cdef double[::1] escr = np.empty(n)
     with nogil:
         for i in range(n_cols):
             _column(img, bg, i, &y[i, 0], &y_avg[i, 0], &ci[i, 0], &mi[i, 0], n, &pr,
-                    &out[i, 0, 0], k_best, &use[0], &red[0], &ebuf[0])
+                    &out[i, 0, 0], k_best, &use[0], &red[0], &ebuf[0], &escr[0])
 
 
 def sheet_width_px(const double[:, :, ::1] cand, const double[::1, :] px_per_m,
@@ -444,7 +482,7 @@ cdef inline double _fit_gap(const float[:, ::1] y_avg, const unsigned char[:, ::
     for jj in range(m):
         use[jj] = mi[i, j0 + jj] and not ci[i, j0 + jj]
     if fit_gaussian(&y_avg[i, j0], use, m, j0, row, s0, sigma_avg, shape_error, s_max, res,
-                    ebuf) and fabs(res[0] - row) <= 1.0 and res[3] >= z_min:
+                    ebuf, NULL) and fabs(res[0] - row) <= 1.0 and res[3] >= z_min:
         return res[0]
     return NAN
 
