@@ -19,23 +19,30 @@ left out), so red texture that the colour cannot cancel raises the bar where it 
 
 The kernels (``column_candidates``, ``fill_gaps``, ``sheet_width_px``, ``evidence_live``
 and the seed screen ``_linear_z``) are compiled C, ``slitcli/laser/_c/candidates.pyx``,
-re-exported here; this module keeps their constants, which that file mirrors (a test
-checks that the two agree).
+re-exported here (``column_candidates`` runs bands of columns on threads); this module
+keeps their constants, which that file mirrors (a test checks that the two agree).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import threading
+from collections.abc import Callable
 
+import numpy as np
+
+from slitcli.laser._c import candidates as _kernels
 from slitcli.laser._c.candidates import (
     _linear_z,
-    column_candidates,
     evidence_live,
     fill_gaps,
     sheet_width_px,
 )
+from slitcli.stereo.bands import kernel_threads
 
-__all__ = ["_linear_z", "column_candidates", "evidence_live", "fill_gaps", "sheet_width_px"]
+__all__ = ["_linear_z", "column_candidates", "evidence_live", "fill_gaps", "run_column_bands",
+           "sheet_width_px"]
 
 NMS_HALF = 2  # half-width of the non-maximum suppression along a column, px
 FLANK_ROWS = 2  # rows beyond a clipped run that must show laser light
@@ -51,3 +58,73 @@ SEED_EFFICIENCY = math.exp(-0.25 / (4.0 * SEED_MIN_SIGMA_PX ** 2))
 MEAN_TO_SIGMA = math.sqrt(math.pi / 2.0) / math.sqrt(1.5)
 #: residuals beyond this many global noise sigmas count as that many (an edge)
 CLIP_SIGMAS = 5.0
+#: bands of columns per thread, taken one at a time by whichever thread is free: a thread
+#: that another process delays holds up the frame by one band at most
+BANDS_PER_THREAD = 4
+#: fewest columns of a band (a band costs a call and a few small buffers)
+MIN_BAND_COLS = 16
+
+
+def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
+                      clipped: np.ndarray, mask: np.ndarray, sigma_y: float,
+                      sigma_avg: float, seed_dn: float, strong_z: float, sat_dn: float,
+                      s_max: float, shape_error: float, max_chi2: float, weak_z: float,
+                      out: np.ndarray) -> None:
+    """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
+
+    The compiled kernel's (``slitcli/laser/_c/candidates.pyx``; its docstring names the
+    arguments), over bands of columns on up to ``SLITCLI_THREADS`` threads, and only on
+    cores that no other task holds (:func:`~slitcli.stereo.bands.kernel_threads`: one in
+    a process pool's workers). Columns are independent, so the result is the same on
+    any number of threads.
+    """
+    def band(c0: int, c1: int) -> None:
+        _kernels.column_candidates(img, bg, y, y_avg, clipped, mask, sigma_y, sigma_avg,
+                                   seed_dn, strong_z, sat_dn, s_max, shape_error, max_chi2,
+                                   weak_z, out, c0, c1)
+
+    threads = kernel_threads()
+    run_column_bands(band, out.shape[0], threads)
+
+
+def run_column_bands(fn: Callable[[int, int], object], n_cols: int, threads: int) -> None:
+    """Call ``fn(c0, c1)`` over bands of columns covering 0..n_cols on ``threads`` threads
+    (this one and ``threads - 1`` helpers); ``fn`` must release the GIL to run in parallel.
+
+    Bands are taken one at a time by whichever thread is free, and this thread returns
+    when every band is done, not when the helpers are: a helper that a busy machine
+    starts late finds no band left and ends on its own (it never waits on one that
+    does). An exception of ``fn`` is raised here once every band has ended.
+    """
+    bands = max(1, min(BANDS_PER_THREAD * threads, n_cols // MIN_BAND_COLS))
+    if threads <= 1 or bands == 1:
+        fn(0, n_cols)
+        return
+    edges = [b * n_cols // bands for b in range(bands + 1)]
+    todo = itertools.pairwise(edges)
+    lock = threading.Lock()
+    finished = threading.Event()
+    left = [bands]
+    errors: list[BaseException] = []
+
+    def work() -> None:
+        while True:
+            with lock:
+                span = next(todo, None)
+            if span is None:
+                return
+            try:
+                fn(*span)
+            except BaseException as exc:  # (raised again by the caller)
+                errors.append(exc)
+            with lock:
+                left[0] -= 1
+                if left[0] == 0:
+                    finished.set()
+
+    for _ in range(threads - 1):
+        threading.Thread(target=work, daemon=True).start()
+    work()
+    finished.wait()
+    if errors:
+        raise errors[0]

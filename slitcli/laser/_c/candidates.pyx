@@ -361,8 +361,12 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
                       const float[:, ::1] y, const float[:, ::1] y_avg, clipped, mask,
                       double sigma_y, double sigma_avg, double seed_dn, double strong_z,
                       double sat_dn, double s_max, double shape_error, double max_chi2,
-                      double weak_z, double[:, :, ::1] out):
-    """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
+                      double weak_z, double[:, :, ::1] out, Py_ssize_t col0=0,
+                      Py_ssize_t col1=-1):
+    """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none;
+    with ``col0``, ``col1`` of the columns ``col0 .. col1 - 1`` only (``col1`` -1: to the
+    last), the rest of ``out`` untouched: columns are independent, and bands of them may
+    run on threads at once (the GIL is released).
 
     ``img`` (W, H, 3) uint8 BGR, ``bg`` its opening as (3 W, H) uint8, ``y`` and
     ``clipped`` (W, H) float32 and bool from :func:`~slitcli.laser.evidence.laser_evidence`,
@@ -396,7 +400,12 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
                          "and mask (W, H) disagree in shape")
     if out.shape[0] != n_cols or out.shape[2] != N_FIELDS:
         raise ValueError("column_candidates: out must be (W, K, N_FIELDS)")
-    np.asarray(out)[...] = np.nan
+    if col1 < 0:
+        col1 = n_cols
+    if not 0 <= col0 <= col1 <= n_cols:
+        raise ValueError(f"column_candidates: columns {col0} .. {col1} are not inside "
+                         f"0 .. {n_cols}")
+    np.asarray(out)[col0:col1] = np.nan
     if n == 0:
         return
     # a clipped core spans more than the stripe's width: 2 s sqrt(2 ln(peak / clip))
@@ -415,7 +424,7 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     cdef double[::1] ebuf = np.empty(n)
     cdef double[::1] escr = np.empty(n)
     with nogil:
-        for i in range(n_cols):
+        for i in range(col0, col1):
             _column(img, bg, i, &y[i, 0], &y_avg[i, 0], &ci[i, 0], &mi[i, 0], n, &pr,
                     &out[i, 0, 0], k_best, &use[0], &red[0], &ebuf[0], &escr[0])
 
