@@ -1,3 +1,4 @@
+# cflags: -fno-math-errno -fno-trapping-math
 """Step 3 of the stripe model, compiled: candidate crossings per column, seeded and fitted.
 
 The seeds (``seeds.pxd``), the fits (``profile.pxd``) and their notes are
