@@ -1,7 +1,10 @@
 """slitcli.laser's compiled kernels (slitcli/laser/_c): their constants are the Python
-modules', and the profile fit recovers a noiseless stripe."""
+modules', the profile fit recovers a noiseless stripe, and the candidates are the same
+whatever bands of columns or threads compute them."""
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 import pytest
@@ -58,3 +61,81 @@ def test_fit_recovers_a_noiseless_stripe(seed):
     # one fit per crossing: any other candidate is a pixel or more away
     other = out[:, 1:, profile.F_POS]
     assert np.all(np.isnan(other) | (np.abs(other - v0[:, None]) >= 1.0))
+
+
+def _noisy_stripes(seed: int, w: int = 48, h: int = 96):
+    """column_candidates' inputs for ``w`` columns: two Gaussian stripes with noise, a
+    clipped run with red flanks in some columns, the lower rows searched."""
+    rng = np.random.default_rng(seed)
+    rows = np.arange(h)
+    y = rng.normal(0.0, 1.0, (w, h))
+    for _ in range(2):
+        v0 = rng.uniform(15.0, h - 15.0) + np.cumsum(rng.normal(0.0, 0.3, w))
+        s = rng.uniform(0.8, 2.5)
+        a = rng.uniform(8.0, 60.0)
+        y += a * np.exp(-0.5 * ((rows[None, :] - v0[:, None]) / s) ** 2)
+    y = np.ascontiguousarray(y, np.float32)
+    y_avg = np.ascontiguousarray(
+        (y + np.roll(y, 1, 0) + np.roll(y, -1, 0)) / 3.0, np.float32)
+    img = rng.integers(0, 200, (w, h, 3), dtype=np.uint8)
+    bg = np.minimum(img.transpose(0, 2, 1).reshape(3 * w, h), 150).astype(np.uint8)
+    bg = np.ascontiguousarray(bg)
+    clipped = np.zeros((w, h), bool)
+    core = rng.integers(20, h - 20)
+    clipped[::5, core:core + 3] = True
+    img[clipped, 2] = 255
+    mask = np.ones((w, h), bool)
+    mask[:, : int(rng.integers(0, 10))] = False
+    return img, bg, y, y_avg, clipped, mask
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_candidates_are_the_same_over_bands_and_threads(seed):
+    # columns are independent: any split into bands, run in any order or on two
+    # threads, gives the whole image's table bit for bit
+    args = _noisy_stripes(seed)
+    scalars = (1.0, 0.6, 3.0, 10.0, 255, 4.0, 0.1, 4.0, 3.0)
+    w = args[2].shape[0]
+    whole = np.empty((w, 3, profile.N_FIELDS))
+    compiled.column_candidates(*args, *scalars, whole)
+    assert np.isfinite(whole[:, 0, profile.F_POS]).sum() >= w // 2  # stripes were found
+    rng = np.random.default_rng(100 + seed)
+    edges = np.unique(np.r_[0, rng.integers(0, w + 1, 5), w])
+    bands = np.full_like(whole, 7.0)
+    for c0, c1 in reversed(list(itertools.pairwise(edges))):
+        compiled.column_candidates(*args, *scalars, bands, int(c0), int(c1))
+    assert np.array_equal(bands, whole, equal_nan=True)
+    threaded = np.full_like(whole, 7.0)
+    candidates.run_column_bands(
+        lambda c0, c1: compiled.column_candidates(*args, *scalars, threaded, c0, c1), w, 2)
+    assert np.array_equal(threaded, whole, equal_nan=True)
+
+
+@pytest.mark.parametrize(("n_cols", "threads"), [(0, 2), (15, 2), (320, 1), (320, 2),
+                                                 (97, 3), (1280, 2)])
+def test_column_bands_cover_every_column_once(n_cols, threads):
+    seen = np.zeros(n_cols, int)
+
+    def band(c0, c1):
+        assert 0 <= c0 <= c1 <= n_cols
+        seen[c0:c1] += 1
+
+    candidates.run_column_bands(band, n_cols, threads)
+    assert np.all(seen == 1)
+
+
+def test_column_bands_raise_the_bands_error():
+    def band(c0, c1):
+        if c0 > 0:
+            raise ValueError(f"band {c0}")
+
+    with pytest.raises(ValueError, match="band"):
+        candidates.run_column_bands(band, 320, 2)
+
+
+def test_candidates_refuse_columns_outside_the_image():
+    args = _noisy_stripes(0, w=8)
+    out = np.empty((8, 3, profile.N_FIELDS))
+    with pytest.raises(ValueError, match="columns"):
+        compiled.column_candidates(*args, 1.0, 0.6, 3.0, 10.0, 255, 4.0, 0.1, 4.0, 3.0,
+                                   out, 4, 9)
