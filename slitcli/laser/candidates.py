@@ -59,9 +59,10 @@ MEAN_TO_SIGMA = math.sqrt(math.pi / 2.0) / math.sqrt(1.5)
 #: residuals beyond this many global noise sigmas count as that many (an edge)
 CLIP_SIGMAS = 5.0
 #: bands of columns per thread, taken one at a time by whichever thread is free: a thread
-#: that another process delays holds up the frame by one band at most
-BANDS_PER_THREAD = 4
-#: fewest columns of a band (a band costs a call and a few small buffers)
+#: that another process delays holds up the frame by one band at most (a band costs a
+#: call, ~20 us at 320x240: eight bands cost 5-9 % of the kernel's time, four half that)
+BANDS_PER_THREAD = 2
+#: fewest columns of a band
 MIN_BAND_COLS = 16
 
 
