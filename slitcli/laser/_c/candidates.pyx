@@ -459,17 +459,18 @@ def evidence_live(mask, const unsigned char[:, :, ::1] img, clipped, out):
     cdef const unsigned char[:, ::1] ci = np.ascontiguousarray(clipped).view(np.uint8)
     cdef unsigned char[:, ::1] res = out.view(np.uint8)
     cdef Py_ssize_t i, j
-    cdef bint any_live = False
     if img.shape[0] != mi.shape[0] or img.shape[1] != mi.shape[1] \
             or ci.shape[0] != mi.shape[0] or ci.shape[1] != mi.shape[1] \
             or res.shape[0] != mi.shape[0] or res.shape[1] != mi.shape[1]:
         raise ValueError("evidence_live: mask, img, clipped and out disagree in shape")
+    cdef unsigned char seen = 0
     with nogil:
         for i in range(mi.shape[0]):
+            # (bitwise, without branches: the loop vectorises)
             for j in range(mi.shape[1]):
-                res[i, j] = mi[i, j] and img[i, j, 2] > 0 and not ci[i, j]
-                any_live = any_live or res[i, j]
-    return any_live
+                res[i, j] = (mi[i, j] != 0) & (img[i, j, 2] > 0) & (ci[i, j] == 0)
+                seen |= res[i, j]
+    return seen != 0
 
 
 cdef inline double _fit_gap(const float[:, ::1] y_avg, const unsigned char[:, ::1] ci,

@@ -1,3 +1,4 @@
+# cflags: -fno-math-errno -fno-trapping-math
 """Compiled kernels of :mod:`slitcli.laser.evidence`: the background opening, the laser
 evidence per pixel and the image's noise (the model is in that module's notes).
 
