@@ -169,7 +169,7 @@ def test_laser_cli_names_its_flags(tmp_path, args, expected):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("command", ["detect", "stereo"])
+@pytest.mark.parametrize("command", ["detect", "stereo", "laser"])
 @pytest.mark.parametrize("value", ["two", "0", "-1"])
 def test_a_bad_thread_setting_is_refused_before_anything_is_written(tmp_path, command,
                                                                      value):

@@ -29,6 +29,7 @@ from slitcli.laser.diagnose import absence_notes, is_grey
 from slitcli.laser.frame import LaserFrame, LaserGeometry, detect_laser
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import LASER, csv_rows
+from slitcli.stereo.bands import thread_setting
 
 TABLE_COLUMNS = LASER.columns
 OVERLAY_DIR = "laser_overlay"
@@ -89,6 +90,9 @@ def run_laser(source: str | Path, out_dir: str | Path, *, rig_path: str | Path |
         raise SlitcliError(f"{out}: exists and is not a folder; choose another output path")
     rect = replace(rig, raw=None)
     geometry = LaserGeometry.from_rig(rect, params)  # checks the parameters
+    # the candidates' threads (SLITCLI_THREADS): a bad setting is refused before anything is
+    # written
+    thread_setting()
     manifest = {"command": "laser", "format": 1, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": manifest_value(asdict(params)), "overlay": overlay}
     # laser writes only its own named outputs, so OUT may hold others; a re-run with
