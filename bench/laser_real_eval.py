@@ -216,8 +216,9 @@ def report(res: dict) -> dict:
     return out
 
 
-#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides or a
-#: module constant of slitcli.laser.choose
+#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides, a
+#: module constant of slitcli.laser.judge or .choose (upper case) or a function of
+#: slitcli.laser.judge replaced (``judge.<name>``)
 ABLATIONS = {
     "default": {},
     "texture ratio measured, at least 2 (min_texture_ratio 2)": {"min_texture_ratio": 2.0},
@@ -230,6 +231,8 @@ ABLATIONS = {
     "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
     "no own-light test (OWN_Z inf)": {"OWN_Z": float("inf")},
     "no laser-share test (LASER_SHARE_Z 0)": {"LASER_SHARE_Z": 0.0},
+    "overlapping fits both kept (no judge.one_crossing)":
+        {"judge.one_crossing": lambda cand, ok: ok},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "paper method": {"method": "paper"},
 }
@@ -242,8 +245,10 @@ def ablation_extractors(search: str = "full") -> dict:
     ex = {}
     for name, over in ABLATIONS.items():
         def run(bgr, over=over):
-            consts = {k: v for k, v in over.items() if k.isupper()}
-            kw = {k: v for k, v in over.items() if not k.isupper()}
+            consts = {k.split(".")[-1]: v for k, v in over.items()
+                      if k.isupper() or k.startswith("judge.")}
+            kw = {k: v for k, v in over.items()
+                  if not (k.isupper() or k.startswith("judge."))}
             if "max_width_share" in kw:
                 kw["max_width_share"] = 8.0 / bgr.shape[0]
             # each constant lives in the module whose step it tunes
