@@ -221,7 +221,7 @@ def report(res: dict) -> dict:
 #: slitcli.laser.judge replaced (``judge.<name>``)
 ABLATIONS = {
     "default": {},
-    "texture ratio measured, at least 2 (min_texture_ratio 2)": {"min_texture_ratio": 2.0},
+    "texture ratio fixed at 5 (min_texture_ratio 5)": {"min_texture_ratio": 5.0},
     "texture ratio as measured (min_texture_ratio 0)": {"min_texture_ratio": 0.0},
     "no one-sheet rule (min_stripe_share 0)": {"min_stripe_share": 0.0},
     "no segment length (min_segment_share 0)": {"min_segment_share": 0.0},
