@@ -216,11 +216,12 @@ def report(res: dict) -> dict:
     return out
 
 
-#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides or a
-#: module constant of slitcli.laser.choose
+#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides, a
+#: module constant of slitcli.laser.judge or .choose (upper case) or a function of
+#: slitcli.laser.judge replaced (``judge.<name>``)
 ABLATIONS = {
     "default": {},
-    "texture ratio measured, at least 2 (min_texture_ratio 2)": {"min_texture_ratio": 2.0},
+    "texture ratio fixed at 5 (min_texture_ratio 5)": {"min_texture_ratio": 5.0},
     "texture ratio as measured (min_texture_ratio 0)": {"min_texture_ratio": 0.0},
     "no one-sheet rule (min_stripe_share 0)": {"min_stripe_share": 0.0},
     "no segment length (min_segment_share 0)": {"min_segment_share": 0.0},
@@ -230,6 +231,8 @@ ABLATIONS = {
     "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
     "no own-light test (OWN_Z inf)": {"OWN_Z": float("inf")},
     "no laser-share test (LASER_SHARE_Z 0)": {"LASER_SHARE_Z": 0.0},
+    "overlapping fits both kept (no judge.one_crossing)":
+        {"judge.one_crossing": lambda cand, ok: ok},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "paper method": {"method": "paper"},
 }
@@ -242,8 +245,10 @@ def ablation_extractors(search: str = "full") -> dict:
     ex = {}
     for name, over in ABLATIONS.items():
         def run(bgr, over=over):
-            consts = {k: v for k, v in over.items() if k.isupper()}
-            kw = {k: v for k, v in over.items() if not k.isupper()}
+            consts = {k.split(".")[-1]: v for k, v in over.items()
+                      if k.isupper() or k.startswith("judge.")}
+            kw = {k: v for k, v in over.items()
+                  if not (k.isupper() or k.startswith("judge."))}
             if "max_width_share" in kw:
                 kw["max_width_share"] = 8.0 / bgr.shape[0]
             # each constant lives in the module whose step it tunes
@@ -272,6 +277,81 @@ def ablation_report(res: dict) -> None:
               f"{p['median_err_px']:11.3f}{off:10d}")
 
 
+#: on-minus-off red (DN) at a reported row counts as laser light above this many robust
+#: noise sigmas of the difference image (the two views differ by sensor noise alone)
+OFF_LIGHT_SIGMAS = 5.0
+
+
+def audit_false_columns(folder: Path, params=None) -> list[dict]:
+    """Every false column of the extractor, grouped in runs of neighbouring columns per
+    image: reported rows, truth state (0 no stripe, 1 stripe more than 3 px off), the
+    fitted peak, clipped, and, where the folder holds the same view with the laser off
+    (``<name>_nolaser``), whether laser light is there: the red of the on-minus-off
+    difference within a row of the reported row, less the column's median difference,
+    above ``OFF_LIGHT_SIGMAS`` robust noise sigmas of the difference."""
+    from slitcli.laser import LaserParams, extract_stripe
+
+    tl = _truthlib(folder)
+    params = params if params is not None else LaserParams()
+    out = []
+    for sp in sorted((folder / "truth").glob("*.json")):
+        spec = tl.load_spec(sp)
+        if not spec.get("segments"):
+            continue
+        bgr = cv2.imread(str(folder / "images" / spec["image"]), cv2.IMREAD_COLOR)
+        truth = tl.compute_truth(bgr, spec)
+        fr = extract_stripe(bgr, params)
+        st, row, v = truth["state"], truth["row"], fr.v_px
+        has = np.isfinite(v)
+        bad = (has & (st == 0)) | (has & (st == 1) & (np.abs(v - row) > FALSE_PX))
+        off = None
+        off_spec = folder / "truth" / f"{sp.stem}_nolaser.json"
+        if off_spec.is_file():
+            obgr = cv2.imread(str(folder / "images" / tl.load_spec(off_spec)["image"]))
+            if obgr is not None and obgr.shape == bgr.shape:
+                off = bgr[..., 2].astype(float) - obgr[..., 2].astype(float)
+        cols = np.flatnonzero(bad)
+        light = np.full(cols.size, np.nan)
+        if off is not None and cols.size:
+            med = np.median(off, axis=0)
+            sig = 1.4826 * float(np.median(np.abs(off - np.median(off))))
+            r = np.clip(np.rint(v[cols]).astype(int)[:, None] + np.arange(-1, 2),
+                        0, off.shape[0] - 1)
+            light = (off[r, cols[:, None]].max(axis=1) - med[cols]) / max(sig, 0.5)
+        for run in np.split(np.arange(cols.size), np.flatnonzero(np.diff(cols) > 1) + 1):
+            if run.size == 0:
+                continue
+            u = cols[run]
+            out.append({"image": sp.stem, "u0": int(u[0]), "u1": int(u[-1]),
+                        "n": int(u.size), "state": int(st[u[0]]),
+                        "v": [float(np.nanmin(v[u])), float(np.nanmax(v[u]))],
+                        "truth": float(np.nanmedian(row[u])) if (st[u] == 1).any()
+                        else None,
+                        "peak_dn": float(np.nanmedian(fr.strength_dn[u])),
+                        "clipped": int(fr.saturated[u].sum()),
+                        "laser_off_sigmas": None if off is None
+                        else float(np.nanmin(light[run])),
+                        "laser_light": None if off is None
+                        else int((light[run] >= OFF_LIGHT_SIGMAS).sum())})
+    return out
+
+
+def audit_report(runs: list[dict]) -> None:
+    print(f"{'image':<16}{'columns':>12}{'n':>4}{'st':>4}{'rows':>16}{'truth':>8}"
+          f"{'peak DN':>9}{'clip':>5}{'laser-off: lit cols (min sigmas)':>34}")
+    for r in runs:
+        lit = "-" if r["laser_light"] is None else \
+            f"{r['laser_light']} ({r['laser_off_sigmas']:.0f})"
+        tr = "-" if r["truth"] is None else f"{r['truth']:.1f}"
+        print(f"{r['image']:<16}{r['u0']:>6}-{r['u1']:<5}{r['n']:>4}{r['state']:>4}"
+              f"{r['v'][0]:>8.1f}{r['v'][1]:>8.1f}{tr:>8}{r['peak_dn']:>9.1f}"
+              f"{r['clipped']:>5}{lit:>34}")
+    n = sum(r["n"] for r in runs)
+    lit = sum(r["laser_light"] or 0 for r in runs if r["state"] == 0)
+    print(f"false columns {n}; of those in no-stripe columns, laser light by the "
+          f"laser-off view: {lit}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", type=Path, help="folder with images/, truth/ and truthlib.py")
@@ -283,11 +363,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="also write the numbers here")
     ap.add_argument("--ablate", action="store_true",
                     help="score the extractor with each rule switched off in turn")
+    ap.add_argument("--false-columns", action="store_true",
+                    help="list every false column of the extractor, in runs, with what it "
+                         "reported and, where a laser-off view exists, the laser light there")
     a = ap.parse_args(argv)
     if not a.folder.is_dir():
         print(f"laser_real_eval: {a.folder} is not a folder; give the folder of "
               "photographs with truth", file=sys.stderr)
         return 2
+    if a.false_columns:
+        audit_report(audit_false_columns(a.folder))
+        return 0
     if a.ablate:
         ablation_report(evaluate(a.folder, ablation_extractors(a.search)))
         return 0

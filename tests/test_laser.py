@@ -189,12 +189,11 @@ def test_median_equals_numpy(seed):
 
 
 def test_texture_share_range_from_the_ratios():
-    # default: both ratios 5, the share fixed at 25 / 26; ratios 2 and 5: 4 / 5 to 25 / 26;
+    # default: ratios 2 and 5, the share 4 / 5 to 25 / 26; both 5: fixed at 25 / 26;
     # the range is checked
-    assert PARAMS.texture_share_range() == pytest.approx((25.0 / 26.0, 25.0 / 26.0),
-                                                         abs=1e-12)
-    assert LaserParams(min_texture_ratio=2.0).texture_share_range() == pytest.approx(
-        (0.8, 25.0 / 26.0), abs=1e-12)
+    assert PARAMS.texture_share_range() == pytest.approx((0.8, 25.0 / 26.0), abs=1e-12)
+    assert LaserParams(min_texture_ratio=5.0).texture_share_range() == pytest.approx(
+        (25.0 / 26.0, 25.0 / 26.0), abs=1e-12)
     assert LaserParams(min_texture_ratio=0.0).texture_share_range()[0] == 0.0
     with pytest.raises(SlitcliError, match="min_texture_ratio"):
         LaserParams(min_texture_ratio=6.0)

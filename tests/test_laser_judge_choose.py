@@ -311,3 +311,33 @@ def test_choose_stripe_keeps_the_stripe_and_drops_short_clutter(seed):
     choose.choose_stripe(c, ok, np.empty(0), 0.5, 1.5, 2.0, 3.0, 10, 3.0, 25.0, w,
                          choose.CHOICE_ROUNDS, v, amp, sat)
     assert np.isnan(v).all() and np.isnan(amp).all()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_one_crossing_keeps_the_core_of_overlapping_fits(seed):
+    # per column: a core (narrow, bright), a wider, fainter fit whose centre lies within
+    # the sum of the two widths (the core and its halo, or two stripe pieces a row step
+    # apart), and a third fit far away; in other columns the wide fit lies beyond the
+    # sum of the widths (a second surface's light), or the core failed the tests
+    rng = np.random.default_rng(seed)
+    w = 60
+    c = np.full((w, 3, N_FIELDS), np.nan)
+    s0 = rng.uniform(0.8, 2.0, w)
+    s1 = s0 * rng.uniform(1.5, 4.0, w)
+    a0 = rng.uniform(60.0, 200.0, w)
+    v0 = rng.uniform(100.0, 140.0, w)
+    gap = np.where(np.arange(w) < w // 2, rng.uniform(0.1, 0.95, w),
+                   rng.uniform(1.05, 3.0, w)) * (s0 + s1)
+    c[:, 0, F_POS], c[:, 0, F_WIDTH], c[:, 0, F_AMP] = v0, s0, a0
+    c[:, 1, F_POS] = v0 + rng.choice([-1.0, 1.0], w) * gap
+    c[:, 1, F_WIDTH], c[:, 1, F_AMP] = s1, a0 * rng.uniform(0.2, 0.9, w)
+    c[:, 2, F_POS], c[:, 2, F_WIDTH], c[:, 2, F_AMP] = v0 + 60.0, s1, a0 * 0.5
+    ok = np.ones((w, 3), bool)
+    ok[::7, 0] = False  # a core that failed: it takes no other fit out
+    ok_in = ok.copy()
+    out = judge.one_crossing(c, ok)
+    overlap = np.arange(w) < w // 2
+    assert np.array_equal(out[:, 0], ok[:, 0])
+    assert np.array_equal(out[:, 1], ~(overlap & ok[:, 0]))
+    assert out[:, 2].all()
+    assert np.array_equal(ok, ok_in)  # the input is not changed

@@ -276,5 +276,5 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(ev.sigma_y),
                                       params.shape_error, need)
-    return cand, ok, laser
+    return cand, judge.one_crossing(cand, ok), laser
 

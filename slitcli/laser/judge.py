@@ -4,7 +4,8 @@
 significance, colour, the sheet's thickness); :func:`laser_share` and
 :func:`surface_continues` tell the laser's light from the surface's own colour;
 :func:`own_light_candidates` asks a fit on the evidence averaged along the stripe to show in its
-own column's evidence. The choice along the stripe among the candidates that pass is
+own column's evidence; :func:`one_crossing` keeps one of two overlapping fits of a
+column. The choice along the stripe among the candidates that pass is
 :mod:`slitcli.laser.choose`. The tests run compiled (:mod:`slitcli.laser._c.judge`);
 this module keeps their constants and the glue.
 """
@@ -15,6 +16,7 @@ import numpy as np
 from slitcli.laser._c.judge import colour_tests, shape_tests, surface_table
 from slitcli.laser._c.judge import laser_share as laser_share  # (re-exported)
 from slitcli.laser._c.light import own_light_table
+from slitcli.laser.profile import F_AMP, F_POS, F_WIDTH
 
 #: a Gaussian's equivalent width (sum over peak) in sigmas, rounded
 EQ_WIDTH = 2.5
@@ -78,6 +80,26 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
 
 #: significance of the laser's share of a candidate's light (see :func:`laser_share`)
 LASER_SHARE_Z = 3.0
+
+
+def one_crossing(cand: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """One crossing of the sheet per column and surface: of two valid candidates of one
+    column whose Gaussians overlap (centres closer than the sum of their widths), the
+    brighter and narrower is the stripe's core and the other is out.
+
+    A fit that is wider and fainter than a second one inside it describes the same
+    light plus more (the core and its halo, or two pieces of the stripe a row step
+    apart in one column at an occlusion edge): its centre lies between them, where the
+    light is not. Its significance, which grows with the light summed, would win the
+    choice along the stripe. Returns ``ok`` (W, K) with those candidates False (a new
+    array).
+    """
+    pos, amp, width = cand[..., F_POS], cand[..., F_AMP], cand[..., F_WIDTH]
+    # (W, K, K): candidate i of a column against candidate j of the same column
+    overlap = np.abs(pos[:, :, None] - pos[:, None, :]) < width[:, :, None] + width[:, None, :]
+    inside = overlap & ok[:, :, None] & (amp[:, :, None] > amp[:, None, :]) \
+        & (width[:, :, None] < width[:, None, :])
+    return ok & ~inside.any(axis=1)
 
 
 def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,

@@ -61,10 +61,11 @@ class LaserParams:
         the surface colour. Within the range the ratio is measured on each image
         (texture along the surface colour against the noise across it); equal bounds fix
         it. The cap keeps the share below 1, which would amplify the noise without bound
-        on surfaces of the laser's colour (5: 0.96). Default both 5 (fixed). Renders
-        without a camera model measure 9.5-12.7, the development set's robot photographs 0-0.8; a
-        ``min_texture_ratio`` of 2 keeps the stripe of such cameras on surfaces of the
-        laser's own colour under a tone curve (docs/laser.md, Ablation and Limits).
+        on surfaces of the laser's colour (5: 0.96). Default 2 to 5: renders without a
+        camera model measure 9.5-12.7 (5), the development set's robot photographs 0-0.8
+        (2); the floor of 2 keeps the stripe of such cameras on surfaces of the laser's
+        own colour under a tone curve, and bounds the texture the evidence keeps
+        (docs/laser.md, Ablation and Limits).
     noise_floor_dn : float
         Smallest noise sigma of the laser evidence, DN: quantisation (0.35 DN for the
         evidence's weights) and compression leave at least this much.
@@ -107,7 +108,7 @@ class LaserParams:
     shape_error: float = 0.25
     max_chi2: float = 4.0
     colour_error: float = 0.2
-    min_texture_ratio: float = 5.0
+    min_texture_ratio: float = 2.0
     max_texture_ratio: float = 5.0
     noise_floor_dn: float = 0.5
     saturation_dn: int = 250

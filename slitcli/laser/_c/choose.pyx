@@ -235,7 +235,7 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
     ``keep`` marks the columns of segments that stay, ``dropped`` those of segments that
     do not (``idx`` scratch (W,)); returns the longest kept segment's span in columns."""
     cdef Py_ssize_t w_cols = t.w, longest = 0, u = 0, cnt, last, x, r, quarter
-    cdef double dv, z, z2
+    cdef double dv, z, z2, slope
     cdef bint strong, good
     for u in range(w_cols):
         keep[u] = 0
@@ -250,11 +250,15 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
         idx[0] = u
         last = u
         x = u + 1
+        slope = 0.0
         while x < w_cols and x - last <= MAX_GAP + 1:
             if pick[x] >= 0:
                 dv = v[x] - v[last]
+                # across a gap the stripe runs on along its slope (that of the last
+                # link; none before the second column): a row step of one column at most
                 if (x == last + 1 and links(dv, wid[x], wid[last], max_jump_px)) or \
-                        fabs(dv) <= max_jump_px * (x - last):
+                        (x > last + 1 and fabs(dv - slope * (x - last)) <= max_jump_px):
+                    slope = dv / (x - last)
                     idx[cnt] = x
                     cnt += 1
                     last = x
