@@ -148,6 +148,94 @@ cdef extern from *:
         *bmin = mb;
         return ma;
     }
+    #ifdef __AVX2__
+    #define SGM_HAVE_LANES16 1
+    /* The winner step in uint16 lanes (n a multiple of 16). s = sa + sb of one pixel's
+       n disparities into s16, SGM_NO_SUM where cost >= top (no candidate); the sums
+       the sweeps make stay far below it (8 paths: <= 8 (top + P2) <= 20488), and a sum
+       that reaches it (saturating add) sets *ovf: the caller then takes the int32 keys
+       for the row. Returns the smallest sum (SGM_NO_SUM: no candidate) and its first
+       index into *bi: the same winner as the smallest key (sum << 9 | i), ties to the
+       smallest index, at 16 lanes instead of 8 and without the key array. */
+    #define SGM_NO_SUM 0xFFFF
+    static inline uint16_t sgm_hmin_u16(__m256i v) {
+        __m128i m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+        return (uint16_t)_mm_extract_epi16(_mm_minpos_epu16(m), 0);
+    }
+    static inline uint16_t sgm_pixel_sums16(const uint16_t *restrict sa,
+                                            const uint16_t *restrict sb,
+                                            const uint16_t *restrict cost,
+                                            uint16_t *restrict s16, uint16_t top,
+                                            Py_ssize_t n, int32_t *bi, int *ovf) {
+        __m256i none = _mm256_set1_epi16(-1), tv = _mm256_set1_epi16((short)top);
+        __m256i vmin = none, vo = _mm256_setzero_si256();
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            __m256i s = _mm256_adds_epu16(_mm256_loadu_si256((const __m256i *)(sa + i)),
+                                          _mm256_loadu_si256((const __m256i *)(sb + i)));
+            __m256i c = _mm256_loadu_si256((const __m256i *)(cost + i));
+            vo = _mm256_or_si256(vo, _mm256_cmpeq_epi16(s, none));
+            /* c >= top (unsigned): max(c, top) == c */
+            s = _mm256_or_si256(s, _mm256_cmpeq_epi16(_mm256_max_epu16(c, tv), c));
+            _mm256_storeu_si256((__m256i *)(s16 + i), s);
+            vmin = _mm256_min_epu16(vmin, s);
+        }
+        *ovf |= !_mm256_testz_si256(vo, vo);
+        uint16_t m = sgm_hmin_u16(vmin);
+        __m256i mv = _mm256_set1_epi16((short)m);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            uint32_t hit = (uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi16(
+                _mm256_loadu_si256((const __m256i *)(s16 + i)), mv));
+            if (hit) {
+                *bi = (int32_t)(i + (__builtin_ctz(hit) >> 1));
+                break;
+            }
+        }
+        return m;
+    }
+    /* The smallest sum outside indices bi-1..bi+1 (SGM_NO_SUM: none), as the smallest
+       key there (sgm_second_key) gives it. */
+    static inline uint16_t sgm_second16(const uint16_t *restrict s16, int32_t bi,
+                                        Py_ssize_t n) {
+        __m256i idx = _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        __m256i lo = _mm256_set1_epi16((short)(bi - 1)), two = _mm256_set1_epi16(2);
+        __m256i step = _mm256_set1_epi16(16), vmin = _mm256_set1_epi16(-1);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            /* i - (bi - 1) in 0..2 (unsigned, wrapping): inside the excluded three */
+            __m256i d = _mm256_sub_epi16(idx, lo);
+            __m256i in = _mm256_cmpeq_epi16(_mm256_min_epu16(d, two), d);
+            vmin = _mm256_min_epu16(vmin, _mm256_or_si256(
+                _mm256_loadu_si256((const __m256i *)(s16 + i)), in));
+            idx = _mm256_add_epi16(idx, step);
+        }
+        return sgm_hmin_u16(vmin);
+    }
+    /* rkey = min(rkey, keys) with the keys (s << 9 | i) made from the sums: a sum
+       SGM_NO_SUM gives a key >= SGM_NO_SUM << 9, above every real one (the caller's
+       "no key" bound), so no mask is needed. */
+    #define SGM_NO_SUM_KEY ((int32_t)SGM_NO_SUM << SGM_KEY_SHIFT)
+    static inline void sgm_lower_sums16(int32_t *restrict rkey, const uint16_t *restrict s16,
+                                        Py_ssize_t n) {
+        __m256i idx = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), step = _mm256_set1_epi32(8);
+        for (Py_ssize_t i = 0; i < n; i += 8) {
+            __m256i k = _mm256_cvtepu16_epi32(_mm_loadu_si128((const __m128i *)(s16 + i)));
+            k = _mm256_or_si256(_mm256_slli_epi32(k, SGM_KEY_SHIFT), idx);
+            idx = _mm256_add_epi32(idx, step);
+            __m256i r = _mm256_loadu_si256((const __m256i *)(rkey + i));
+            _mm256_storeu_si256((__m256i *)(rkey + i), _mm256_min_epi32(r, k));
+        }
+    }
+    #else
+    #define SGM_HAVE_LANES16 0
+    #define SGM_NO_SUM 0xFFFF
+    #define SGM_NO_SUM_KEY ((int32_t)SGM_NO_SUM << SGM_KEY_SHIFT)
+    static inline uint16_t sgm_pixel_sums16(const uint16_t *sa, const uint16_t *sb,
+                                            const uint16_t *cost, uint16_t *s16,
+                                            uint16_t top, Py_ssize_t n, int32_t *bi,
+                                            int *ovf) { *ovf = 1; return SGM_NO_SUM; }
+    static inline uint16_t sgm_second16(const uint16_t *s16, int32_t bi, Py_ssize_t n) {
+        return SGM_NO_SUM; }
+    static inline void sgm_lower_sums16(int32_t *rkey, const uint16_t *s16, Py_ssize_t n) {}
+    #endif
     /* The smallest key outside indices lo..hi. */
     static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
                                          int32_t hi, Py_ssize_t n) {
@@ -168,6 +256,17 @@ cdef extern from *:
                                        int16_t *bc, int32_t bm, int32_t p1, int32_t p2a,
                                        int32_t p2b, bint acc, Py_ssize_t n,
                                        int32_t *bmin) noexcept nogil
+    const bint HAVE_LANES16 "SGM_HAVE_LANES16"
+    const uint16_t NO_SUM "SGM_NO_SUM"
+    const int32_t NO_SUM_KEY "SGM_NO_SUM_KEY"
+    uint16_t pixel_sums16 "sgm_pixel_sums16" (const uint16_t *sa, const uint16_t *sb,
+                                              const uint16_t *cost, uint16_t *s16,
+                                              uint16_t top, Py_ssize_t n, int32_t *bi,
+                                              int *ovf) noexcept nogil
+    uint16_t second16 "sgm_second16" (const uint16_t *s16, int32_t bi,
+                                      Py_ssize_t n) noexcept nogil
+    void lower_sums16 "sgm_lower_sums16" (int32_t *rkey, const uint16_t *s16,
+                                          Py_ssize_t n) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
