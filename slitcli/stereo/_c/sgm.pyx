@@ -33,6 +33,7 @@ from libc.stdlib cimport llabs
 from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
 
 from slitcli.stereo._c.sgm_loops cimport (
+    HAVE_COSTS16,
     HAVE_LANES16,
     KEY_SHIFT,
     NO_KEY,
@@ -44,6 +45,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     lower_sums16,
     path_pair,
     pixel_costs,
+    pixel_costs16,
     pixel_keys,
     pixel_sums16,
     second16,
@@ -184,6 +186,9 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     cdef Py_ssize_t width = c.width, num = c.num, height = c.height
     cdef Py_ssize_t ya = y + c.n, ys = y - c.n - 1, x, xx, xa, xs, i, base, k
     cdef float a, b, wa, ws, e1, r1
+    # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
+    # into uint16 unchanged
+    cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
     if ya < height or ys >= 0:
         for x in range(width):
             base = c.pad + width - 1 - x + c.dmin
@@ -204,6 +209,12 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
         e1 = c.el[y * width + x]
         r1 = <float>1.0 / sqrtf(e1) if e1 > 0 else <float>0.0
         k = y * c.stride + c.pad + width - 1 - x + c.dmin
+        if lanes:
+            pixel_costs16(hs, col + (min(xa, width - 1) + 1) * num,
+                          col + (max(xs, -1) + 1) * num, wa, ws, xa < width and xs >= 0, e1,
+                          r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max, o_row + x * num,
+                          num)
+            continue
         pixel_costs(hs, col + (min(xa, width - 1) + 1) * num, col + (max(xs, -1) + 1) * num,
                     wa, ws, e1, r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max,
                     o_row + x * num, num)

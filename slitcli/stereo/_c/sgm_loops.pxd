@@ -236,6 +236,66 @@ cdef extern from *:
         return SGM_NO_SUM; }
     static inline void sgm_lower_sums16(int32_t *rkey, const uint16_t *s16, Py_ssize_t n) {}
     #endif
+    #ifdef __AVX2__
+    /* pixel_costs (sgm_loops.pxd) for n a multiple of 16 in AVX2 lanes, with inner
+       (wa = ws = 1: the products 1 x v are v, dropped) and tops below 60000 (so that
+       the truncated int32 costs pack into uint16 unchanged): the same float32
+       operations in the same order (no contraction); c > 0 ? c : 0 and c < c_max ? c :
+       c_max are exactly max_ps(c, 0) and min_ps(c, c_max) (gcc keeps a compare and a
+       mask for the first), and the packing takes one pack and one permute per 16. */
+    #define SGM_HAVE_COSTS16 1
+    static inline __m256 sgm_cost8(float *restrict hs, const float *restrict ci,
+                                   const float *restrict co, __m256 wa, __m256 ws,
+                                   int inner, __m256 e1, __m256 r1,
+                                   const float *restrict err, const float *restrict irr,
+                                   __m256 c_max, __m256 scale, __m256 *valid) {
+        __m256 x;
+        if (inner)
+            x = _mm256_sub_ps(_mm256_add_ps(_mm256_loadu_ps(hs), _mm256_loadu_ps(ci)),
+                              _mm256_loadu_ps(co));
+        else
+            x = _mm256_sub_ps(_mm256_add_ps(_mm256_loadu_ps(hs),
+                                            _mm256_mul_ps(wa, _mm256_loadu_ps(ci))),
+                              _mm256_mul_ps(ws, _mm256_loadu_ps(co)));
+        _mm256_storeu_ps(hs, x);
+        __m256 w = _mm256_mul_ps(r1, _mm256_loadu_ps(irr));
+        __m256 c = _mm256_mul_ps(_mm256_sub_ps(_mm256_add_ps(e1, _mm256_loadu_ps(err)),
+                                               _mm256_mul_ps(_mm256_set1_ps(2.0f), x)), w);
+        c = _mm256_min_ps(_mm256_max_ps(c, _mm256_setzero_ps()), c_max);
+        *valid = _mm256_cmp_ps(w, _mm256_setzero_ps(), _CMP_GT_OQ);
+        return _mm256_add_ps(_mm256_mul_ps(c, scale), _mm256_set1_ps(0.5f));
+    }
+    static inline void sgm_pixel_costs16(float *restrict hs, const float *restrict ci,
+                                         const float *restrict co, float wa, float ws,
+                                         int inner, float e1, float r1,
+                                         const float *restrict err,
+                                         const float *restrict irr, uint16_t top,
+                                         float scale, float c_max,
+                                         uint16_t *restrict out, Py_ssize_t n) {
+        __m256 vwa = _mm256_set1_ps(wa), vws = _mm256_set1_ps(ws), ve1 = _mm256_set1_ps(e1);
+        __m256 vr1 = _mm256_set1_ps(r1), vmax = _mm256_set1_ps(c_max);
+        __m256 vscale = _mm256_set1_ps(scale);
+        __m256i vtop = _mm256_set1_epi16((short)top);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            __m256 va, vb;
+            __m256 qa = sgm_cost8(hs + i, ci + i, co + i, vwa, vws, inner, ve1, vr1, err + i,
+                                  irr + i, vmax, vscale, &va);
+            __m256 qb = sgm_cost8(hs + i + 8, ci + i + 8, co + i + 8, vwa, vws, inner, ve1,
+                                  vr1, err + i + 8, irr + i + 8, vmax, vscale, &vb);
+            __m256i q = _mm256_packus_epi32(_mm256_cvttps_epi32(qa), _mm256_cvttps_epi32(qb));
+            __m256i m = _mm256_packs_epi32(_mm256_castps_si256(va), _mm256_castps_si256(vb));
+            q = _mm256_permute4x64_epi64(_mm256_blendv_epi8(vtop, q, m), 0xD8);
+            _mm256_storeu_si256((__m256i *)(out + i), q);
+        }
+    }
+    #else
+    #define SGM_HAVE_COSTS16 0
+    static inline void sgm_pixel_costs16(float *hs, const float *ci, const float *co,
+                                         float wa, float ws, int inner, float e1, float r1,
+                                         const float *err, const float *irr, uint16_t top,
+                                         float scale, float c_max, uint16_t *out,
+                                         Py_ssize_t n) {}
+    #endif
     /* The smallest key outside indices lo..hi. */
     static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
                                          int32_t hi, Py_ssize_t n) {
@@ -267,6 +327,12 @@ cdef extern from *:
                                       Py_ssize_t n) noexcept nogil
     void lower_sums16 "sgm_lower_sums16" (int32_t *rkey, const uint16_t *s16,
                                           Py_ssize_t n) noexcept nogil
+    const bint HAVE_COSTS16 "SGM_HAVE_COSTS16"
+    void pixel_costs16 "sgm_pixel_costs16" (float *hs, const float *ci, const float *co,
+                                            float wa, float ws, bint inner, float e1,
+                                            float r1, const float *err, const float *irr,
+                                            uint16_t top, float scale, float c_max,
+                                            uint16_t *out, Py_ssize_t n) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
