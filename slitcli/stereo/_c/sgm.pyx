@@ -35,6 +35,7 @@ from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
 from slitcli.stereo._c.sgm_loops cimport (
     HAVE_COSTS16,
     HAVE_LANES16,
+    HAVE_ROW4,
     KEY_SHIFT,
     NO_KEY,
     NO_SUM,
@@ -50,6 +51,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     pixel_sums16,
     second16,
     second_key,
+    sweep_row4,
 )
 
 import numpy as np
@@ -318,6 +320,11 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
     cdef bint adapt = g > 0, first, last
     cdef const uint8_t *row = grey + yy * width
     cdef const uint8_t *above = grey + ys * width
+    if HAVE_ROW4 and not eight and not adapt and num % 16 == 0:
+        sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+                   pv + src * width * stride, pv + dst * width * stride, mv + src * width,
+                   mv + dst * width, zero)
+        return
     for x in range(width):
         xx = width - 1 - x if reverse else x
         xs = xx + 1 if reverse else xx - 1

@@ -110,6 +110,36 @@ cdef extern from *:
         *bmin = sgm_hmin16(mb);
         return sgm_hmin16(ma);
     }
+    /* One row of a 4-path sweep with a constant P2 (the default): sweep_row's loop
+       (sgm.pyx) for this case alone, so that the compiler keeps its few pointers in
+       registers (the general loop, with the diagonal paths and the adaptive P2,
+       spilled them to the stack: about 40 % of a sweep's time was outside the vector
+       loop). The same calls in the same order, so the same rows. */
+    #define SGM_HAVE_ROW4 1
+    static inline void sgm_sweep_row4(const int16_t *restrict c_row, int16_t *restrict o_row,
+                                      Py_ssize_t width, Py_ssize_t n, int reverse,
+                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      const int16_t *pv_src, int16_t *pv_dst,
+                                      const int32_t *mv_src, int32_t *mv_dst,
+                                      const int16_t *zero) {
+        Py_ssize_t stride = n + 2;
+        int32_t hmin = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            hmin = sgm_path_pair16(c_row + xx * n, o_row + xx * n,
+                                   x == 0 ? zero : ph + hs * stride, ph + (1 - hs) * stride,
+                                   hmin, first_row ? zero : pv_src + x * stride,
+                                   pv_dst + x * stride, first_row ? 0 : mv_src[x], p1, p2, p2,
+                                   0, n, mv_dst + x);
+        }
+    }
+    #else
+    #define SGM_HAVE_ROW4 0
+    static inline void sgm_sweep_row4(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, int reverse, int first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *zero) {}
     #endif
     static inline int32_t sgm_path_pair(
             const int16_t *restrict c, int16_t *restrict o, const int16_t *restrict ap,
@@ -333,6 +363,12 @@ cdef extern from *:
                                             float r1, const float *err, const float *irr,
                                             uint16_t top, float scale, float c_max,
                                             uint16_t *out, Py_ssize_t n) noexcept nogil
+    const bint HAVE_ROW4 "SGM_HAVE_ROW4"
+    void sweep_row4 "sgm_sweep_row4" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *zero) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
