@@ -46,7 +46,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     lower_sums16,
     path_pair,
     pixel_costs,
-    pixel_costs16,
+    cost_pixels16,
     pixel_keys,
     pixel_sums16,
     second16,
@@ -203,6 +203,11 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     for xx in range(min(c.m, width)):
         for i in range(num):
             hs[i] += col[(xx + 1) * num + i]
+    if lanes:
+        k = y * c.stride + c.pad + width - 1 + c.dmin
+        cost_pixels16(hs, col, c.el + y * width, c.err + k, c.irr + k, width, num, c.m, c.top,
+                      c.scale, c.c_max, o_row)
+        return
     for x in range(width):
         xa = x + c.m
         xs = x - c.m - 1
@@ -211,12 +216,6 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
         e1 = c.el[y * width + x]
         r1 = <float>1.0 / sqrtf(e1) if e1 > 0 else <float>0.0
         k = y * c.stride + c.pad + width - 1 - x + c.dmin
-        if lanes:
-            pixel_costs16(hs, col + (min(xa, width - 1) + 1) * num,
-                          col + (max(xs, -1) + 1) * num, wa, ws, xa < width and xs >= 0, e1,
-                          r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max, o_row + x * num,
-                          num)
-            continue
         pixel_costs(hs, col + (min(xa, width - 1) + 1) * num, col + (max(xs, -1) + 1) * num,
                     wa, ws, e1, r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max,
                     o_row + x * num, num)

@@ -318,6 +318,26 @@ cdef extern from *:
             _mm256_storeu_si256((__m256i *)(out + i), q);
         }
     }
+    /* A row's pixels (the x loop of sgm.pyx's _cost_row) over pixel_costs16, in C for
+       the same reason as sgm_sweep_row4: the pointers stay in registers. el_row: the
+       row's left window energies; err_row, irr_row: the right energies at the row's
+       first pixel's first disparity (pixel x: minus x). The same operations. */
+    static inline void sgm_cost_pixels16(float *restrict hs, const float *col,
+                                         const float *restrict el_row,
+                                         const float *err_row, const float *irr_row,
+                                         Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                         uint16_t top, float scale, float c_max,
+                                         uint16_t *out) {
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xa = x + m, xs = x - m - 1;
+            float e1 = el_row[x];
+            float r1 = e1 > 0 ? 1.0f / sqrtf(e1) : 0.0f;
+            sgm_pixel_costs16(hs, col + ((xa < width ? xa : width - 1) + 1) * n,
+                              col + ((xs >= 0 ? xs : -1) + 1) * n, xa < width ? 1.0f : 0.0f,
+                              xs >= 0 ? 1.0f : 0.0f, xa < width && xs >= 0, e1, r1,
+                              err_row - x, irr_row - x, top, scale, c_max, out + x * n, n);
+        }
+    }
     #else
     #define SGM_HAVE_COSTS16 0
     static inline void sgm_pixel_costs16(float *hs, const float *ci, const float *co,
@@ -325,6 +345,11 @@ cdef extern from *:
                                          const float *err, const float *irr, uint16_t top,
                                          float scale, float c_max, uint16_t *out,
                                          Py_ssize_t n) {}
+    static inline void sgm_cost_pixels16(float *hs, const float *col, const float *el_row,
+                                         const float *err_row, const float *irr_row,
+                                         Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                         uint16_t top, float scale, float c_max,
+                                         uint16_t *out) {}
     #endif
     /* The smallest key outside indices lo..hi. */
     static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
@@ -369,6 +394,11 @@ cdef extern from *:
                                       int32_t p2, int16_t *ph, const int16_t *pv_src,
                                       int16_t *pv_dst, const int32_t *mv_src,
                                       int32_t *mv_dst, const int16_t *zero) noexcept nogil
+    void cost_pixels16 "sgm_cost_pixels16" (float *hs, const float *col, const float *el_row,
+                                            const float *err_row, const float *irr_row,
+                                            Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                            uint16_t top, float scale, float c_max,
+                                            uint16_t *out) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
