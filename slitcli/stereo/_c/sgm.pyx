@@ -48,6 +48,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     pixel_costs,
     cost_pixels16,
     pixel_keys,
+    slide_columns16,
     pixel_sums16,
     second16,
     second_key,
@@ -191,7 +192,13 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
     # into uint16 unchanged
     cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
-    if ya < height or ys >= 0:
+    if lanes and (ya < height or ys >= 0):
+        k = c.pad + width - 1 + c.dmin
+        slide_columns16(col, c.pl + ya * width if ya < height else NULL,
+                        c.pl + ys * width if ys >= 0 else NULL,
+                        c.prr + min(ya, height - 1) * c.stride + k,
+                        c.prr + max(ys, 0) * c.stride + k, width, num)
+    elif ya < height or ys >= 0:
         for x in range(width):
             base = c.pad + width - 1 - x + c.dmin
             a = c.pl[ya * width + x] if ya < height else <float>0.0

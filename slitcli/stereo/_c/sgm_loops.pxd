@@ -338,6 +338,25 @@ cdef extern from *:
                               err_row - x, irr_row - x, top, scale, c_max, out + x * n, n);
         }
     }
+    /* The column sums of a row slid one row down (the first loop of _cost_row,
+       column_slide over every column): col[x + 1] += a ra - b rs with a, b the left
+       pixels entering and leaving (a_row / s_row NULL: outside the image, 0), ra, rs
+       the mirrored right rows at column 0's first disparity (column x: minus x). */
+    static inline void sgm_slide_columns16(float *restrict col, const float *a_row,
+                                           const float *s_row, const float *ra_row,
+                                           const float *rs_row, Py_ssize_t width,
+                                           Py_ssize_t n) {
+        for (Py_ssize_t x = 0; x < width; x++) {
+            __m256 a = _mm256_set1_ps(a_row ? a_row[x] : 0.0f);
+            __m256 b = _mm256_set1_ps(s_row ? s_row[x] : 0.0f);
+            float *cx = col + (x + 1) * n;
+            const float *ra = ra_row - x, *rs = rs_row - x;
+            for (Py_ssize_t i = 0; i < n; i += 8)
+                _mm256_storeu_ps(cx + i, _mm256_add_ps(_mm256_loadu_ps(cx + i), _mm256_sub_ps(
+                    _mm256_mul_ps(a, _mm256_loadu_ps(ra + i)),
+                    _mm256_mul_ps(b, _mm256_loadu_ps(rs + i)))));
+        }
+    }
     #else
     #define SGM_HAVE_COSTS16 0
     static inline void sgm_pixel_costs16(float *hs, const float *ci, const float *co,
@@ -350,6 +369,9 @@ cdef extern from *:
                                          Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
                                          uint16_t top, float scale, float c_max,
                                          uint16_t *out) {}
+    static inline void sgm_slide_columns16(float *col, const float *a_row, const float *s_row,
+                                           const float *ra_row, const float *rs_row,
+                                           Py_ssize_t width, Py_ssize_t n) {}
     #endif
     /* The smallest key outside indices lo..hi. */
     static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
@@ -399,6 +421,10 @@ cdef extern from *:
                                             Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
                                             uint16_t top, float scale, float c_max,
                                             uint16_t *out) noexcept nogil
+    void slide_columns16 "sgm_slide_columns16" (float *col, const float *a_row,
+                                                const float *s_row, const float *ra_row,
+                                                const float *rs_row, Py_ssize_t width,
+                                                Py_ssize_t n) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
