@@ -38,21 +38,19 @@ from slitcli.stereo._c.sgm_loops cimport (
     HAVE_ROW4,
     KEY_SHIFT,
     NO_KEY,
-    NO_SUM,
     NO_SUM_KEY,
     SENTINEL,
     column_slide,
+    cost_pixels16,
     lower_keys,
     lower_sums16,
     path_pair,
     pixel_costs,
-    cost_pixels16,
     pixel_keys,
-    slide_columns16,
-    pixel_sums16,
-    second16,
     second_key,
+    slide_columns16,
     sweep_row4,
+    winners16_row,
 )
 
 import numpy as np
@@ -441,35 +439,16 @@ cdef bint _winners16(const Tests *t, const uint16_t *sa, const uint16_t *sb,
                      Py_ssize_t width, Py_ssize_t num, float *disp, float *mcost,
                      uint8_t *reason) noexcept nogil:
     """:func:`_winners32` in uint16 lanes (AVX2, D a multiple of 16): the sums, their
-    minimum, its first index and the smallest sum outside it in 16 lanes, the right
-    view's keys made from the sums. The same winners, parabolas and codes (the minimum
-    sum and its first index are the smallest key's). False (nothing usable written)
-    where a sum reaches NO_SUM, which the sweeps' sums never do (at most 8 (top + P2)
-    for 8 paths)."""
-    cdef Py_ssize_t dmin = t.dmin, pad = num + llabs(t.dmin) + 1, x, x0, base
+    minimum, its first index and the smallest sum outside it in 16 lanes
+    (sgm_loops.pxd: winners16_row), the right view's keys made from the sums. The same
+    winners, parabolas and codes (the minimum sum and its first index are the smallest
+    key's). False (nothing usable written) where a sum reaches NO_SUM, which the
+    sweeps' sums never do (at most 8 (top + P2) for 8 paths)."""
+    cdef Py_ssize_t dmin = t.dmin, pad = num + llabs(t.dmin) + 1, x, x0
     cdef uint16_t *s16 = <uint16_t *>t.keys
-    cdef int32_t bi = 0
-    cdef uint16_t best, sm, sp, sk = NO_SUM
-    cdef int ovf = 0
-    cdef float bv
-    for x in range(width):
-        base = x * num
-        best = pixel_sums16(sa + base, sb + base, c + base, s16 + base, t.top, num, &bi,
-                            &ovf)
-        if best == NO_SUM:
-            _no_candidate(t, x, disp, mcost, reason)
-            continue
-        t.best_i[x] = bi
-        bv = <float>best
-        sm = s16[base + bi - 1] if bi > 0 else NO_SUM
-        sp = s16[base + bi + 1] if bi < num - 1 else NO_SUM
-        disp[x] = <float>(dmin + bi) + _subpixel(t, bi, num, bv, sm != NO_SUM, sp != NO_SUM,
-                                                  <float>sm, <float>sp)
-        mcost[x] = <float>c[base + bi] / t.scale
-        if t.uniq > 0:
-            sk = second16(s16 + base, bi, num)
-        reason[x] = _codes(t, x, bv, sk != NO_SUM, <float>sk, el, count)
-    if ovf:
+    if not winners16_row(sa, sb, c, el, count, width, num, dmin, t.subpixel, t.uniq,
+                         t.energy_min, t.top, t.scale, s16, t.best_i, disp, mcost, reason,
+                         R_VALID, R_NO_CANDIDATE, R_TEXTURE, R_UNIQUENESS):
         return False
     for x0 in range(16):
         for x in range(x0, width, 16):

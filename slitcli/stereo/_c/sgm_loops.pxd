@@ -9,7 +9,7 @@ float32 operations written, in that order, without contraction, so the costs and
 sums are the same bits whatever the vector width.
 """
 
-from libc.stdint cimport int16_t, int32_t, uint16_t
+from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
 
 cdef extern from *:
     """
@@ -239,6 +239,57 @@ cdef extern from *:
         }
         return sgm_hmin_u16(vmin);
     }
+    /* The per-pixel part of sgm.pyx's _winners16 over a row, in C (pointers and
+       parameters in registers): the winner, the subpixel parabola through the sums,
+       the winner's cost / scale and the texture and uniqueness codes (uniqueness + 100:
+       it overrides left-right), the same operations as _winners32. Returns 0 where a
+       sum reached SGM_NO_SUM (the caller then takes the int32 keys). */
+    static inline int sgm_winners16_row(const uint16_t *sa, const uint16_t *sb,
+                                        const uint16_t *c, const float *el,
+                                        const float *count, Py_ssize_t width, Py_ssize_t n,
+                                        Py_ssize_t dmin, int subpixel, float uniq,
+                                        float energy_min, uint16_t top, float scale,
+                                        uint16_t *restrict s16, int32_t *restrict best_i,
+                                        float *restrict disp, float *restrict mcost,
+                                        uint8_t *restrict reason, int r_valid, int r_none,
+                                        int r_texture, int r_uniq) {
+        int ovf = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t base = x * n;
+            int32_t bi = 0;
+            uint16_t best = sgm_pixel_sums16(sa + base, sb + base, c + base, s16 + base, top,
+                                             n, &bi, &ovf);
+            if (best == SGM_NO_SUM) {
+                best_i[x] = -1;
+                disp[x] = NAN;
+                mcost[x] = INFINITY;
+                reason[x] = (uint8_t)r_none;
+                continue;
+            }
+            best_i[x] = bi;
+            float bv = (float)best, delta = 0.0f;
+            uint16_t sm = bi > 0 ? s16[base + bi - 1] : SGM_NO_SUM;
+            uint16_t sp = bi < n - 1 ? s16[base + bi + 1] : SGM_NO_SUM;
+            if (subpixel && bi > 0 && bi < n - 1 && sm != SGM_NO_SUM && sp != SGM_NO_SUM) {
+                float cm = (float)sm, cp = (float)sp;
+                float den = cm - 2.0f * bv + cp;
+                if (den > 0)
+                    delta = 0.5f * (cm - cp) / den;
+            }
+            disp[x] = (float)(dmin + bi) + delta;
+            mcost[x] = (float)c[base + bi] / scale;
+            int code = r_valid;
+            if (energy_min > 0 && el[x] < energy_min * count[x])
+                code = r_texture;
+            if (uniq > 0) {
+                uint16_t sk = sgm_second16(s16 + base, bi, n);
+                if (sk != SGM_NO_SUM && (float)sk < bv * (1.0f + uniq))
+                    code = r_uniq + 100;
+            }
+            reason[x] = (uint8_t)code;
+        }
+        return !ovf;
+    }
     /* rkey = min(rkey, keys) with the keys (s << 9 | i) made from the sums: a sum
        SGM_NO_SUM gives a key >= SGM_NO_SUM << 9, above every real one (the caller's
        "no key" bound), so no mask is needed. */
@@ -265,6 +316,14 @@ cdef extern from *:
     static inline uint16_t sgm_second16(const uint16_t *s16, int32_t bi, Py_ssize_t n) {
         return SGM_NO_SUM; }
     static inline void sgm_lower_sums16(int32_t *rkey, const uint16_t *s16, Py_ssize_t n) {}
+    static inline int sgm_winners16_row(const uint16_t *sa, const uint16_t *sb,
+                                        const uint16_t *c, const float *el,
+                                        const float *count, Py_ssize_t width, Py_ssize_t n,
+                                        Py_ssize_t dmin, int subpixel, float uniq,
+                                        float energy_min, uint16_t top, float scale,
+                                        uint16_t *s16, int32_t *best_i, float *disp,
+                                        float *mcost, uint8_t *reason, int r_valid,
+                                        int r_none, int r_texture, int r_uniq) { return 0; }
     #endif
     #ifdef __AVX2__
     /* pixel_costs (sgm_loops.pxd) for n a multiple of 16 in AVX2 lanes, with inner
@@ -425,6 +484,15 @@ cdef extern from *:
                                                 const float *s_row, const float *ra_row,
                                                 const float *rs_row, Py_ssize_t width,
                                                 Py_ssize_t n) noexcept nogil
+    bint winners16_row "sgm_winners16_row" (const uint16_t *sa, const uint16_t *sb,
+                                            const uint16_t *c, const float *el,
+                                            const float *count, Py_ssize_t width,
+                                            Py_ssize_t n, Py_ssize_t dmin, bint subpixel,
+                                            float uniq, float energy_min, uint16_t top,
+                                            float scale, uint16_t *s16, int32_t *best_i,
+                                            float *disp, float *mcost, uint8_t *reason,
+                                            int r_valid, int r_none, int r_texture,
+                                            int r_uniq) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
