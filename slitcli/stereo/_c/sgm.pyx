@@ -50,6 +50,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     second_key,
     slide_columns16,
     sweep_row4,
+    sweep_row8,
     winners16_row,
 )
 
@@ -324,10 +325,17 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
     cdef bint adapt = g > 0, first, last
     cdef const uint8_t *row = grey + yy * width
     cdef const uint8_t *above = grey + ys * width
-    if HAVE_ROW4 and not eight and not adapt and num % 16 == 0:
-        sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
-                   pv + src * width * stride, pv + dst * width * stride, mv + src * width,
-                   mv + dst * width, zero)
+    if HAVE_ROW4 and not adapt and num % 16 == 0:
+        if eight:
+            sweep_row8(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+                       pv + src * width * stride, pv + dst * width * stride, mv + src * width,
+                       mv + dst * width, pd + src * width * stride, pd + dst * width * stride,
+                       md + src * width, md + dst * width, pe + src * width * stride,
+                       pe + dst * width * stride, me + src * width, me + dst * width, zero)
+        else:
+            sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+                       pv + src * width * stride, pv + dst * width * stride, mv + src * width,
+                       mv + dst * width, zero)
         return
     for x in range(width):
         xx = width - 1 - x if reverse else x

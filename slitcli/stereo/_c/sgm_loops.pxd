@@ -133,6 +133,36 @@ cdef extern from *:
                                    0, n, mv_dst + x);
         }
     }
+    /* sgm_sweep_row4 with the two diagonal paths (8 paths): d from the top-left
+       (rows d_*, minima md_*), e from the top-right, their pair added to o. */
+    static inline void sgm_sweep_row8(const int16_t *restrict c_row, int16_t *restrict o_row,
+                                      Py_ssize_t width, Py_ssize_t n, int reverse,
+                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      const int16_t *pv_src, int16_t *pv_dst,
+                                      const int32_t *mv_src, int32_t *mv_dst,
+                                      const int16_t *pd_src, int16_t *pd_dst,
+                                      const int32_t *md_src, int32_t *md_dst,
+                                      const int16_t *pe_src, int16_t *pe_dst,
+                                      const int32_t *me_src, int32_t *me_dst,
+                                      const int16_t *zero) {
+        Py_ssize_t stride = n + 2;
+        int32_t hmin = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            const int16_t *c = c_row + xx * n;
+            int16_t *o = o_row + xx * n;
+            int first = first_row || x == 0, last = first_row || x == width - 1;
+            hmin = sgm_path_pair16(c, o, x == 0 ? zero : ph + hs * stride,
+                                   ph + (1 - hs) * stride, hmin,
+                                   first_row ? zero : pv_src + x * stride, pv_dst + x * stride,
+                                   first_row ? 0 : mv_src[x], p1, p2, p2, 0, n, mv_dst + x);
+            md_dst[x] = sgm_path_pair16(c, o, first ? zero : pd_src + (x - 1) * stride,
+                                        pd_dst + x * stride, first ? 0 : md_src[x - 1],
+                                        last ? zero : pe_src + (x + 1) * stride,
+                                        pe_dst + x * stride, last ? 0 : me_src[x + 1], p1, p2,
+                                        p2, 1, n, me_dst + x);
+        }
+    }
     #else
     #define SGM_HAVE_ROW4 0
     static inline void sgm_sweep_row4(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
@@ -140,6 +170,15 @@ cdef extern from *:
                                       int32_t p2, int16_t *ph, const int16_t *pv_src,
                                       int16_t *pv_dst, const int32_t *mv_src,
                                       int32_t *mv_dst, const int16_t *zero) {}
+    static inline void sgm_sweep_row8(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, int reverse, int first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *pd_src,
+                                      int16_t *pd_dst, const int32_t *md_src,
+                                      int32_t *md_dst, const int16_t *pe_src,
+                                      int16_t *pe_dst, const int32_t *me_src,
+                                      int32_t *me_dst, const int16_t *zero) {}
     #endif
     static inline int32_t sgm_path_pair(
             const int16_t *restrict c, int16_t *restrict o, const int16_t *restrict ap,
@@ -493,6 +532,15 @@ cdef extern from *:
                                             float *disp, float *mcost, uint8_t *reason,
                                             int r_valid, int r_none, int r_texture,
                                             int r_uniq) noexcept nogil
+    void sweep_row8 "sgm_sweep_row8" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *pd_src,
+                                      int16_t *pd_dst, const int32_t *md_src,
+                                      int32_t *md_dst, const int16_t *pe_src,
+                                      int16_t *pe_dst, const int32_t *me_src,
+                                      int32_t *me_dst, const int16_t *zero) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
