@@ -115,3 +115,80 @@ def test_two_thread_phases_equal_one_thread(seed, kw):
         _match_fused(pl, pr, p, left, tests, tuple(two), pool, 2)
     for a, b in zip(one, two, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def reference_winners(s_a, s_b, cost, el, count, dmin, uniq, lr_tol, energy_min, top, scale):
+    """The winner step of slitcli.stereo._sgm.winners_rows from its definition, in NumPy
+    (float32 arithmetic as the kernel's): smallest s_a + s_b among candidates (cost <
+    top), ties to the smallest disparity; parabola through the sums; texture,
+    uniqueness (no sum more than 1 px away below (1 + uniq) times the winner's; it
+    overrides left-right, which overrides texture); the right view's winners from the
+    same sums."""
+    from slitcli.stereo.reasons import Reason
+
+    h, w, num = cost.shape
+    big = np.int64(1) << 40
+    s = np.where(cost < top, s_a.astype(np.int64) + s_b, big)
+    bi = np.argmin(s, axis=2)
+    bv = np.take_along_axis(s, bi[..., None], 2)[..., 0]
+    has = bv < big
+    sm, sp = (np.take_along_axis(s, np.clip(bi + k, 0, num - 1)[..., None], 2)[..., 0]
+              for k in (-1, 1))
+    f = np.float32
+    bvf, cm, cp = bv.astype(f), sm.astype(f), sp.astype(f)
+    den = cm - f(2.0) * bvf + cp
+    with np.errstate(all="ignore"):
+        delta = np.where((bi > 0) & (bi < num - 1) & (sm < big) & (sp < big) & (den > 0),
+                         f(0.5) * (cm - cp) / den, f(0.0)).astype(f)
+    disp = np.where(has, (dmin + bi).astype(f) + delta, f(np.nan)).astype(f)
+    c_win = np.take_along_axis(cost, bi[..., None], 2)[..., 0]
+    mcost = np.where(has, c_win.astype(f) / f(scale), f(np.inf)).astype(f)
+    i = np.arange(num)
+    outside = np.abs(i[None, None, :] - bi[..., None]) > 1
+    second = np.where(outside, s, big).min(axis=2)
+    unique_fail = (uniq > 0) & (second < big) & (second.astype(f) < bvf * (f(1.0) + f(uniq)))
+    # the right view: right pixel xr's candidates are left pixels xr + dmin + i
+    xr = np.arange(w)[:, None] + dmin + i[None, :]
+    inside = (xr >= 0) & (xr < w)
+    rs = np.where(inside[None], s[:, np.clip(xr, 0, w - 1), i[None, :]], big)
+    ri = np.argmin(rs, axis=2)
+    rhas = rs.min(axis=2) < big
+    rdisp = np.where(rhas, (dmin + ri).astype(f), f(np.nan)).astype(f)
+    x = np.arange(w)[None, :] - dmin - bi
+    xin = (x >= 0) & (x < w)
+    xc = np.clip(x, 0, w - 1)
+    rows = np.arange(h)[:, None]
+    lr_ok = xin & rhas[rows, xc] & (np.abs(ri[rows, xc] - bi) <= lr_tol)
+    reason = np.full((h, w), int(Reason.VALID), np.uint8)
+    reason[(energy_min > 0) & (el < f(energy_min) * count)] = Reason.TEXTURE
+    if lr_tol >= 0:
+        reason[~lr_ok] = Reason.LEFT_RIGHT
+    reason[unique_fail] = Reason.UNIQUENESS
+    reason[~has] = Reason.NO_CANDIDATE
+    return disp, mcost, reason, rdisp
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("num", [32, 21])
+@pytest.mark.parametrize("high", [40, 3000, 65535])
+def test_winners_equal_their_definition(seed, num, high):
+    """The winner step (16-lane sums where D is a multiple of 16, int32 keys otherwise
+    and where two sums add up past 16 bits) against its definition: random sums with
+    many ties (high 40), the sweeps' range (3000) and beyond 16 bits (65535), costs with
+    pixels and whole curves without a candidate."""
+    rng = np.random.default_rng(seed)
+    h, w, dmin = 7, 45, -2
+    s_a = rng.integers(0, high + 1, (h, w, num)).astype(np.uint16)
+    s_b = rng.integers(0, high + 1, (h, w, num)).astype(np.uint16)
+    cost = rng.integers(0, 560, (h, w, num)).astype(np.uint16)
+    cost[2, 5:9] = 600   # whole curves without a candidate
+    el = rng.uniform(0, 2, (h, w)).astype(np.float32)
+    count = np.ones((h, w), np.float32)
+    args = (dmin, 0.15, 1.0, 0.5, 512, 256.0)
+    tests = (dmin, np.float32(0.15), 1.0, True, np.float32(0.5), np.uint16(512),
+             np.float32(256.0))
+    got = [np.empty((h, w), t) for t in (np.float32, np.float32, np.uint8, np.float32)]
+    _sgm.winners_rows(s_a, s_b, cost, el, count, *tests, 0, h, *got)
+    want = reference_winners(s_a, s_b, cost, el, count, *args)
+    for a, b in zip(want, got, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -24,33 +24,32 @@
 
 Every kernel releases the GIL (slitcli.stereo.sgm calls them from row-band threads)
 and works for any disparity count D >= 2; the per-pixel loops (sgm_loops.pxd) are
-vectorised by the compiler. The results do not depend on D's divisibility, on the
-bands or on the fusion: the same integer and float operations in the same order.
+vectorised by the compiler, and with AVX2 and D a multiple of 16 whole rows run in
+explicit 16-lane C functions (sgm_loops.pxd). The results do not depend on D's
+divisibility, on the processor, on the bands or on the fusion: the same integer and
+float operations in the same order.
 """
 
 from libc.math cimport fabsf, rint, sqrtf
-from libc.stdlib cimport llabs
 from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
 
 from slitcli.stereo._c.sgm_loops cimport (
-    KEY_SHIFT,
-    NO_KEY,
+    HAVE_COSTS16,
+    HAVE_ROW4,
     SENTINEL,
     column_slide,
-    lower_keys,
+    cost_pixels16,
     path_pair,
     pixel_costs,
-    pixel_keys,
-    second_key,
+    slide_columns16,
+    sweep_row4,
+    sweep_row8,
 )
+from slitcli.stereo._c.sgm_winner cimport Tests, winner_row
 
 import numpy as np
 
 from slitcli.stereo.reasons import Reason
-
-cdef extern from "math.h":
-    const float NAN
-    const float INFINITY
 
 cdef int R_VALID = int(Reason.VALID)
 cdef int R_NO_CANDIDATE = int(Reason.NO_CANDIDATE)
@@ -178,7 +177,16 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     cdef Py_ssize_t width = c.width, num = c.num, height = c.height
     cdef Py_ssize_t ya = y + c.n, ys = y - c.n - 1, x, xx, xa, xs, i, base, k
     cdef float a, b, wa, ws, e1, r1
-    if ya < height or ys >= 0:
+    # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
+    # into uint16 unchanged
+    cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
+    if lanes and (ya < height or ys >= 0):
+        k = c.pad + width - 1 + c.dmin
+        slide_columns16(col, c.pl + ya * width if ya < height else NULL,
+                        c.pl + ys * width if ys >= 0 else NULL,
+                        c.prr + min(ya, height - 1) * c.stride + k,
+                        c.prr + max(ys, 0) * c.stride + k, width, num)
+    elif ya < height or ys >= 0:
         for x in range(width):
             base = c.pad + width - 1 - x + c.dmin
             a = c.pl[ya * width + x] if ya < height else <float>0.0
@@ -190,6 +198,11 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     for xx in range(min(c.m, width)):
         for i in range(num):
             hs[i] += col[(xx + 1) * num + i]
+    if lanes:
+        k = y * c.stride + c.pad + width - 1 + c.dmin
+        cost_pixels16(hs, col, c.el + y * width, c.err + k, c.irr + k, width, num, c.m, c.top,
+                      c.scale, c.c_max, o_row)
+        return
     for x in range(width):
         xa = x + c.m
         xs = x - c.m - 1
@@ -250,21 +263,6 @@ def sweep_state(Py_ssize_t width, Py_ssize_t num):
     return paths, np.zeros((3, 2, width), np.int32)
 
 
-cdef struct Tests:
-    # the winner step's parameters (see winners_rows) and row buffers: keys (W x D),
-    # the right view's keys (W + 2 pad), the winners (W)
-    Py_ssize_t dmin
-    float uniq
-    double lr_tol
-    bint subpixel
-    float energy_min
-    uint16_t top
-    float scale
-    int32_t *keys
-    int32_t *rkey
-    int32_t *best_i
-
-
 cdef inline int32_t _p2(int32_t p1, int32_t p2, float g, uint8_t a,
                         uint8_t b) noexcept nogil:
     """P2 for a step between two pixels of grey levels a and b: ``P2 g / (g + |a - b|)``
@@ -301,6 +299,18 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
     cdef bint adapt = g > 0, first, last
     cdef const uint8_t *row = grey + yy * width
     cdef const uint8_t *above = grey + ys * width
+    if HAVE_ROW4 and not adapt and num % 16 == 0:
+        if eight:
+            sweep_row8(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+                       pv + src * width * stride, pv + dst * width * stride, mv + src * width,
+                       mv + dst * width, pd + src * width * stride, pd + dst * width * stride,
+                       md + src * width, md + dst * width, pe + src * width * stride,
+                       pe + dst * width * stride, me + src * width, me + dst * width, zero)
+        else:
+            sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+                       pv + src * width * stride, pv + dst * width * stride, mv + src * width,
+                       mv + dst * width, zero)
+        return
     for x in range(width):
         xx = width - 1 - x if reverse else x
         xs = xx + 1 if reverse else xx - 1
@@ -337,80 +347,6 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
             md[dst * width + x] = path_pair(c, o, prev_a, pd + (dst * width + x) * stride, ma,
                                             prev_b, pe + (dst * width + x) * stride, mb, p1,
                                             p2a, p2b, True, num, &me[dst * width + x])
-
-
-cdef void winner_row(const Tests *t, const uint16_t *sa, const uint16_t *sb,
-                     const uint16_t *c, const float *el, const float *count,
-                     Py_ssize_t width, Py_ssize_t num, float *disp, float *mcost,
-                     uint8_t *reason, float *rdisp) noexcept nogil:
-    """One row of :func:`winners_rows`: ``sa``, ``sb``, ``c`` the row's W x D sums and
-    costs, the outputs the row's (W,) arrays."""
-    cdef Py_ssize_t dmin = t.dmin, pad = num + llabs(t.dmin) + 1, x, x0, xr, base, bi
-    cdef int32_t *keys = t.keys
-    cdef int32_t *rkey = t.rkey
-    cdef int32_t best, km, kp, sk, k, imask = (1 << KEY_SHIFT) - 1
-    cdef float bv, delta, cm, cp, den
-    cdef int code
-    cdef bint ok
-    for x in range(width + 2 * pad):
-        rkey[x] = NO_KEY
-    for x in range(width):
-        base = x * num
-        best = pixel_keys(sa + base, sb + base, c + base, keys + base, t.top, num)
-        if best == NO_KEY:
-            t.best_i[x] = -1
-            disp[x] = NAN
-            mcost[x] = INFINITY
-            reason[x] = R_NO_CANDIDATE
-            continue
-        bi = best & imask
-        t.best_i[x] = bi
-        bv = <float>(best >> KEY_SHIFT)
-        delta = 0.0
-        if t.subpixel and 0 < bi < num - 1:
-            km = keys[base + bi - 1]
-            kp = keys[base + bi + 1]
-            if km != NO_KEY and kp != NO_KEY:
-                cm = <float>(km >> KEY_SHIFT)
-                cp = <float>(kp >> KEY_SHIFT)
-                den = cm - <float>2.0 * bv + cp
-                if den > 0:
-                    delta = <float>0.5 * (cm - cp) / den
-        disp[x] = <float>(dmin + bi) + delta
-        mcost[x] = <float>c[base + bi] / t.scale
-        code = R_VALID
-        if t.energy_min > 0 and el[x] < t.energy_min * count[x]:
-            code = R_TEXTURE
-        if t.uniq > 0:
-            sk = second_key(keys + base, bi - 1, bi + 1, num)
-            if sk != NO_KEY and <float>(sk >> KEY_SHIFT) < bv * (<float>1.0 + t.uniq):
-                code = R_UNIQUENESS + 100
-        reason[x] = code
-    # the right view: pixel x's keys lower the right pixels x - d, windows one element
-    # apart for neighbouring x; taken 16 columns apart, so that no vector load waits
-    # for an overlapping store just before it
-    for x0 in range(16):
-        for x in range(x0, width, 16):
-            lower_keys(rkey + pad + width - 1 - x + dmin, keys + x * num, num)
-    for xr in range(width):
-        k = rkey[pad + width - 1 - xr]
-        rdisp[xr] = <float>(dmin + (k & imask)) if k != NO_KEY else NAN
-    for x in range(width):
-        bi = t.best_i[x]
-        if bi < 0:
-            continue
-        code = reason[x]
-        if code >= 100:
-            reason[x] = code - 100
-            continue
-        if t.lr_tol >= 0:
-            xr = x - dmin - bi
-            ok = (xr >= 0) and (xr < width)
-            if ok:
-                k = rkey[pad + width - 1 - xr]
-                ok = k != NO_KEY and <double>llabs((k & imask) - bi) <= t.lr_tol
-            if not ok:
-                reason[x] = R_LEFT_RIGHT
 
 
 def aggregate_pass(uint16_t[:, :, ::1] cost, int p1, int p2, bint eight, bint reverse,
@@ -461,7 +397,8 @@ def winners_rows(uint16_t[:, :, ::1] s_a, uint16_t[:, :, ::1] s_b, uint16_t[:, :
     cdef Py_ssize_t width = s_a.shape[1], num = s_a.shape[2], y
     cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
     cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
-                         &buf[1, 0], &buf[2, 0])
+                         &buf[1, 0], &buf[2, 0], R_VALID, R_NO_CANDIDATE, R_TEXTURE,
+                         R_UNIQUENESS, R_LEFT_RIGHT)
     with nogil:
         for y in range(y0, y1):
             winner_row(&t, &s_a[y, 0, 0], &s_b[y, 0, 0], &cost[y, 0, 0], &el[y, 0],
@@ -530,7 +467,8 @@ def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1,
     cdef Py_ssize_t y, yy
     cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
     cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
-                         &buf[1, 0], &buf[2, 0])
+                         &buf[1, 0], &buf[2, 0], R_VALID, R_NO_CANDIDATE, R_TEXTURE,
+                         R_UNIQUENESS, R_LEFT_RIGHT)
     cdef uint16_t[::1] row = np.empty(width * num, np.uint16)
     cdef uint16_t *o_row
     cdef float g = <float>p2_grad

@@ -7,9 +7,18 @@ AVX2 operation, for any disparity count (a scalar tail takes the rest). Integer
 operations wrap in 16 bits where the casts say so; float operations are the IEEE
 float32 operations written, in that order, without contraction, so the costs and
 sums are the same bits whatever the vector width.
+
+Where the processor has AVX2 (``__AVX2__``: not in SLITCLI_PORTABLE_BUILD wheels) and D
+is a multiple of 16, whole rows run in C functions written with AVX2 intrinsics (the
+cost row with its column slide, the sweep rows with a constant P2, the winner step in
+uint16 lanes): the same operations in the same order, with the loop over a row's
+pixels in C so that its pointers stay in registers (Cython's loops spilled them, and
+the per-pixel work outside the vector loops was ~40 % of a sweep). Other D, an
+adaptive P2 and portable builds take the loops above; both give the same bits
+(checked on Middlebury and rendered pairs, 4 and 8 paths, one and two threads).
 """
 
-from libc.stdint cimport int16_t, int32_t, uint16_t
+from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
 
 cdef extern from *:
     """
@@ -110,6 +119,75 @@ cdef extern from *:
         *bmin = sgm_hmin16(mb);
         return sgm_hmin16(ma);
     }
+    /* One row of a 4-path sweep with a constant P2 (the default): sweep_row's loop
+       (sgm.pyx) for this case alone, so that the compiler keeps its few pointers in
+       registers (the general loop, with the diagonal paths and the adaptive P2,
+       spilled them to the stack: about 40 % of a sweep's time was outside the vector
+       loop). The same calls in the same order, so the same rows. */
+    #define SGM_HAVE_ROW4 1
+    static inline void sgm_sweep_row4(const int16_t *restrict c_row, int16_t *restrict o_row,
+                                      Py_ssize_t width, Py_ssize_t n, int reverse,
+                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      const int16_t *pv_src, int16_t *pv_dst,
+                                      const int32_t *mv_src, int32_t *mv_dst,
+                                      const int16_t *zero) {
+        Py_ssize_t stride = n + 2;
+        int32_t hmin = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            hmin = sgm_path_pair16(c_row + xx * n, o_row + xx * n,
+                                   x == 0 ? zero : ph + hs * stride, ph + (1 - hs) * stride,
+                                   hmin, first_row ? zero : pv_src + x * stride,
+                                   pv_dst + x * stride, first_row ? 0 : mv_src[x], p1, p2, p2,
+                                   0, n, mv_dst + x);
+        }
+    }
+    /* sgm_sweep_row4 with the two diagonal paths (8 paths): d from the top-left
+       (rows d_*, minima md_*), e from the top-right, their pair added to o. */
+    static inline void sgm_sweep_row8(const int16_t *restrict c_row, int16_t *restrict o_row,
+                                      Py_ssize_t width, Py_ssize_t n, int reverse,
+                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      const int16_t *pv_src, int16_t *pv_dst,
+                                      const int32_t *mv_src, int32_t *mv_dst,
+                                      const int16_t *pd_src, int16_t *pd_dst,
+                                      const int32_t *md_src, int32_t *md_dst,
+                                      const int16_t *pe_src, int16_t *pe_dst,
+                                      const int32_t *me_src, int32_t *me_dst,
+                                      const int16_t *zero) {
+        Py_ssize_t stride = n + 2;
+        int32_t hmin = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            const int16_t *c = c_row + xx * n;
+            int16_t *o = o_row + xx * n;
+            int first = first_row || x == 0, last = first_row || x == width - 1;
+            hmin = sgm_path_pair16(c, o, x == 0 ? zero : ph + hs * stride,
+                                   ph + (1 - hs) * stride, hmin,
+                                   first_row ? zero : pv_src + x * stride, pv_dst + x * stride,
+                                   first_row ? 0 : mv_src[x], p1, p2, p2, 0, n, mv_dst + x);
+            md_dst[x] = sgm_path_pair16(c, o, first ? zero : pd_src + (x - 1) * stride,
+                                        pd_dst + x * stride, first ? 0 : md_src[x - 1],
+                                        last ? zero : pe_src + (x + 1) * stride,
+                                        pe_dst + x * stride, last ? 0 : me_src[x + 1], p1, p2,
+                                        p2, 1, n, me_dst + x);
+        }
+    }
+    #else
+    #define SGM_HAVE_ROW4 0
+    static inline void sgm_sweep_row4(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, int reverse, int first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *zero) {}
+    static inline void sgm_sweep_row8(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, int reverse, int first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *pd_src,
+                                      int16_t *pd_dst, const int32_t *md_src,
+                                      int32_t *md_dst, const int16_t *pe_src,
+                                      int16_t *pe_dst, const int32_t *me_src,
+                                      int32_t *me_dst, const int16_t *zero) {}
     #endif
     static inline int32_t sgm_path_pair(
             const int16_t *restrict c, int16_t *restrict o, const int16_t *restrict ap,
@@ -148,6 +226,260 @@ cdef extern from *:
         *bmin = mb;
         return ma;
     }
+    #ifdef __AVX2__
+    #define SGM_HAVE_LANES16 1
+    /* The winner step in uint16 lanes (n a multiple of 16). s = sa + sb of one pixel's
+       n disparities into s16, SGM_NO_SUM where cost >= top (no candidate); the sums
+       the sweeps make stay far below it (8 paths: <= 8 (top + P2) <= 20488), and a sum
+       that reaches it (saturating add) sets *ovf: the caller then takes the int32 keys
+       for the row. Returns the smallest sum (SGM_NO_SUM: no candidate) and its first
+       index into *bi: the same winner as the smallest key (sum << 9 | i), ties to the
+       smallest index, at 16 lanes instead of 8 and without the key array. */
+    #define SGM_NO_SUM 0xFFFF
+    static inline uint16_t sgm_hmin_u16(__m256i v) {
+        __m128i m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+        return (uint16_t)_mm_extract_epi16(_mm_minpos_epu16(m), 0);
+    }
+    static inline uint16_t sgm_pixel_sums16(const uint16_t *restrict sa,
+                                            const uint16_t *restrict sb,
+                                            const uint16_t *restrict cost,
+                                            uint16_t *restrict s16, uint16_t top,
+                                            Py_ssize_t n, int32_t *bi, int *ovf) {
+        __m256i none = _mm256_set1_epi16(-1), tv = _mm256_set1_epi16((short)top);
+        __m256i vmin = none, vo = _mm256_setzero_si256();
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            __m256i s = _mm256_adds_epu16(_mm256_loadu_si256((const __m256i *)(sa + i)),
+                                          _mm256_loadu_si256((const __m256i *)(sb + i)));
+            __m256i c = _mm256_loadu_si256((const __m256i *)(cost + i));
+            vo = _mm256_or_si256(vo, _mm256_cmpeq_epi16(s, none));
+            /* c >= top (unsigned): max(c, top) == c */
+            s = _mm256_or_si256(s, _mm256_cmpeq_epi16(_mm256_max_epu16(c, tv), c));
+            _mm256_storeu_si256((__m256i *)(s16 + i), s);
+            vmin = _mm256_min_epu16(vmin, s);
+        }
+        *ovf |= !_mm256_testz_si256(vo, vo);
+        uint16_t m = sgm_hmin_u16(vmin);
+        __m256i mv = _mm256_set1_epi16((short)m);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            uint32_t hit = (uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi16(
+                _mm256_loadu_si256((const __m256i *)(s16 + i)), mv));
+            if (hit) {
+                *bi = (int32_t)(i + (__builtin_ctz(hit) >> 1));
+                break;
+            }
+        }
+        return m;
+    }
+    /* The smallest sum outside indices bi-1..bi+1 (SGM_NO_SUM: none), as the smallest
+       key there (sgm_second_key) gives it. */
+    static inline uint16_t sgm_second16(const uint16_t *restrict s16, int32_t bi,
+                                        Py_ssize_t n) {
+        __m256i idx = _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        __m256i lo = _mm256_set1_epi16((short)(bi - 1)), two = _mm256_set1_epi16(2);
+        __m256i step = _mm256_set1_epi16(16), vmin = _mm256_set1_epi16(-1);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            /* i - (bi - 1) in 0..2 (unsigned, wrapping): inside the excluded three */
+            __m256i d = _mm256_sub_epi16(idx, lo);
+            __m256i in = _mm256_cmpeq_epi16(_mm256_min_epu16(d, two), d);
+            vmin = _mm256_min_epu16(vmin, _mm256_or_si256(
+                _mm256_loadu_si256((const __m256i *)(s16 + i)), in));
+            idx = _mm256_add_epi16(idx, step);
+        }
+        return sgm_hmin_u16(vmin);
+    }
+    /* The per-pixel part of sgm.pyx's _winners16 over a row, in C (pointers and
+       parameters in registers): the winner, the subpixel parabola through the sums,
+       the winner's cost / scale and the texture and uniqueness codes (uniqueness + 100:
+       it overrides left-right), the same operations as _winners32. Returns 0 where a
+       sum reached SGM_NO_SUM (the caller then takes the int32 keys). */
+    static inline int sgm_winners16_row(const uint16_t *sa, const uint16_t *sb,
+                                        const uint16_t *c, const float *el,
+                                        const float *count, Py_ssize_t width, Py_ssize_t n,
+                                        Py_ssize_t dmin, int subpixel, float uniq,
+                                        float energy_min, uint16_t top, float scale,
+                                        uint16_t *restrict s16, int32_t *restrict best_i,
+                                        float *restrict disp, float *restrict mcost,
+                                        uint8_t *restrict reason, int r_valid, int r_none,
+                                        int r_texture, int r_uniq) {
+        int ovf = 0;
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t base = x * n;
+            int32_t bi = 0;
+            uint16_t best = sgm_pixel_sums16(sa + base, sb + base, c + base, s16 + base, top,
+                                             n, &bi, &ovf);
+            if (best == SGM_NO_SUM) {
+                best_i[x] = -1;
+                disp[x] = NAN;
+                mcost[x] = INFINITY;
+                reason[x] = (uint8_t)r_none;
+                continue;
+            }
+            best_i[x] = bi;
+            float bv = (float)best, delta = 0.0f;
+            uint16_t sm = bi > 0 ? s16[base + bi - 1] : SGM_NO_SUM;
+            uint16_t sp = bi < n - 1 ? s16[base + bi + 1] : SGM_NO_SUM;
+            if (subpixel && bi > 0 && bi < n - 1 && sm != SGM_NO_SUM && sp != SGM_NO_SUM) {
+                float cm = (float)sm, cp = (float)sp;
+                float den = cm - 2.0f * bv + cp;
+                if (den > 0)
+                    delta = 0.5f * (cm - cp) / den;
+            }
+            disp[x] = (float)(dmin + bi) + delta;
+            mcost[x] = (float)c[base + bi] / scale;
+            int code = r_valid;
+            if (energy_min > 0 && el[x] < energy_min * count[x])
+                code = r_texture;
+            if (uniq > 0) {
+                uint16_t sk = sgm_second16(s16 + base, bi, n);
+                if (sk != SGM_NO_SUM && (float)sk < bv * (1.0f + uniq))
+                    code = r_uniq + 100;
+            }
+            reason[x] = (uint8_t)code;
+        }
+        return !ovf;
+    }
+    /* rkey = min(rkey, keys) with the keys (s << 9 | i) made from the sums: a sum
+       SGM_NO_SUM gives a key >= SGM_NO_SUM << 9, above every real one (the caller's
+       "no key" bound), so no mask is needed. */
+    #define SGM_NO_SUM_KEY ((int32_t)SGM_NO_SUM << SGM_KEY_SHIFT)
+    static inline void sgm_lower_sums16(int32_t *restrict rkey, const uint16_t *restrict s16,
+                                        Py_ssize_t n) {
+        __m256i idx = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), step = _mm256_set1_epi32(8);
+        for (Py_ssize_t i = 0; i < n; i += 8) {
+            __m256i k = _mm256_cvtepu16_epi32(_mm_loadu_si128((const __m128i *)(s16 + i)));
+            k = _mm256_or_si256(_mm256_slli_epi32(k, SGM_KEY_SHIFT), idx);
+            idx = _mm256_add_epi32(idx, step);
+            __m256i r = _mm256_loadu_si256((const __m256i *)(rkey + i));
+            _mm256_storeu_si256((__m256i *)(rkey + i), _mm256_min_epi32(r, k));
+        }
+    }
+    #else
+    #define SGM_HAVE_LANES16 0
+    #define SGM_NO_SUM 0xFFFF
+    #define SGM_NO_SUM_KEY ((int32_t)SGM_NO_SUM << SGM_KEY_SHIFT)
+    static inline uint16_t sgm_pixel_sums16(const uint16_t *sa, const uint16_t *sb,
+                                            const uint16_t *cost, uint16_t *s16,
+                                            uint16_t top, Py_ssize_t n, int32_t *bi,
+                                            int *ovf) { *ovf = 1; return SGM_NO_SUM; }
+    static inline uint16_t sgm_second16(const uint16_t *s16, int32_t bi, Py_ssize_t n) {
+        return SGM_NO_SUM; }
+    static inline void sgm_lower_sums16(int32_t *rkey, const uint16_t *s16, Py_ssize_t n) {}
+    static inline int sgm_winners16_row(const uint16_t *sa, const uint16_t *sb,
+                                        const uint16_t *c, const float *el,
+                                        const float *count, Py_ssize_t width, Py_ssize_t n,
+                                        Py_ssize_t dmin, int subpixel, float uniq,
+                                        float energy_min, uint16_t top, float scale,
+                                        uint16_t *s16, int32_t *best_i, float *disp,
+                                        float *mcost, uint8_t *reason, int r_valid,
+                                        int r_none, int r_texture, int r_uniq) { return 0; }
+    #endif
+    #ifdef __AVX2__
+    /* pixel_costs (sgm_loops.pxd) for n a multiple of 16 in AVX2 lanes, with inner
+       (wa = ws = 1: the products 1 x v are v, dropped) and tops below 60000 (so that
+       the truncated int32 costs pack into uint16 unchanged): the same float32
+       operations in the same order (no contraction); c > 0 ? c : 0 and c < c_max ? c :
+       c_max are exactly max_ps(c, 0) and min_ps(c, c_max) (gcc keeps a compare and a
+       mask for the first), and the packing takes one pack and one permute per 16. */
+    #define SGM_HAVE_COSTS16 1
+    static inline __m256 sgm_cost8(float *restrict hs, const float *restrict ci,
+                                   const float *restrict co, __m256 wa, __m256 ws,
+                                   int inner, __m256 e1, __m256 r1,
+                                   const float *restrict err, const float *restrict irr,
+                                   __m256 c_max, __m256 scale, __m256 *valid) {
+        __m256 x;
+        if (inner)
+            x = _mm256_sub_ps(_mm256_add_ps(_mm256_loadu_ps(hs), _mm256_loadu_ps(ci)),
+                              _mm256_loadu_ps(co));
+        else
+            x = _mm256_sub_ps(_mm256_add_ps(_mm256_loadu_ps(hs),
+                                            _mm256_mul_ps(wa, _mm256_loadu_ps(ci))),
+                              _mm256_mul_ps(ws, _mm256_loadu_ps(co)));
+        _mm256_storeu_ps(hs, x);
+        __m256 w = _mm256_mul_ps(r1, _mm256_loadu_ps(irr));
+        __m256 c = _mm256_mul_ps(_mm256_sub_ps(_mm256_add_ps(e1, _mm256_loadu_ps(err)),
+                                               _mm256_mul_ps(_mm256_set1_ps(2.0f), x)), w);
+        c = _mm256_min_ps(_mm256_max_ps(c, _mm256_setzero_ps()), c_max);
+        *valid = _mm256_cmp_ps(w, _mm256_setzero_ps(), _CMP_GT_OQ);
+        return _mm256_add_ps(_mm256_mul_ps(c, scale), _mm256_set1_ps(0.5f));
+    }
+    static inline void sgm_pixel_costs16(float *restrict hs, const float *restrict ci,
+                                         const float *restrict co, float wa, float ws,
+                                         int inner, float e1, float r1,
+                                         const float *restrict err,
+                                         const float *restrict irr, uint16_t top,
+                                         float scale, float c_max,
+                                         uint16_t *restrict out, Py_ssize_t n) {
+        __m256 vwa = _mm256_set1_ps(wa), vws = _mm256_set1_ps(ws), ve1 = _mm256_set1_ps(e1);
+        __m256 vr1 = _mm256_set1_ps(r1), vmax = _mm256_set1_ps(c_max);
+        __m256 vscale = _mm256_set1_ps(scale);
+        __m256i vtop = _mm256_set1_epi16((short)top);
+        for (Py_ssize_t i = 0; i < n; i += 16) {
+            __m256 va, vb;
+            __m256 qa = sgm_cost8(hs + i, ci + i, co + i, vwa, vws, inner, ve1, vr1, err + i,
+                                  irr + i, vmax, vscale, &va);
+            __m256 qb = sgm_cost8(hs + i + 8, ci + i + 8, co + i + 8, vwa, vws, inner, ve1,
+                                  vr1, err + i + 8, irr + i + 8, vmax, vscale, &vb);
+            __m256i q = _mm256_packus_epi32(_mm256_cvttps_epi32(qa), _mm256_cvttps_epi32(qb));
+            __m256i m = _mm256_packs_epi32(_mm256_castps_si256(va), _mm256_castps_si256(vb));
+            q = _mm256_permute4x64_epi64(_mm256_blendv_epi8(vtop, q, m), 0xD8);
+            _mm256_storeu_si256((__m256i *)(out + i), q);
+        }
+    }
+    /* A row's pixels (the x loop of sgm.pyx's _cost_row) over pixel_costs16, in C for
+       the same reason as sgm_sweep_row4: the pointers stay in registers. el_row: the
+       row's left window energies; err_row, irr_row: the right energies at the row's
+       first pixel's first disparity (pixel x: minus x). The same operations. */
+    static inline void sgm_cost_pixels16(float *restrict hs, const float *col,
+                                         const float *restrict el_row,
+                                         const float *err_row, const float *irr_row,
+                                         Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                         uint16_t top, float scale, float c_max,
+                                         uint16_t *out) {
+        for (Py_ssize_t x = 0; x < width; x++) {
+            Py_ssize_t xa = x + m, xs = x - m - 1;
+            float e1 = el_row[x];
+            float r1 = e1 > 0 ? 1.0f / sqrtf(e1) : 0.0f;
+            sgm_pixel_costs16(hs, col + ((xa < width ? xa : width - 1) + 1) * n,
+                              col + ((xs >= 0 ? xs : -1) + 1) * n, xa < width ? 1.0f : 0.0f,
+                              xs >= 0 ? 1.0f : 0.0f, xa < width && xs >= 0, e1, r1,
+                              err_row - x, irr_row - x, top, scale, c_max, out + x * n, n);
+        }
+    }
+    /* The column sums of a row slid one row down (the first loop of _cost_row,
+       column_slide over every column): col[x + 1] += a ra - b rs with a, b the left
+       pixels entering and leaving (a_row / s_row NULL: outside the image, 0), ra, rs
+       the mirrored right rows at column 0's first disparity (column x: minus x). */
+    static inline void sgm_slide_columns16(float *restrict col, const float *a_row,
+                                           const float *s_row, const float *ra_row,
+                                           const float *rs_row, Py_ssize_t width,
+                                           Py_ssize_t n) {
+        for (Py_ssize_t x = 0; x < width; x++) {
+            __m256 a = _mm256_set1_ps(a_row ? a_row[x] : 0.0f);
+            __m256 b = _mm256_set1_ps(s_row ? s_row[x] : 0.0f);
+            float *cx = col + (x + 1) * n;
+            const float *ra = ra_row - x, *rs = rs_row - x;
+            for (Py_ssize_t i = 0; i < n; i += 8)
+                _mm256_storeu_ps(cx + i, _mm256_add_ps(_mm256_loadu_ps(cx + i), _mm256_sub_ps(
+                    _mm256_mul_ps(a, _mm256_loadu_ps(ra + i)),
+                    _mm256_mul_ps(b, _mm256_loadu_ps(rs + i)))));
+        }
+    }
+    #else
+    #define SGM_HAVE_COSTS16 0
+    static inline void sgm_pixel_costs16(float *hs, const float *ci, const float *co,
+                                         float wa, float ws, int inner, float e1, float r1,
+                                         const float *err, const float *irr, uint16_t top,
+                                         float scale, float c_max, uint16_t *out,
+                                         Py_ssize_t n) {}
+    static inline void sgm_cost_pixels16(float *hs, const float *col, const float *el_row,
+                                         const float *err_row, const float *irr_row,
+                                         Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                         uint16_t top, float scale, float c_max,
+                                         uint16_t *out) {}
+    static inline void sgm_slide_columns16(float *col, const float *a_row, const float *s_row,
+                                           const float *ra_row, const float *rs_row,
+                                           Py_ssize_t width, Py_ssize_t n) {}
+    #endif
     /* The smallest key outside indices lo..hi. */
     static inline int32_t sgm_second_key(const int32_t *restrict keys, int32_t lo,
                                          int32_t hi, Py_ssize_t n) {
@@ -168,6 +500,56 @@ cdef extern from *:
                                        int16_t *bc, int32_t bm, int32_t p1, int32_t p2a,
                                        int32_t p2b, bint acc, Py_ssize_t n,
                                        int32_t *bmin) noexcept nogil
+    const bint HAVE_LANES16 "SGM_HAVE_LANES16"
+    const uint16_t NO_SUM "SGM_NO_SUM"
+    const int32_t NO_SUM_KEY "SGM_NO_SUM_KEY"
+    uint16_t pixel_sums16 "sgm_pixel_sums16" (const uint16_t *sa, const uint16_t *sb,
+                                              const uint16_t *cost, uint16_t *s16,
+                                              uint16_t top, Py_ssize_t n, int32_t *bi,
+                                              int *ovf) noexcept nogil
+    uint16_t second16 "sgm_second16" (const uint16_t *s16, int32_t bi,
+                                      Py_ssize_t n) noexcept nogil
+    void lower_sums16 "sgm_lower_sums16" (int32_t *rkey, const uint16_t *s16,
+                                          Py_ssize_t n) noexcept nogil
+    const bint HAVE_COSTS16 "SGM_HAVE_COSTS16"
+    void pixel_costs16 "sgm_pixel_costs16" (float *hs, const float *ci, const float *co,
+                                            float wa, float ws, bint inner, float e1,
+                                            float r1, const float *err, const float *irr,
+                                            uint16_t top, float scale, float c_max,
+                                            uint16_t *out, Py_ssize_t n) noexcept nogil
+    const bint HAVE_ROW4 "SGM_HAVE_ROW4"
+    void sweep_row4 "sgm_sweep_row4" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *zero) noexcept nogil
+    void cost_pixels16 "sgm_cost_pixels16" (float *hs, const float *col, const float *el_row,
+                                            const float *err_row, const float *irr_row,
+                                            Py_ssize_t width, Py_ssize_t n, Py_ssize_t m,
+                                            uint16_t top, float scale, float c_max,
+                                            uint16_t *out) noexcept nogil
+    void slide_columns16 "sgm_slide_columns16" (float *col, const float *a_row,
+                                                const float *s_row, const float *ra_row,
+                                                const float *rs_row, Py_ssize_t width,
+                                                Py_ssize_t n) noexcept nogil
+    bint winners16_row "sgm_winners16_row" (const uint16_t *sa, const uint16_t *sb,
+                                            const uint16_t *c, const float *el,
+                                            const float *count, Py_ssize_t width,
+                                            Py_ssize_t n, Py_ssize_t dmin, bint subpixel,
+                                            float uniq, float energy_min, uint16_t top,
+                                            float scale, uint16_t *s16, int32_t *best_i,
+                                            float *disp, float *mcost, uint8_t *reason,
+                                            int r_valid, int r_none, int r_texture,
+                                            int r_uniq) noexcept nogil
+    void sweep_row8 "sgm_sweep_row8" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
+                                      Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
+                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int16_t *pv_dst, const int32_t *mv_src,
+                                      int32_t *mv_dst, const int16_t *pd_src,
+                                      int16_t *pd_dst, const int32_t *md_src,
+                                      int32_t *md_dst, const int16_t *pe_src,
+                                      int16_t *pe_dst, const int32_t *me_src,
+                                      int32_t *me_dst, const int16_t *zero) noexcept nogil
     int32_t second_key "sgm_second_key" (const int32_t *keys, int32_t lo, int32_t hi,
                                          Py_ssize_t n) noexcept nogil
 
