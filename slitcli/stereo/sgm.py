@@ -28,8 +28,10 @@ same disparities bit for bit.
 
 from __future__ import annotations
 
+import math
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -118,9 +120,19 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
 
 
 def _bracket(x: FilterInputs) -> None:
-    from slitcli.stereo import _bracket
+    from slitcli.stereo import _bracket, _kernel
 
     p = x.params
+    if p.speckle_window_px > 0:
+        # small isolated regions are removed by the speckle filter after this step; as
+        # brackets they would fill the pixels around them with their (wrong) disparity,
+        # and the filled region could then outgrow the speckle window: remove them first
+        d, r = x.disparity_px.copy(), x.invalid_reason.copy()
+        _kernel.speckle_finish(d, r, int(p.speckle_window_px),
+                               max(1, math.ceil(p.speckle_range_px * 16.0)),
+                               int(Reason.SPECKLE))
+        x.invalid_reason[(r == Reason.SPECKLE) & (x.invalid_reason == Reason.VALID)] = \
+            Reason.SPECKLE
     keep = np.zeros(x.disparity_px.shape, np.bool_)
     weak = np.zeros(256, np.bool_)
     weak[[int(Reason.SUPPORT), int(Reason.UNIQUENESS)]] = True
@@ -150,7 +162,7 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
 
 def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np.ndarray,
                  tests: tuple, outputs: tuple, pool: ThreadPoolExecutor | None = None,
-                 threads: int = 1) -> None:
+                 threads: int = 1) -> np.ndarray:
     """Cost, SGM and the winner step in two fused passes over the rows
     (slitcli/stereo/_c/sgm.pyx): the costs of each row and the top-down sweep over
     them while they are in cache; then the bottom-up sweep with each row's winner step,
@@ -187,7 +199,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     if one_thread:
         _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
         _k.second_sweep_winners(cost, s_a, *bargs)
-        return
+        return cost
     # the split row balances the phases: this thread's top rows carry costs and the
     # sweep, the other's bottom rows costs only; in phase 3 the other thread sweeps and
     # picks the top rows' winners. Per-thread CPU time, summed over the phases' larger
@@ -213,6 +225,42 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     _k.winners_rows(s_a, s_b, cost, c["el"], c["count"], *tests, half, h,
                                   *outputs)
     job.result()
+    return cost
+
+
+def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) -> None:
+    """Subpixel offsets from the Eq. 10 costs where the winner is their local minimum.
+
+    The winner step fits its parabola to the aggregated sums; with path penalties
+    comparable to the cost's own curvature (``sgm_p1`` is added to the sums of d -+ 1
+    wherever a path arrives at d) that parabola is too sharp and pulls the estimate
+    towards the whole pixel. Where the winner ``bi`` is a local minimum of the pixel's
+    own (quantised) Eq. 10 costs, the parabola through ``C(bi - 1), C(bi), C(bi + 1)``
+    (the local matcher's, paper Eq. 10 locally quadratic in the shift) replaces it;
+    elsewhere (weak texture: the aggregation, not the pixel's own window, chose the
+    disparity) the sums' offset stays.
+
+    Parameters
+    ----------
+    disp : ndarray, float32, shape (H, W)
+        Winners with the sums' offsets (px, NaN: none); updated in place.
+    cost : ndarray, uint16, shape (H, W, D)
+        Quantised Eq. 10 costs of disparities ``dmin .. dmin + D - 1``.
+    dmin : int
+        Smallest disparity searched, px.
+    """
+    num = cost.shape[2]
+    ok = np.isfinite(disp)
+    # the sums' offset lies in [-0.5, 0.5]: the nearest whole disparity is the winner
+    bi = np.where(ok, np.floor(disp - dmin + np.float32(0.5)), 0).astype(np.intp)
+    bi = np.clip(bi, 1, num - 2)
+    c = np.take_along_axis(cost, (bi[..., None] + np.arange(-1, 2)), axis=2).astype(np.float32)
+    cm, c0, cp = c[..., 0], c[..., 1], c[..., 2]
+    den = cm - np.float32(2.0) * c0 + cp
+    use = ok & (disp - dmin >= 0.5) & (disp - dmin <= num - 1.5) & (cm >= c0) & (cp >= c0) \
+        & (den > 0) & (den >= den_min)
+    delta = np.float32(0.5) * (cm - cp) / np.where(use, den, np.float32(1.0))
+    disp[use] = (bi + dmin).astype(np.float32)[use] + delta[use]
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -233,6 +281,10 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     """
     from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
 
+    if params.sgm_window_px > 0:
+        # SGM's own window for the cost and for the filters that read the window size
+        params = replace(params, window_w_px=params.sgm_window_px,
+                         window_h_px=params.sgm_window_px)
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     mcost = np.empty((h, w), np.float32)
@@ -250,8 +302,12 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
                  float(params.lr_max_diff_px), params.subpixel == "parabola",
                  np.float32(energy_min), top, np.float32(COST_SCALE))
         grey = np.ascontiguousarray(left_grey)
-        _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
-                     threads)
+        cost = _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
+                            threads)
+        if params.subpixel == "parabola" and params.sgm_subpixel == "cost":
+            raw_subpixel(disp, cost, int(params.min_disparity_px),
+                         params.sgm_p1 * COST_SCALE)
+        del cost
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
                                            rdisp, pool, threads), SGM_FILTERS)
     return DisparityResult(disp, reason, mcost)
