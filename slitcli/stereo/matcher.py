@@ -130,7 +130,7 @@ class MatcherParams:
     sgm_p1: float = 0.3
     sgm_p2: float = 2.0
     sgm_p2_edge_dn: float = 0.0
-    sgm_window_px: int = 5
+    sgm_window_px: int = 7
     sgm_subpixel: str = "cost"
     sgm_bracket_px: int = 32
     sgm_bracket_tol_px: float = 1.0

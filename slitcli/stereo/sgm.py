@@ -119,28 +119,54 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
     return s_a, s_b
 
 
-def _bracket(x: FilterInputs) -> None:
-    from slitcli.stereo import _bracket, _kernel
+def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ...]
+                  ) -> np.ndarray:
+    """(H, W) bool: pixels of a code in ``weak_codes`` bracketed by ``reason == VALID``
+    pixels (slitcli.stereo._bracket, reach/tol/span from ``sgm_bracket_*``)."""
+    from slitcli.stereo import _bracket
 
     p = x.params
-    if p.speckle_window_px > 0:
-        # small isolated regions are removed by the speckle filter after this step; as
-        # brackets they would fill the pixels around them with their (wrong) disparity,
-        # and the filled region could then outgrow the speckle window: remove them first
-        d, r = x.disparity_px.copy(), x.invalid_reason.copy()
-        _kernel.speckle_finish(d, r, int(p.speckle_window_px),
-                               max(1, math.ceil(p.speckle_range_px * 16.0)),
-                               int(Reason.SPECKLE))
-        x.invalid_reason[(r == Reason.SPECKLE) & (x.invalid_reason == Reason.VALID)] = \
-            Reason.SPECKLE
     keep = np.zeros(x.disparity_px.shape, np.bool_)
     weak = np.zeros(256, np.bool_)
-    weak[[int(Reason.SUPPORT), int(Reason.UNIQUENESS)]] = True
-    _bracket.bracket_rows(x.disparity_px, x.invalid_reason, int(Reason.VALID),
-                          weak, int(p.sgm_bracket_px),
-                          np.float32(p.sgm_bracket_tol_px), np.float32(p.sgm_bracket_span_px),
-                          keep)
+    weak[list(weak_codes)] = True
+    _bracket.bracket_rows(x.disparity_px, reason, int(Reason.VALID), weak,
+                          int(p.sgm_bracket_px), np.float32(p.sgm_bracket_tol_px),
+                          np.float32(p.sgm_bracket_span_px), keep)
+    return keep
+
+
+def _small_regions(x: FilterInputs) -> np.ndarray:
+    """(H, W) bool: valid pixels that the speckle filter would remove now (regions of
+    at most ``speckle_window_px`` pixels within ``speckle_range_px``)."""
+    from slitcli.stereo import _kernel
+
+    p = x.params
+    d, r = x.disparity_px.copy(), x.invalid_reason.copy()
+    _kernel.speckle_finish(d, r, int(p.speckle_window_px),
+                           max(1, math.ceil(p.speckle_range_px * 16.0)), int(Reason.SPECKLE))
+    return (r == Reason.SPECKLE) & (x.invalid_reason == Reason.VALID)
+
+
+def _bracket(x: FilterInputs) -> None:
+    """The bracket test, then the same test for small isolated regions.
+
+    Pass 1: support and uniqueness rejections bracketed by valid pixels are valid
+    again. Their fills connect neighbouring small regions (on a weakly textured floor
+    the valid pixels are islands of a few pixels, and correct), so the speckle filter
+    after this step keeps what it would have removed: also an isolated wrong match in
+    a plain region, whose fill neighbours lie within ``speckle_range_px`` of it.
+    Pass 2: a region the speckle filter would have removed before pass 1 is evidence
+    of one small patch only; its pixels stay valid where the other valid pixels
+    (fills included) bracket them, as for pass 1's candidates."""
+    small = _small_regions(x) if x.params.speckle_window_px > 0 else None
+    keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)))
     x.invalid_reason[keep] = Reason.VALID
+    if small is None or not small.any():
+        return
+    reason = x.invalid_reason.copy()
+    reason[small] = Reason.SPECKLE
+    keep = _bracket_pass(x, reason, (int(Reason.SPECKLE),))
+    x.invalid_reason[small & ~keep] = Reason.SPECKLE
 
 
 #: The filters after the SGM winner step: the local matcher's chain with the bracket
@@ -151,11 +177,13 @@ def _bracket(x: FilterInputs) -> None:
 #: are mostly occlusions the right camera cannot see.
 SGM_FILTERS: tuple[DisparityFilter, ...] = (
     *DISPARITY_FILTERS[:-1],
-    DisparityFilter("sgm_bracket", (),
+    DisparityFilter("sgm_bracket", (Reason.SPECKLE,),
                     "pixels rejected by the support or the uniqueness test whose disparity "
                     "lies between those of valid pixels on both sides (row or column, "
                     "within sgm_bracket_px) that agree within sgm_bracket_span_px are "
-                    "valid again", lambda p: p.sgm_bracket_px > 0, _bracket),
+                    "valid again; then regions the speckle filter would have removed "
+                    "before (speckle_window_px) stay valid only where so bracketed",
+                    lambda p: p.sgm_bracket_px > 0, _bracket),
     DISPARITY_FILTERS[-1],
 )
 
@@ -257,8 +285,11 @@ def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) 
     c = np.take_along_axis(cost, (bi[..., None] + np.arange(-1, 2)), axis=2).astype(np.float32)
     cm, c0, cp = c[..., 0], c[..., 1], c[..., 2]
     den = cm - np.float32(2.0) * c0 + cp
+    # both neighbours must have a partner (a cost below the clip, which also marks
+    # candidates outside the right image: column x matches at most d = x)
+    top = np.float32(round(COST_MAX * COST_SCALE))
     use = ok & (disp - dmin >= 0.5) & (disp - dmin <= num - 1.5) & (cm >= c0) & (cp >= c0) \
-        & (den > 0) & (den >= den_min)
+        & (cm < top) & (cp < top) & (den > 0) & (den >= den_min)
     delta = np.float32(0.5) * (cm - cp) / np.where(use, den, np.float32(1.0))
     disp[use] = (bi + dmin).astype(np.float32)[use] + delta[use]
 
