@@ -24,6 +24,41 @@ def _curve(num: int, d0: float, k: float = 40.0, base: float = 30.0) -> np.ndarr
     return np.rint(base + k * (d - d0) ** 2).clip(0, TOP - 1).astype(np.uint16)
 
 
+def reference_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float
+                       ) -> np.ndarray:
+    """Array version of raw_subpixel's rule (float32 throughout, same order)."""
+    out = disp.copy()
+    num = cost.shape[2]
+    flat = out.reshape(-1)
+    pix = np.flatnonzero(np.isfinite(flat))
+    rel = flat[pix] - np.float32(dmin)
+    inside = (rel >= 0.5) & (rel <= num - 1.5)
+    pix, rel = pix[inside], rel[inside]
+    bi = np.floor(rel + np.float32(0.5)).astype(np.intp)
+    at = pix * num + bi
+    volume = cost.reshape(-1)
+    cm, c0, cp = (volume[at + k].astype(np.float32) for k in (-1, 0, 1))
+    den = cm - np.float32(2.0) * c0 + cp
+    use = (cm >= c0) & (cp >= c0) & (cm < TOP) & (cp < TOP) & (den > 0) & (den >= den_min)
+    flat[pix[use]] = ((bi[use] + dmin).astype(np.float32)
+                      + np.float32(0.5) * (cm[use] - cp[use]) / den[use])
+    return out
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("dmin", [0, -4])
+def test_raw_subpixel_equals_the_array_rule(seed, dmin):
+    rng = np.random.default_rng(seed)
+    h, w, num = 17, 23, 13
+    cost = rng.integers(0, TOP + 1, (h, w, num)).astype(np.uint16)
+    disp = (dmin + rng.uniform(-0.5, num - 0.5, (h, w))).astype(np.float32)
+    disp[rng.random((h, w)) < 0.1] = np.nan
+    disp[0, :3] = [dmin, dmin + num - 1, dmin + 0.5]
+    want = reference_subpixel(disp, cost, dmin, 40.0)
+    raw_subpixel(disp, cost, dmin, 40.0)
+    np.testing.assert_array_equal(disp, want)
+
+
 def test_raw_subpixel_on_hand_built_costs():
     # pixel 0: a parabola with its minimum at 5.3 px: the parabola through the whole
     # costs at 4, 5, 6 gives back 5.3 (the costs are whole numbers: (k 1.69 - k 0.49)

@@ -270,28 +270,22 @@ def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) 
 
     Parameters
     ----------
-    disp : ndarray, float32, shape (H, W)
-        Winners with the sums' offsets (px, NaN: none); updated in place.
+    disp : ndarray, float32, shape (H, W), C order
+        Winners with the sums' offsets (px, NaN: none); updated in place (compiled:
+        slitcli/stereo/_c/subpixel.pyx).
     cost : ndarray, uint16, shape (H, W, D)
         Quantised Eq. 10 costs of disparities ``dmin .. dmin + D - 1``.
     dmin : int
         Smallest disparity searched, px.
+    den_min : float
+        Least curvature ``C(bi - 1) - 2 C(bi) + C(bi + 1)`` (quantised cost units) for
+        the costs' parabola; ``sgm_p1`` (quantised) in match_sgm: where the pixel's own
+        curvature is below the penalty a 1 px step costs, its costs do not locate the
+        minimum better than the paths do.
     """
-    num = cost.shape[2]
-    ok = np.isfinite(disp)
-    # the sums' offset lies in [-0.5, 0.5]: the nearest whole disparity is the winner
-    bi = np.where(ok, np.floor(disp - dmin + np.float32(0.5)), 0).astype(np.intp)
-    bi = np.clip(bi, 1, num - 2)
-    c = np.take_along_axis(cost, (bi[..., None] + np.arange(-1, 2)), axis=2).astype(np.float32)
-    cm, c0, cp = c[..., 0], c[..., 1], c[..., 2]
-    den = cm - np.float32(2.0) * c0 + cp
-    # both neighbours must have a partner (a cost below the clip, which also marks
-    # candidates outside the right image: column x matches at most d = x)
-    top = np.float32(round(COST_MAX * COST_SCALE))
-    use = ok & (disp - dmin >= 0.5) & (disp - dmin <= num - 1.5) & (cm >= c0) & (cp >= c0) \
-        & (cm < top) & (cp < top) & (den > 0) & (den >= den_min)
-    delta = np.float32(0.5) * (cm - cp) / np.where(use, den, np.float32(1.0))
-    disp[use] = (bi + dmin).astype(np.float32)[use] + delta[use]
+    from slitcli.stereo._c.subpixel import cost_subpixel
+
+    cost_subpixel(disp, cost, int(dmin), float(den_min), float(round(COST_MAX * COST_SCALE)))
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
