@@ -11,12 +11,16 @@ one pixel of disparity every seven rows for the paper rig) is followed row by ro
 a larger jump costs ``sgm_p2`` and happens at depth edges only.
 
 The Eq. 10 cost is that of the local matcher on the same prefiltered images (window
-sums with zeros outside the image), quantised to 1/256; the winner then passes the
-same tests (window texture energy, uniqueness and left-right consistency on the
-aggregated costs, the subpixel parabola) and the local matcher's post-filter chain
-with one more step, the bracket test (:data:`SGM_FILTERS`, slitcli.stereo._bracket):
-a pixel whose own neighbourhood does not carry the match is kept where valid pixels
-on both sides of it agree with each other and with it.
+sums with zeros outside the image; SGM's own ``sgm_window_px`` window, 7 x 7: a
+smaller window carries a foreground's disparity less far past its edge), quantised to
+1/256; the winner then passes the same tests (window texture energy, uniqueness and
+left-right consistency on the aggregated costs, the subpixel parabola) and the local
+matcher's post-filter chain with one more step, the bracket test (:data:`SGM_FILTERS`,
+slitcli.stereo._bracket): a pixel whose own neighbourhood does not carry the match is
+kept where valid pixels on both sides of it agree with each other and with it, and so
+is a small isolated region. Last, :func:`raw_subpixel` refits the subpixel offsets to
+the pixels' own Eq. 10 costs (the sums' parabola is pulled to the whole pixel by the
+path penalties).
 
 Cost: two fused passes (compiled kernels, slitcli/stereo/_c/sgm.pyx): the costs of each
 row with the top-down sweep over them, then the bottom-up sweep with each row's winner
@@ -297,7 +301,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     left_grey, right_grey : ndarray, uint8, shape (H, W)
         Rectified grey images (right camera at +baseline along x).
     params : MatcherParams
-        ``aggregation = "sgm"``; ``sgm_p1``, ``sgm_p2``, ``sgm_paths``.
+        ``aggregation = "sgm"``; ``sgm_window_px``, ``sgm_p1``, ``sgm_p2``,
+        ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``.
 
     Returns
     -------
