@@ -127,9 +127,9 @@ class MatcherParams:
     speckle_range_px: float = 2.0
     aggregation: str = "none"
     sgm_paths: int = 4
-    sgm_p1: float = 0.3
-    sgm_p2: float = 2.0
-    sgm_p2_edge_dn: float = 0.0
+    sgm_p1: float = 0.4
+    sgm_p2: float = 3.0
+    sgm_p2_edge_dn: float = 16.0
     sgm_window_px: int = 7
     sgm_subpixel: str = "cost"
     sgm_bracket_px: int = 32
