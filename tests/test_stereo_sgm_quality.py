@@ -180,3 +180,29 @@ def test_sgm_window_wider_than_the_image_refused():
     with pytest.raises(SlitcliError, match="sgm_window_px"):
         compute_disparity(a, a, MatcherParams(aggregation="sgm", num_disparities=2,
                                               sgm_window_px=9))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_cost_subpixel_changes_no_validity_and_spares_fills(seed):
+    # the refit runs after the filters (they see the sums' offsets either way), so the
+    # valid pixels are the same with either sgm_subpixel; and it runs only on pixels
+    # valid before the bracket: a filled pixel of the plain strip (flat costs of its
+    # own) keeps the sums' offset, bit for bit
+    left, right = plane_pair(9.4, noise_dn=1.0, plain_cols=(150, 174), seed=seed)
+    res = {mode: compute_disparity(left, right, MatcherParams(aggregation="sgm",
+                                                              sgm_subpixel=mode))
+           for mode in ("cost", "sums")}
+    valid = {m: r.valid for m, r in res.items()}
+    np.testing.assert_array_equal(valid["cost"], valid["sums"])
+    # valid before the bracket: the same chain without the bracket and the speckle filter
+    unfilled = compute_disparity(left, right, MatcherParams(
+        aggregation="sgm", sgm_bracket_px=0, speckle_window_px=0)).valid
+    filled = valid["cost"] & ~unfilled
+    filled[:, :150] = False
+    filled[:, 174:] = False
+    assert filled.sum() >= 100
+    np.testing.assert_array_equal(res["cost"].disparity_px[filled],
+                                  res["sums"].disparity_px[filled])
+    # elsewhere the refit does change offsets (the test could fail)
+    kept = unfilled & valid["cost"]
+    assert (res["cost"].disparity_px[kept] != res["sums"].disparity_px[kept]).mean() > 0.5

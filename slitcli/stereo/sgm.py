@@ -334,15 +334,24 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         grey = np.ascontiguousarray(left_grey)
         cost = _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
                             threads)
-        run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
-                                           rdisp, pool, threads), SGM_FILTERS)
+        inputs = FilterInputs(left_grey, right_grey, pl, params, disp, reason, rdisp, pool,
+                              threads)
+        split = [f.name for f in SGM_FILTERS].index("sgm_bracket")
+        run_disparity_filters(inputs, SGM_FILTERS[:split])
+        # pixels whose own neighbourhood carries the match (before the bracket's fills)
+        own = reason == Reason.VALID
+        run_disparity_filters(inputs, SGM_FILTERS[split:])
         if params.subpixel == "parabola" and params.sgm_subpixel == "cost":
             # after the filters: they compare a pixel's disparity with its neighbours'
             # (support warp, bracket, speckle), where the sums' offsets, smoothed along
             # the paths, serve better than each pixel's own (measured: weakly textured
-            # road bad2-all 0.220 against 0.230 with the costs' offsets in the filters)
-            raw_subpixel(disp, cost, int(params.min_disparity_px),
+            # road bad2-all 0.220 against 0.230 with the costs' offsets in the filters);
+            # and only where the pixel's own costs carry the match: not on the
+            # bracket's fills, whose costs are flat (rendered wrong plain pixels 4125 -> 4000)
+            own_disp = np.where(own, disp, np.float32(np.nan))
+            raw_subpixel(own_disp, cost, int(params.min_disparity_px),
                          params.sgm_p1 * COST_SCALE)
+            disp[own] = own_disp[own]
         del cost
     return DisparityResult(disp, reason, mcost)
 
