@@ -74,8 +74,10 @@ def test_fused_passes_equal_the_scalar_stages(seed, kw):
                    c["num"], c["m"], c["n"], COST_MAX, COST_SCALE, 0, 40, cost)
     p1, p2 = round(p.sgm_p1 * COST_SCALE), round(p.sgm_p2 * COST_SCALE)
     s_a, s_b = np.empty_like(cost), np.empty_like(cost)
-    _sgm.aggregate_pass(cost, p1, p2, p.sgm_paths == 8, False, s_a, left, 0.0)
-    _sgm.aggregate_pass(cost, p1, p2, p.sgm_paths == 8, True, s_b, left, 0.0)
+    _sgm.aggregate_pass(cost, p1, p2, p.sgm_paths == 8, False, s_a, left,
+                        float(p.sgm_p2_edge_dn))
+    _sgm.aggregate_pass(cost, p1, p2, p.sgm_paths == 8, True, s_b, left,
+                        float(p.sgm_p2_edge_dn))
     tests = (int(p.min_disparity_px), np.float32(p.uniqueness_ratio), float(p.lr_max_diff_px),
              p.subpixel == "parabola", np.float32((p.texture_min_dn * 4.0) ** 2),
              np.uint16(round(COST_MAX * COST_SCALE)), np.float32(COST_SCALE))

@@ -83,6 +83,7 @@ MATCHERS = ("nssd", "bm", "sgbm")
 AGGREGATIONS = ("none", "sgm")
 PREFILTERS = ("none", "mean", "xsobel", "log")
 SUBPIXEL = ("parabola", "none")
+SGM_SUBPIXEL = ("cost", "sums")
 
 
 
@@ -126,9 +127,11 @@ class MatcherParams:
     speckle_range_px: float = 2.0
     aggregation: str = "none"
     sgm_paths: int = 4
-    sgm_p1: float = 0.05
-    sgm_p2: float = 0.4
-    sgm_p2_edge_dn: float = 0.0
+    sgm_p1: float = 0.4
+    sgm_p2: float = 3.0
+    sgm_p2_edge_dn: float = 16.0
+    sgm_window_px: int = 7
+    sgm_subpixel: str = "cost"
     sgm_bracket_px: int = 32
     sgm_bracket_tol_px: float = 1.0
     sgm_bracket_span_px: float = 1.0
@@ -182,6 +185,14 @@ def _check_sgm(p: MatcherParams) -> None:
     if p.sgm_bracket_px < 0 or p.sgm_bracket_tol_px < 0:
         raise SlitcliError(f"sgm_bracket_px {p.sgm_bracket_px} and sgm_bracket_tol_px "
                            f"{p.sgm_bracket_tol_px} must be >= 0 (0 px reach = off)")
+    if not isinstance(p.sgm_window_px, int | np.integer) or p.sgm_window_px < 0 or \
+            (p.sgm_window_px > 0 and p.sgm_window_px % 2 == 0):
+        raise SlitcliError(f"sgm_window_px {p.sgm_window_px} must be 0 (the window_w_px x "
+                           "window_h_px window) or an odd number of pixels, e.g. 5",
+                           param="sgm_window_px")
+    if p.sgm_subpixel not in SGM_SUBPIXEL:
+        raise SlitcliError(f"sgm_subpixel {p.sgm_subpixel!r} is unknown; use one of "
+                           f"{', '.join(SGM_SUBPIXEL)}", param="sgm_subpixel")
     if not 0 <= p.sgm_p2_edge_dn <= 255:
         raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
                            "(0 = a constant sgm_p2)")
@@ -258,6 +269,10 @@ def _check_opencv(p: MatcherParams) -> None:
 
 def _check_image(p: MatcherParams, image_width_px: int) -> None:
     """A window and disparity range that an image ``image_width_px`` wide holds."""
+    if p.aggregation == "sgm" and p.sgm_window_px > image_width_px:
+        raise SlitcliError(f"sgm_window_px {p.sgm_window_px} is wider than the image "
+                           f"({image_width_px} px); use a smaller odd window",
+                           param="sgm_window_px")
     if p.window_w_px > image_width_px:
         raise SlitcliError(f"`window_w_px` {p.window_w_px} is wider than the image "
                            f"({image_width_px} px); use a smaller odd window",
