@@ -19,12 +19,31 @@ SEEDS = [0, 1, 2, 3, 4]
 
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("eight", [True, False])
-@pytest.mark.parametrize("edge_dn", [0.0, 8.0])
+@pytest.mark.parametrize("edge_dn", [0.0, 8.0, 16.0])
 @pytest.mark.parametrize("num", [32, 21])
 def test_paths_equal_the_recurrence(seed, eight, edge_dn, num):
     rng = np.random.default_rng(seed)
     cost = rng.integers(0, 513, (6, 9, num)).astype(np.uint16)
     grey = rng.integers(0, 256, (6, 9)).astype(np.uint8)
+    ref_a, ref_b = reference_paths(cost, 13, 102, eight, grey, edge_dn)
+    for reverse, ref in ((False, ref_a), (True, ref_b)):
+        out = np.empty_like(cost)
+        _sgm.aggregate_pass(cost, 13, 102, eight, reverse, out, grey, edge_dn)
+        np.testing.assert_array_equal(out, ref)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("eight", [True, False])
+@pytest.mark.parametrize("edge_dn", [16.0, 255.0])
+@pytest.mark.parametrize("num", [48, 21])
+def test_edge_adapted_p2_over_the_whole_grey_range(seed, eight, edge_dn, num):
+    """Grey steps of either sign up to 255 DN (black next to white, in every direction
+    of the 8 paths) and none: the adapted P2 of each step, in the 16-lane row loops
+    (48 disparities) and in the general ones (21), is the recurrence's."""
+    rng = np.random.default_rng(seed)
+    cost = rng.integers(0, 513, (7, 10, num)).astype(np.uint16)
+    grey = rng.choice(np.array([0, 255, 254, 1, 128], np.uint8), (7, 10))
+    grey[rng.random((7, 10)) < 0.3] = rng.integers(0, 256, 1, dtype=np.uint8)
     ref_a, ref_b = reference_paths(cost, 13, 102, eight, grey, edge_dn)
     for reverse, ref in ((False, ref_a), (True, ref_b)):
         out = np.empty_like(cost)

@@ -25,7 +25,8 @@
 Every kernel releases the GIL (slitcli.stereo.sgm calls them from row-band threads)
 and works for any disparity count D >= 2; the per-pixel loops (sgm_loops.pxd) are
 vectorised by the compiler, and with AVX2 and D a multiple of 16 whole rows run in
-explicit 16-lane C functions (sgm_loops.pxd). The results do not depend on D's
+explicit 16-lane C functions (sgm_loops.pxd), with a constant P2 or one adapted to
+each step's grey levels (a scalar per pixel and path, from a table of the 256 steps). The results do not depend on D's
 divisibility, on the processor, on the bands or on the fusion: the same integer and
 float operations in the same order.
 """
@@ -275,13 +276,36 @@ cdef inline int32_t _p2(int32_t p1, int32_t p2, float g, uint8_t a,
     return q if q > p1 + 1 else p1 + 1
 
 
+cdef const int32_t *_p2_steps(int32_t p1, int32_t p2, float g,
+                              int32_t *table) noexcept nogil:
+    """P2 of every grey step ``a - b`` (-255..255) into ``table`` (511 entries): the
+    returned pointer to its middle gives ``_p2(p1, p2, g, a, b)`` at ``[a - b]`` (the
+    float32 ``a - b`` of two uint8 levels is exact, so ``_p2`` depends on ``|a - b|``
+    alone and the table gives its very bits); NULL for ``g`` <= 0 (a constant P2). One
+    division per level instead of one per pixel and path, and signed steps: no branch
+    on the sign (with one, random grey levels cost a mispredicted jump per step)."""
+    cdef int32_t k
+    if g <= 0:
+        return NULL
+    for k in range(256):
+        table[255 + k] = _p2(p1, p2, g, <uint8_t>k, 0)
+        table[255 - k] = table[255 + k]
+    return table + 255
+
+
+cdef inline int32_t _step_p2(const int32_t *p2_step, uint8_t a, uint8_t b) noexcept nogil:
+    return p2_step[<int32_t>a - <int32_t>b]
+
+
 cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
                     Py_ssize_t width, Py_ssize_t num, Py_ssize_t y, Py_ssize_t yy,
-                    Py_ssize_t ys, bint reverse, int32_t p1, int32_t p2, float g, bint eight,
-                    int16_t *paths, int32_t *mins) noexcept nogil:
+                    Py_ssize_t ys, bint reverse, int32_t p1, int32_t p2,
+                    const int32_t *p2_step, bint eight, int16_t *paths,
+                    int32_t *mins) noexcept nogil:
     """One row of a sweep (the ``y``-th row visited: image row ``yy``, its vertical
     paths coming from row ``ys``): path rows carried in ``paths`` and their minima in
-    ``mins`` (:func:`sweep_state`); the row's path sum into ``o_row`` (W x D)."""
+    ``mins`` (:func:`sweep_state`); the row's path sum into ``o_row`` (W x D).
+    ``p2_step``: P2 of each grey step (:func:`_p2_steps`), NULL for a constant P2."""
     cdef Py_ssize_t stride = num + 2, x, xx, xs, src = y & 1, dst = 1 - (y & 1), hs
     cdef int16_t *pv = paths
     cdef int16_t *pd = paths + 2 * width * stride
@@ -296,18 +320,20 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
     cdef const int16_t *prev_b
     cdef int16_t *o
     cdef int32_t hmin = 0, ma, mb, p2a, p2b
-    cdef bint adapt = g > 0, first, last
+    cdef bint adapt = p2_step != NULL, first, last
     cdef const uint8_t *row = grey + yy * width
     cdef const uint8_t *above = grey + ys * width
-    if HAVE_ROW4 and not adapt and num % 16 == 0:
+    if HAVE_ROW4 and num % 16 == 0:
         if eight:
-            sweep_row8(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+            sweep_row8(c_row, o_row, width, num, reverse, y == 0, p1, p2, p2_step, row,
+                       above, ph,
                        pv + src * width * stride, pv + dst * width * stride, mv + src * width,
                        mv + dst * width, pd + src * width * stride, pd + dst * width * stride,
                        md + src * width, md + dst * width, pe + src * width * stride,
                        pe + dst * width * stride, me + src * width, me + dst * width, zero)
         else:
-            sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, ph,
+            sweep_row4(c_row, o_row, width, num, reverse, y == 0, p1, p2, p2_step, row,
+                       above, ph,
                        pv + src * width * stride, pv + dst * width * stride, mv + src * width,
                        mv + dst * width, zero)
         return
@@ -324,9 +350,9 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
         p2b = p2
         if adapt:
             if x > 0:
-                p2a = _p2(p1, p2, g, row[xx], row[xs])
+                p2a = _step_p2(p2_step, row[xx], row[xs])
             if y > 0:
-                p2b = _p2(p1, p2, g, row[xx], above[xx])
+                p2b = _step_p2(p2_step, row[xx], above[xx])
         hmin = path_pair(c, o, prev_a, ph + (1 - hs) * stride, hmin, prev_b,
                          pv + (dst * width + x) * stride, ma, p1, p2a, p2b, False, num,
                          &mv[dst * width + x])
@@ -341,9 +367,9 @@ cdef void sweep_row(const int16_t *c_row, int16_t *o_row, const uint8_t *grey,
             p2b = p2
             if adapt:
                 if not first:
-                    p2a = _p2(p1, p2, g, row[xx], above[xs])
+                    p2a = _step_p2(p2_step, row[xx], above[xs])
                 if not last:
-                    p2b = _p2(p1, p2, g, row[xx], above[2 * xx - xs])
+                    p2b = _step_p2(p2_step, row[xx], above[2 * xx - xs])
             md[dst * width + x] = path_pair(c, o, prev_a, pd + (dst * width + x) * stride, ma,
                                             prev_b, pe + (dst * width + x) * stride, mb, p1,
                                             p2a, p2b, True, num, &me[dst * width + x])
@@ -364,13 +390,15 @@ def aggregate_pass(uint16_t[:, :, ::1] cost, int p1, int p2, bint eight, bint re
     cdef int16_t[:, ::1] paths = paths_
     cdef int32_t[:, :, ::1] mins = mins_
     cdef Py_ssize_t y, yy
-    cdef float g = <float>p2_grad
+    cdef int32_t table[511]
+    cdef const int32_t *p2_step
     with nogil:
+        p2_step = _p2_steps(p1, p2, <float>p2_grad, table)
         for y in range(height):
             yy = height - 1 - y if reverse else y
             sweep_row(<int16_t *>&cost[yy, 0, 0], <int16_t *>&out[yy, 0, 0], &grey[0, 0],
-                      width, num, y, yy, yy + 1 if reverse else yy - 1, reverse, p1, p2, g,
-                      eight, &paths[0, 0], &mins[0, 0, 0])
+                      width, num, y, yy, yy + 1 if reverse else yy - 1, reverse, p1, p2,
+                      p2_step, eight, &paths[0, 0], &mins[0, 0, 0])
 
 
 def _winner_buffers(Py_ssize_t width, Py_ssize_t num, Py_ssize_t dmin):
@@ -421,14 +449,16 @@ def first_sweep_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad,
     cdef CostIn c = _cost_in(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n,
                              c_max, scale)
     cdef Py_ssize_t y, width = c.width
-    cdef float g = <float>p2_grad
+    cdef int32_t table[511]
+    cdef const int32_t *p2_step
     with nogil:
+        p2_step = _p2_steps(p1, p2, <float>p2_grad, table)
         for y in range(y0, y1):
             if with_cost:
                 _cost_row(&c, y, &col[0, 0], &hs[0], &cost[y, 0, 0])
             sweep_row(<int16_t *>&cost[y, 0, 0], <int16_t *>&s_a[y, 0, 0], &grey[0, 0],
-                      width, num, y, y, y - 1, False, p1, p2, g, eight, &paths[0, 0],
-                      &mins[0, 0, 0])
+                      width, num, y, y, y - 1, False, p1, p2, p2_step, eight,
+                      &paths[0, 0], &mins[0, 0, 0])
 
 
 def cost_and_first_sweep(const float[:, ::1] pl, const float[:, ::1] prr_pad,
@@ -471,13 +501,16 @@ def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1,
                          R_UNIQUENESS, R_LEFT_RIGHT)
     cdef uint16_t[::1] row = np.empty(width * num, np.uint16)
     cdef uint16_t *o_row
-    cdef float g = <float>p2_grad
+    cdef int32_t table[511]
+    cdef const int32_t *p2_step
     with nogil:
+        p2_step = _p2_steps(p1, p2, <float>p2_grad, table)
         for y in range(v0, v1):
             yy = height - 1 - y
             o_row = &row[0] if winners else &s_b[yy, 0, 0]
             sweep_row(<int16_t *>&cost[yy, 0, 0], <int16_t *>o_row, &grey[0, 0], width, num,
-                      y, yy, yy + 1, True, p1, p2, g, eight, &paths[0, 0], &mins[0, 0, 0])
+                      y, yy, yy + 1, True, p1, p2, p2_step, eight, &paths[0, 0],
+                      &mins[0, 0, 0])
             if winners:
                 winner_row(&t, &s_a[yy, 0, 0], o_row, &cost[yy, 0, 0], &el[yy, 0],
                         &count[yy, 0], width, num, &disp_out[yy, 0], &cost_out[yy, 0],

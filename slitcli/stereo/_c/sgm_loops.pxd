@@ -10,12 +10,13 @@ sums are the same bits whatever the vector width.
 
 Where the processor has AVX2 (``__AVX2__``: not in SLITCLI_PORTABLE_BUILD wheels) and D
 is a multiple of 16, whole rows run in C functions written with AVX2 intrinsics (the
-cost row with its column slide, the sweep rows with a constant P2, the winner step in
-uint16 lanes): the same operations in the same order, with the loop over a row's
-pixels in C so that its pointers stay in registers (Cython's loops spilled them, and
-the per-pixel work outside the vector loops was ~40 % of a sweep). Other D, an
-adaptive P2 and portable builds take the loops above; both give the same bits
-(checked on Middlebury and rendered pairs, 4 and 8 paths, one and two threads).
+cost row with its column slide, the sweep rows with a constant or an edge-adapted P2,
+the winner step in uint16 lanes): the same operations in the same order, with the loop
+over a row's pixels in C so that its pointers stay in registers (Cython's loops spilled
+them, and the per-pixel work outside the vector loops was ~40 % of a sweep). Other D
+and portable builds take the loops above; both give the same bits (checked on
+Middlebury and rendered pairs, 4 and 8 paths, constant and adaptive P2, one and two
+threads).
 """
 
 from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
@@ -119,15 +120,21 @@ cdef extern from *:
         *bmin = sgm_hmin16(mb);
         return sgm_hmin16(ma);
     }
-    /* One row of a 4-path sweep with a constant P2 (the default): sweep_row's loop
-       (sgm.pyx) for this case alone, so that the compiler keeps its few pointers in
-       registers (the general loop, with the diagonal paths and the adaptive P2,
-       spilled them to the stack: about 40 % of a sweep's time was outside the vector
-       loop). The same calls in the same order, so the same rows. */
+    /* One row of a 4-path sweep: sweep_row's loop (sgm.pyx) in C, so that the compiler
+       keeps its few pointers in registers (the general loop, with the diagonal paths
+       and the adaptive P2, spilled them to the stack: about 40 % of a sweep's time was
+       outside the vector loop). p2_step NULL: a constant P2; else the P2 of a step
+       between grey levels a and b is p2_step[a - b] (sgm.pyx's table of _p2), row
+       the image row's grey levels, above those of the row the vertical paths come
+       from; a P2 is one scalar per pixel and path, broadcast over the disparities. The
+       same calls with the same penalties in the same order, so the same rows. */
     #define SGM_HAVE_ROW4 1
+    #define SGM_STEP_P2(tab, a, b) ((tab)[(int32_t)(a) - (int32_t)(b)])
     static inline void sgm_sweep_row4(const int16_t *restrict c_row, int16_t *restrict o_row,
                                       Py_ssize_t width, Py_ssize_t n, int reverse,
-                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      int first_row, int32_t p1, int32_t p2,
+                                      const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph,
                                       const int16_t *pv_src, int16_t *pv_dst,
                                       const int32_t *mv_src, int32_t *mv_dst,
                                       const int16_t *zero) {
@@ -135,18 +142,29 @@ cdef extern from *:
         int32_t hmin = 0;
         for (Py_ssize_t x = 0; x < width; x++) {
             Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            Py_ssize_t xs = reverse ? xx + 1 : xx - 1;
+            int32_t p2a = p2, p2b = p2;
+            if (p2_step) {
+                if (x > 0)
+                    p2a = SGM_STEP_P2(p2_step, row[xx], row[xs]);
+                if (!first_row)
+                    p2b = SGM_STEP_P2(p2_step, row[xx], above[xx]);
+            }
             hmin = sgm_path_pair16(c_row + xx * n, o_row + xx * n,
                                    x == 0 ? zero : ph + hs * stride, ph + (1 - hs) * stride,
                                    hmin, first_row ? zero : pv_src + x * stride,
-                                   pv_dst + x * stride, first_row ? 0 : mv_src[x], p1, p2, p2,
-                                   0, n, mv_dst + x);
+                                   pv_dst + x * stride, first_row ? 0 : mv_src[x], p1, p2a,
+                                   p2b, 0, n, mv_dst + x);
         }
     }
     /* sgm_sweep_row4 with the two diagonal paths (8 paths): d from the top-left
-       (rows d_*, minima md_*), e from the top-right, their pair added to o. */
+       (rows d_*, minima md_*, grey step to above[xs]), e from the top-right (grey step
+       to the pixel above on the other side), their pair added to o. */
     static inline void sgm_sweep_row8(const int16_t *restrict c_row, int16_t *restrict o_row,
                                       Py_ssize_t width, Py_ssize_t n, int reverse,
-                                      int first_row, int32_t p1, int32_t p2, int16_t *ph,
+                                      int first_row, int32_t p1, int32_t p2,
+                                      const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph,
                                       const int16_t *pv_src, int16_t *pv_dst,
                                       const int32_t *mv_src, int32_t *mv_dst,
                                       const int16_t *pd_src, int16_t *pd_dst,
@@ -158,30 +176,47 @@ cdef extern from *:
         int32_t hmin = 0;
         for (Py_ssize_t x = 0; x < width; x++) {
             Py_ssize_t xx = reverse ? width - 1 - x : x, hs = x & 1;
+            Py_ssize_t xs = reverse ? xx + 1 : xx - 1;
             const int16_t *c = c_row + xx * n;
             int16_t *o = o_row + xx * n;
             int first = first_row || x == 0, last = first_row || x == width - 1;
+            int32_t p2a = p2, p2b = p2, p2d = p2, p2e = p2;
+            if (p2_step) {
+                uint8_t g0 = row[xx];
+                if (x > 0)
+                    p2a = SGM_STEP_P2(p2_step, g0, row[xs]);
+                if (!first_row)
+                    p2b = SGM_STEP_P2(p2_step, g0, above[xx]);
+                if (!first)
+                    p2d = SGM_STEP_P2(p2_step, g0, above[xs]);
+                if (!last)
+                    p2e = SGM_STEP_P2(p2_step, g0, above[2 * xx - xs]);
+            }
             hmin = sgm_path_pair16(c, o, x == 0 ? zero : ph + hs * stride,
                                    ph + (1 - hs) * stride, hmin,
                                    first_row ? zero : pv_src + x * stride, pv_dst + x * stride,
-                                   first_row ? 0 : mv_src[x], p1, p2, p2, 0, n, mv_dst + x);
+                                   first_row ? 0 : mv_src[x], p1, p2a, p2b, 0, n, mv_dst + x);
             md_dst[x] = sgm_path_pair16(c, o, first ? zero : pd_src + (x - 1) * stride,
                                         pd_dst + x * stride, first ? 0 : md_src[x - 1],
                                         last ? zero : pe_src + (x + 1) * stride,
-                                        pe_dst + x * stride, last ? 0 : me_src[x + 1], p1, p2,
-                                        p2, 1, n, me_dst + x);
+                                        pe_dst + x * stride, last ? 0 : me_src[x + 1], p1, p2d,
+                                        p2e, 1, n, me_dst + x);
         }
     }
     #else
     #define SGM_HAVE_ROW4 0
     static inline void sgm_sweep_row4(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
                                       Py_ssize_t n, int reverse, int first_row, int32_t p1,
-                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
-                                      int16_t *pv_dst, const int32_t *mv_src,
-                                      int32_t *mv_dst, const int16_t *zero) {}
+                                      int32_t p2, const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph,
+                                      const int16_t *pv_src, int16_t *pv_dst,
+                                      const int32_t *mv_src, int32_t *mv_dst,
+                                      const int16_t *zero) {}
     static inline void sgm_sweep_row8(const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
                                       Py_ssize_t n, int reverse, int first_row, int32_t p1,
-                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int32_t p2, const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph,
+                                      const int16_t *pv_src,
                                       int16_t *pv_dst, const int32_t *mv_src,
                                       int32_t *mv_dst, const int16_t *pd_src,
                                       int16_t *pd_dst, const int32_t *md_src,
@@ -520,7 +555,8 @@ cdef extern from *:
     const bint HAVE_ROW4 "SGM_HAVE_ROW4"
     void sweep_row4 "sgm_sweep_row4" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
                                       Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
-                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int32_t p2, const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph, const int16_t *pv_src,
                                       int16_t *pv_dst, const int32_t *mv_src,
                                       int32_t *mv_dst, const int16_t *zero) noexcept nogil
     void cost_pixels16 "sgm_cost_pixels16" (float *hs, const float *col, const float *el_row,
@@ -543,7 +579,8 @@ cdef extern from *:
                                             int r_uniq) noexcept nogil
     void sweep_row8 "sgm_sweep_row8" (const int16_t *c_row, int16_t *o_row, Py_ssize_t width,
                                       Py_ssize_t n, bint reverse, bint first_row, int32_t p1,
-                                      int32_t p2, int16_t *ph, const int16_t *pv_src,
+                                      int32_t p2, const int32_t *p2_step, const uint8_t *row,
+                                      const uint8_t *above, int16_t *ph, const int16_t *pv_src,
                                       int16_t *pv_dst, const int32_t *mv_src,
                                       int32_t *mv_dst, const int16_t *pd_src,
                                       int16_t *pd_dst, const int32_t *md_src,
