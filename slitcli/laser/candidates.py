@@ -25,9 +25,7 @@ keeps their constants, which that file mirrors (a test checks that the two agree
 
 from __future__ import annotations
 
-import itertools
 import math
-import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -39,7 +37,7 @@ from slitcli.laser._c.candidates import (
     fill_gaps,
     sheet_width_px,
 )
-from slitcli.stereo.bands import kernel_threads
+from slitcli.stereo.bands import kernel_threads, run_bands
 
 __all__ = ["_linear_z", "column_candidates", "evidence_live", "fill_gaps", "run_column_bands",
            "sheet_width_px"]
@@ -58,10 +56,6 @@ SEED_EFFICIENCY = math.exp(-0.25 / (4.0 * SEED_MIN_SIGMA_PX ** 2))
 MEAN_TO_SIGMA = math.sqrt(math.pi / 2.0) / math.sqrt(1.5)
 #: residuals beyond this many global noise sigmas count as that many (an edge)
 CLIP_SIGMAS = 5.0
-#: bands of columns per thread, taken one at a time by whichever thread is free: a thread
-#: that another process delays holds up the frame by one band at most (a band costs a
-#: call, ~20 us at 320x240: eight bands cost 5-9 % of the kernel's time, four half that)
-BANDS_PER_THREAD = 2
 #: fewest columns of a band
 MIN_BAND_COLS = 16
 
@@ -90,42 +84,5 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
 
 def run_column_bands(fn: Callable[[int, int], object], n_cols: int, threads: int) -> None:
     """Call ``fn(c0, c1)`` over bands of columns covering 0..n_cols on ``threads`` threads
-    (this one and ``threads - 1`` helpers); ``fn`` must release the GIL to run in parallel.
-
-    Bands are taken one at a time by whichever thread is free, and this thread returns
-    when every band is done, not when the helpers are: a helper that a busy machine
-    starts late finds no band left and ends on its own (it never waits on one that
-    does). An exception of ``fn`` is raised here once every band has ended.
-    """
-    bands = max(1, min(BANDS_PER_THREAD * threads, n_cols // MIN_BAND_COLS))
-    if threads <= 1 or bands == 1:
-        fn(0, n_cols)
-        return
-    edges = [b * n_cols // bands for b in range(bands + 1)]
-    todo = itertools.pairwise(edges)
-    lock = threading.Lock()
-    finished = threading.Event()
-    left = [bands]
-    errors: list[BaseException] = []
-
-    def work() -> None:
-        while True:
-            with lock:
-                span = next(todo, None)
-            if span is None:
-                return
-            try:
-                fn(*span)
-            except BaseException as exc:  # (raised again by the caller)
-                errors.append(exc)
-            with lock:
-                left[0] -= 1
-                if left[0] == 0:
-                    finished.set()
-
-    for _ in range(threads - 1):
-        threading.Thread(target=work, daemon=True).start()
-    work()
-    finished.wait()
-    if errors:
-        raise errors[0]
+    (:func:`slitcli.stereo.bands.run_bands`, bands of at least ``MIN_BAND_COLS``)."""
+    run_bands(fn, n_cols, threads, min_len=MIN_BAND_COLS)

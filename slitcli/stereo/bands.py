@@ -59,37 +59,73 @@ def kernel_threads() -> int:
     return max(1, min(wanted, free))
 
 
-def run_row_bands(fn: Callable[[int, int], object], height: int,
-                  pool: ThreadPoolExecutor | None, threads: int, *, min_rows: int = 8) -> None:
-    """Call ``fn(y0, y1)`` over bands of rows covering 0..height.
+#: bands per thread, taken one at a time by whichever thread is free: a thread that
+#: another process delays holds up the frame by one band at most (a band costs a call,
+#: ~20 us at 320x240: eight laser bands cost 5-9 % of its kernel's time, four half that)
+BANDS_PER_THREAD = 2
 
-    The compiled kernels release the GIL, so the threads of ``pool`` run them in
-    parallel with this one. There are twice as many bands as ``threads``, taken one
-    at a time by whichever thread is free (this one included), so a core that is busy
-    with something else does not hold up the whole image; idle threads sleep (no
-    spinning). Bands are at least ``min_rows`` rows (a band re-reads the window's rows
-    above it). Without a pool the whole image is one band, run here.
+
+def run_bands(fn: Callable[[int, int], object], n: int, threads: int, *, min_len: int,
+              pool: ThreadPoolExecutor | None = None) -> None:
+    """Call ``fn(i0, i1)`` over bands covering 0..n (rows or columns) on ``threads``
+    threads: this one and ``threads - 1`` helpers from ``pool`` (new daemon threads
+    without one). ``fn`` must release the GIL to run in parallel.
+
+    There are ``BANDS_PER_THREAD`` bands a thread, each at least ``min_len`` long, taken
+    one at a time by whichever thread is free, so a core that is busy with something
+    else does not hold up the whole image; idle threads sleep (no spinning). This thread
+    returns when every band is done, not when the helpers are: a helper that a busy
+    machine starts late finds no band left and ends on its own. An exception of ``fn``
+    is raised here once every band has ended.
     """
-    bands = max(1, min(2 * threads, height // max(1, min_rows)))
-    if pool is None or bands == 1:
-        fn(0, height)
+    bands = max(1, min(BANDS_PER_THREAD * threads, n // max(1, min_len)))
+    if threads <= 1 or bands == 1:
+        fn(0, n)
         return
-    edges = [b * height // bands for b in range(bands + 1)]
+    edges = [b * n // bands for b in range(bands + 1)]
     todo = itertools.pairwise(edges)
     lock = threading.Lock()
+    finished = threading.Event()
+    left = [bands]
+    errors: list[BaseException] = []
 
     def work() -> None:
         while True:
             with lock:
-                band = next(todo, None)
-            if band is None:
+                span = next(todo, None)
+            if span is None:
                 return
-            fn(*band)
+            try:
+                fn(*span)
+            except BaseException as exc:  # (raised again by the caller)
+                errors.append(exc)
+            with lock:
+                left[0] -= 1
+                if left[0] == 0:
+                    finished.set()
 
-    helpers = [pool.submit(work) for _ in range(threads - 1)]
+    for _ in range(threads - 1):
+        if pool is not None:
+            pool.submit(work)
+        else:
+            threading.Thread(target=work, daemon=True).start()
     work()
-    for f in helpers:
-        f.result()
+    finished.wait()
+    if errors:
+        raise errors[0]
 
 
-__all__ = ["THREADS_ENV", "kernel_threads", "run_row_bands", "thread_setting"]
+def run_row_bands(fn: Callable[[int, int], object], height: int,
+                  pool: ThreadPoolExecutor | None, threads: int, *, min_rows: int = 8) -> None:
+    """Call ``fn(y0, y1)`` over bands of rows covering 0..height with :func:`run_bands`
+    on ``pool``'s threads; bands are at least ``min_rows`` rows (a band re-reads the
+    window's rows above it). Without a pool the whole image is one band, run here.
+    """
+    if pool is None:
+        fn(0, height)
+        return
+    run_bands(fn, height, threads, min_len=min_rows, pool=pool)
+
+
+__all__ = ["BANDS_PER_THREAD", "THREADS_ENV", "kernel_threads", "run_bands", "run_row_bands",
+           "thread_setting"]
