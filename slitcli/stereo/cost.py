@@ -90,4 +90,106 @@ def prefilter_image(grey: np.ndarray, params: MatcherParams) -> np.ndarray:
     return out
 
 
-__all__ = ["DisparityResult", "prefilter_image", "to_grey"]
+def ground_window_shifts(px_per_row: float, half_height_px: int) -> np.ndarray:
+    """Right-column shifts of a window sheared by the ground plane's disparity gradient.
+
+    On the ground (a plane below the camera, paper Eq. 8 with the floor depth) the
+    disparity grows linearly down the image, ``d(v) = W cos(tilt) / h (v - v_h)`` below
+    the horizon row ``v_h`` (W baseline, h camera height, no roll): ``px_per_row`` px
+    more per row whatever the focal length. A window centred on a ground pixel of
+    disparity d therefore finds its row ``dv`` in the right image ``px_per_row dv``
+    further left than a fronto-parallel window assumes. The shift is rounded to whole
+    pixels (half away from zero, so the window stays symmetric about its centre).
+
+    Parameters
+    ----------
+    px_per_row : float
+        Ground disparity gradient, px of disparity per image row (v down).
+    half_height_px : int
+        ``n``: the window has rows ``-n .. n``.
+
+    Returns
+    -------
+    ndarray, int64, shape (2 n + 1,)
+        Extra disparity (px) of window rows ``-n .. n``; all zeros where the gradient
+        stays below half a pixel across the window's half height.
+    """
+    dv = np.arange(-half_height_px, half_height_px + 1)
+    return (np.sign(dv) * np.floor(np.abs(dv) * float(px_per_row) + 0.5)).astype(np.int64)
+
+
+def sheared_right_energies(pr: np.ndarray, m: int, n: int, shifts: np.ndarray,
+                           pad: int) -> tuple[np.ndarray, np.ndarray]:
+    """Window energies of the prefiltered right image over sheared windows.
+
+    The sheared window of right column ``xr`` takes its row ``dv`` from columns
+    ``xr - shifts[dv + n] - m .. xr - shifts[dv + n] + m`` (zeros outside the image);
+    its energy is a function of ``xr`` alone (the left pixel's disparity moves the
+    whole window), so it is one image like the fronto-parallel energies.
+
+    Parameters
+    ----------
+    pr : ndarray, float32, shape (H, W)
+        Prefiltered right image (whole numbers of 1/4 DN, so every sum is exact).
+    m, n : int
+        Window half width and half height, px.
+    shifts : ndarray, int64, shape (2 n + 1,)
+        :func:`ground_window_shifts`.
+    pad : int
+        Zero columns each side of the returned rows.
+
+    Returns
+    -------
+    err_s, irr_s : ndarray, float32, shape (H, W + 2 pad)
+        Energies and their inverse square roots (0 where no energy), along x reversed
+        (column ``xr`` at ``pad + W - 1 - xr``), as the SGM cost kernels read them.
+    """
+    h, w = pr.shape
+    sq = pr.astype(np.float64) ** 2
+    c = np.cumsum(np.pad(sq, ((n, n), (m + 1, m))), axis=1)
+    rows = c[:, 2 * m + 1:] - c[:, :-2 * m - 1]        # (H + 2n, W) row sums, 2m+1 wide
+    smax = int(np.abs(shifts).max())
+    e = np.zeros((h, w + 2 * smax))
+    for dv, s in zip(range(-n, n + 1), shifts, strict=True):
+        # row y + dv of the window at right column xr reads columns around xr - s
+        e[:, smax + s:smax + s + w] += rows[n + dv:n + dv + h]
+    e = e[:, smax:smax + w].astype(np.float32)
+    err = np.zeros((h, w + 2 * pad), np.float32)
+    irr = np.zeros((h, w + 2 * pad), np.float32)
+    err[:, pad:pad + w] = e[:, ::-1]
+    with np.errstate(divide="ignore"):
+        inv = np.float32(1.0) / np.sqrt(e[:, ::-1])
+    irr[:, pad:pad + w] = np.where(e[:, ::-1] > 0, inv, np.float32(0.0))
+    return err, irr
+
+
+def ground_shear_from_floor(floor_disparity_px: np.ndarray) -> tuple[float, float]:
+    """The ground's disparity gradient and horizon row from the rig's floor disparities.
+
+    Parameters
+    ----------
+    floor_disparity_px : ndarray, float32, shape (H, W)
+        Disparity of the floor plane at each pixel, 0 above the horizon
+        (``StereoGeometry.floor_disparity_px``).
+
+    Returns
+    -------
+    px_per_row : float
+        Disparity gain per image row down the middle column (linear below the
+        horizon); 0 where the camera does not see the floor.
+    horizon_row_px : float
+        Row (px, v down) where the floor's disparity reaches 0 in that column.
+    """
+    col = np.asarray(floor_disparity_px, np.float64)[:, floor_disparity_px.shape[1] // 2]
+    rows = np.flatnonzero(col > 0)
+    if rows.size < 2:
+        return 0.0, float(col.shape[0])
+    v0, v1 = int(rows[0]), int(rows[-1])
+    grad = (col[v1] - col[v0]) / (v1 - v0)
+    if grad <= 0:
+        return 0.0, float(col.shape[0])
+    return float(grad), float(v0 - col[v0] / grad)
+
+
+__all__ = ["DisparityResult", "ground_shear_from_floor", "ground_window_shifts",
+           "prefilter_image", "sheared_right_energies", "to_grey"]

@@ -135,6 +135,8 @@ class MatcherParams:
     sgm_bracket_px: int = 32
     sgm_bracket_tol_px: float = 1.0
     sgm_bracket_span_px: float = 1.0
+    sgm_ground_px_per_row: float | None = None
+    sgm_ground_horizon_row_px: float | None = None
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -193,6 +195,15 @@ def _check_sgm(p: MatcherParams) -> None:
     if p.sgm_subpixel not in SGM_SUBPIXEL:
         raise SlitcliError(f"sgm_subpixel {p.sgm_subpixel!r} is unknown; use one of "
                            f"{', '.join(SGM_SUBPIXEL)}", param="sgm_subpixel")
+    g = p.sgm_ground_px_per_row
+    if g is not None and not (math.isfinite(g) and 0 <= g <= 2.0):
+        raise SlitcliError(f"sgm_ground_px_per_row {g} must lie in 0..2 px of disparity per "
+                           "image row (0 = fronto-parallel windows, None = from the rig)",
+                           param="sgm_ground_px_per_row")
+    v = p.sgm_ground_horizon_row_px
+    if v is not None and not math.isfinite(v):
+        raise SlitcliError(f"sgm_ground_horizon_row_px {v} must be a finite row (px) or None "
+                           "(from the rig)", param="sgm_ground_horizon_row_px")
     if not 0 <= p.sgm_p2_edge_dn <= 255:
         raise SlitcliError(f"sgm_p2_edge_dn {p.sgm_p2_edge_dn} must lie in 0..255 DN "
                            "(0 = a constant sgm_p2)")

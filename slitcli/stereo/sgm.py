@@ -61,20 +61,30 @@ def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
     the right image's rows reversed and padded (see slitcli.stereo._sgm.cost_rows)."""
     from slitcli.stereo import _sgm
 
+    from slitcli.stereo.cost import ground_window_shifts, sheared_right_energies
+
     m, n = params.window_w_px // 2, params.window_h_px // 2
     num, dmin = int(params.num_disparities), int(params.min_disparity_px)
     pl = np.ascontiguousarray(pl, np.float32)
     pr = np.ascontiguousarray(pr, np.float32)
     h, w = pl.shape
-    pad = num + abs(dmin) + 1
+    shifts = ground_window_shifts(params.sgm_ground_px_per_row or 0.0, n)
+    pad = num + abs(dmin) + 1 + int(np.abs(shifts).max())
     el = np.empty((h, w), np.float32)
     count = np.empty((h, w), np.float32)
     # the right image's rows reversed, its energies and their inverse square roots
     # (0: no energy, or outside the image), padded with zeros on both sides
     prr, err, irr = np.zeros((3, h, w + 2 * pad), np.float32)
     _sgm.window_inputs(pl, pr, m, n, pad, el, count, prr, err, irr)
+    shear = None
+    if shifts.any():
+        # the window sheared by the ground's disparity gradient from the horizon down
+        # (slitcli.stereo.cost.ground_window_shifts)
+        horizon = params.sgm_ground_horizon_row_px
+        shear = (0 if horizon is None else max(0, math.ceil(horizon)), shifts,
+                 *sheared_right_energies(pr, m, n, shifts, pad))
     return {"pl": pl, "prr": prr, "el": el, "err": err, "irr": irr, "pad": pad, "dmin": dmin,
-            "num": num, "m": m, "n": n, "count": count}
+            "num": num, "m": m, "n": n, "count": count, "shear": shear}
 
 
 def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
@@ -89,7 +99,7 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
     cost = np.empty((h, w, c["num"]), np.uint16)
     kernel = _sgm.cost_rows
     args = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], c["num"],
-            c["m"], c["n"], COST_MAX, COST_SCALE)
+            c["m"], c["n"], COST_MAX, COST_SCALE, c["shear"])
     run_row_bands(lambda y0, y1: kernel(*args, y0, y1, cost), h, pool, threads,
                   min_rows=2 * c["n"] + 1)
     return cost, c["el"], c["count"]
@@ -226,7 +236,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     eight = params.sgm_paths == 8
     g = float(params.sgm_p2_edge_dn)
     cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
-             c["n"], COST_MAX, COST_SCALE)
+             c["n"], COST_MAX, COST_SCALE, c["shear"])
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
     if one_thread:
         _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
@@ -237,13 +247,13 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     # picks the top rows' winners. Per-thread CPU time, summed over the phases' larger
     # share (320 x 240 / 64 d): 5.7 ms split at the middle, 4.8 ms at 2/5
     half = 2 * h // 5
-    col = np.zeros((w + 1, num), np.float32)
+    col = _k.cost_columns(w, num, c["shear"])
     hs = np.zeros(num, np.float32)
     state_a = _k.sweep_state(w, num)
     state_b = _k.sweep_state(w, num)
     s_b = volumes[2]
     job = pool.submit(_k.cost_rows, *cargs, half, h, cost)
-    _k.cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col)
+    _k.cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col, c["shear"])
     _k.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
                                 hs, *state_a)
     job.result()

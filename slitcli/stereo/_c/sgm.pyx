@@ -32,13 +32,15 @@ float operations in the same order.
 """
 
 from libc.math cimport fabsf, rint, sqrtf
-from libc.stdint cimport int16_t, int32_t, uint8_t, uint16_t
+from libc.stdint cimport int16_t, int32_t, int64_t, uint8_t, uint16_t
 
 from slitcli.stereo._c.sgm_loops cimport (
     HAVE_COSTS16,
     HAVE_ROW4,
     SENTINEL,
+    add_floats,
     column_slide,
+    copy_floats,
     cost_pixels16,
     path_pair,
     pixel_costs,
@@ -124,6 +126,11 @@ def window_inputs(const float[:, ::1] pl, const float[:, ::1] pr, Py_ssize_t m,
                 irr_pad[y, j] = <float>1.0 / sqrtf(e) if e > 0 else <float>0.0
 
 
+cdef enum:
+    # most row groups of a sheared window (2 x the largest shift + 1)
+    MAX_GROUPS = 15
+
+
 cdef struct CostIn:
     # what the cost rows read (see cost_rows)
     const float *pl
@@ -134,6 +141,15 @@ cdef struct CostIn:
     Py_ssize_t height, width, stride, pad, dmin, num, m, n
     float c_max, scale
     uint16_t top
+    # the window sheared by the ground's disparity gradient (see _shear_in): rows
+    # >= horizon; groups of window rows lo..hi (offsets from the centre row) whose
+    # right samples are shifted by shift px; the sheared right energies err_s, irr_s
+    Py_ssize_t groups, horizon
+    Py_ssize_t g_shift[MAX_GROUPS]
+    Py_ssize_t g_lo[MAX_GROUPS]
+    Py_ssize_t g_hi[MAX_GROUPS]
+    const float *err_s
+    const float *irr_s
 
 
 cdef CostIn _cost_in(const float[:, ::1] pl, const float[:, ::1] prr_pad,
@@ -157,7 +173,115 @@ cdef CostIn _cost_in(const float[:, ::1] pl, const float[:, ::1] prr_pad,
     c.c_max = <float>c_max
     c.scale = <float>scale
     c.top = <uint16_t>rint(c_max * scale)   # numba's round(): half to even
+    c.groups = 1
+    c.horizon = c.height
+    c.err_s = NULL
+    c.irr_s = NULL
     return c
+
+
+cdef void _shear_in(CostIn *c, object shear) except *:
+    """Fill ``c``'s sheared window from ``shear`` (None: fronto-parallel windows
+    everywhere): ``(horizon_row, shifts, err_s, irr_s)`` with ``shifts`` (2n + 1,)
+    int64 the right column shift of window rows -n..n (non-decreasing), ``err_s``,
+    ``irr_s`` (H, W + 2 pad) float32 the sheared windows' right energies and their
+    inverse square roots, laid out as ``err_pad`` (:func:`cost_rows`)."""
+    cdef const int64_t[::1] shifts
+    cdef const float[:, ::1] e
+    cdef const float[:, ::1] r
+    cdef Py_ssize_t k = 0, dv
+    if shear is None:
+        return
+    horizon, shifts, e, r = shear
+    if shifts.shape[0] != 2 * c.n + 1 or e.shape[0] != c.height or e.shape[1] != c.stride \
+            or r.shape[0] != c.height or r.shape[1] != c.stride:
+        raise ValueError("shear: shifts, err_s or irr_s do not fit the window and image")
+    c.g_shift[0] = shifts[0]
+    c.g_lo[0] = -c.n
+    for dv in range(1, 2 * c.n + 1):
+        if shifts[dv] != shifts[dv - 1]:
+            c.g_hi[k] = dv - 1 - c.n
+            k += 1
+            if k >= MAX_GROUPS:
+                raise ValueError(f"shear: more than {MAX_GROUPS} row groups")
+            c.g_shift[k] = shifts[dv]
+            c.g_lo[k] = dv - c.n
+    c.g_hi[k] = c.n
+    for dv in range(k + 1):
+        if abs(c.g_shift[dv]) + c.num + abs(c.dmin) + 1 > c.pad:
+            raise ValueError("shear: the padding does not hold the shifted windows")
+    c.groups = k + 1
+    c.horizon = max(0, min(<Py_ssize_t>horizon, c.height))
+    c.err_s = &e[0, 0]
+    c.irr_s = &r[0, 0]
+
+
+def cost_columns(Py_ssize_t width, Py_ssize_t num, object shear):
+    """The cost rows' column sums, zeros: (W + 1, D) float32, with a sheared window
+    (``shear``, :func:`cost_rows`) one more (W + 1, D) block per row group."""
+    cdef Py_ssize_t blocks = 1
+    if shear is not None:
+        blocks += len(np.unique(np.asarray(shear[1])))
+    return np.zeros((blocks * (width + 1), num), np.float32)
+
+
+cdef void _check_columns(const CostIn *c, float[:, ::1] col) except *:
+    if col.shape[1] != c.num or col.shape[0] < (c.groups + 1 if c.groups > 1 else 1) * (
+            c.width + 1):
+        raise ValueError("col: too small for the window's row groups (cost_columns)")
+
+
+cdef inline bint _sheared(const CostIn *c, Py_ssize_t y) noexcept nogil:
+    return c.groups > 1 and y >= c.horizon
+
+
+cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, float *col,
+                       bint fresh) noexcept nogil:
+    """Row group ``k``'s column sums (its window rows, right samples shifted by its
+    shift) slid from row y - 1 to row y; ``fresh``: summed from zeros at row y."""
+    cdef Py_ssize_t width = c.width, num = c.num, height = c.height, x, r, r0, r1, base
+    cdef Py_ssize_t off = c.pad + width - 1 + c.dmin + c.g_shift[k]
+    cdef Py_ssize_t ya = y + c.g_hi[k], ys = y + c.g_lo[k] - 1
+    cdef bint a_in = 0 <= ya < height, s_in = 0 <= ys < height
+    cdef bint lanes = HAVE_COSTS16 and num % 16 == 0
+    cdef float a, b
+    if fresh:
+        for x in range((width + 1) * num):
+            col[x] = 0.0
+        r0 = max(0, y + c.g_lo[k])
+        r1 = min(height, y + c.g_hi[k] + 1)
+        for r in range(r0, r1):
+            for x in range(width):
+                base = r * c.stride + off - x
+                column_slide(col + (x + 1) * num, c.prr + base, c.prr + base,
+                             c.pl[r * width + x], 0.0, num)
+        return
+    if not (a_in or s_in):
+        return
+    if lanes:
+        slide_columns16(col, c.pl + ya * width if a_in else NULL,
+                        c.pl + ys * width if s_in else NULL,
+                        c.prr + min(max(ya, 0), height - 1) * c.stride + off,
+                        c.prr + min(max(ys, 0), height - 1) * c.stride + off, width, num)
+        return
+    for x in range(width):
+        a = c.pl[ya * width + x] if a_in else <float>0.0
+        b = c.pl[ys * width + x] if s_in else <float>0.0
+        column_slide(col + (x + 1) * num,
+                     c.prr + min(max(ya, 0), height - 1) * c.stride + off - x,
+                     c.prr + min(max(ys, 0), height - 1) * c.stride + off - x, a, b, num)
+
+
+cdef void _sheared_columns(const CostIn *c, Py_ssize_t y, float *col,
+                           bint fresh) noexcept nogil:
+    """The sheared window's column sums at row y into ``col``'s first block: each row
+    group's sums (blocks 1..groups) slid (or, ``fresh``, summed anew), then added."""
+    cdef Py_ssize_t k, size = (c.width + 1) * c.num
+    for k in range(c.groups):
+        _group_slide(c, k, y, col + (k + 1) * size, fresh)
+    copy_floats(col + c.num, col + size + c.num, size - c.num)
+    for k in range(1, c.groups):
+        add_floats(col + c.num, col + (k + 1) * size + c.num, size - c.num)
 
 
 cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil:
@@ -165,6 +289,9 @@ cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil
     y0-1+n) into ``col`` ((W + 1) x D, row 0 the zero column)."""
     cdef Py_ssize_t yy, x
     cdef const float *ra
+    if _sheared(c, y0 - 1):
+        _sheared_columns(c, y0 - 1, col, True)
+        return
     for yy in range(max(0, y0 - 1 - c.n), min(c.height, y0 + c.n)):
         for x in range(c.width):
             ra = c.prr + yy * c.stride + c.pad + c.width - 1 - x + c.dmin
@@ -181,7 +308,15 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
     # into uint16 unchanged
     cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
-    if lanes and (ya < height or ys >= 0):
+    cdef const float *err = c.err
+    cdef const float *irr = c.irr
+    if _sheared(c, y):
+        # the window sheared by the ground's disparity gradient (fresh at the first
+        # sheared row: the fronto-parallel sums before it are of another window)
+        _sheared_columns(c, y, col, y == c.horizon)
+        err = c.err_s
+        irr = c.irr_s
+    elif lanes and (ya < height or ys >= 0):
         k = c.pad + width - 1 + c.dmin
         slide_columns16(col, c.pl + ya * width if ya < height else NULL,
                         c.pl + ys * width if ys >= 0 else NULL,
@@ -201,7 +336,7 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
             hs[i] += col[(xx + 1) * num + i]
     if lanes:
         k = y * c.stride + c.pad + width - 1 + c.dmin
-        cost_pixels16(hs, col, c.el + y * width, c.err + k, c.irr + k, width, num, c.m, c.top,
+        cost_pixels16(hs, col, c.el + y * width, err + k, irr + k, width, num, c.m, c.top,
                       c.scale, c.c_max, o_row)
         return
     for x in range(width):
@@ -213,18 +348,20 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
         r1 = <float>1.0 / sqrtf(e1) if e1 > 0 else <float>0.0
         k = y * c.stride + c.pad + width - 1 - x + c.dmin
         pixel_costs(hs, col + (min(xa, width - 1) + 1) * num, col + (max(xs, -1) + 1) * num,
-                    wa, ws, e1, r1, c.err + k, c.irr + k, c.top, c.scale, c.c_max,
+                    wa, ws, e1, r1, err + k, irr + k, c.top, c.scale, c.c_max,
                     o_row + x * num, num)
 
 
 def cost_start(const float[:, ::1] pl, const float[:, ::1] prr_pad, Py_ssize_t pad,
                Py_ssize_t dmin, Py_ssize_t num, Py_ssize_t n, Py_ssize_t y0,
-               float[:, ::1] col):
+               float[:, ::1] col, object shear=None):
     """The vertical window sums of the cross term at row ``y0 - 1`` into ``col``
-    ((W + 1, D) float32, zeros on entry): the state :func:`first_sweep_rows` starts
+    (:func:`cost_columns`, zeros on entry): the state :func:`first_sweep_rows` starts
     from."""
     cdef CostIn c = _cost_in(pl, prr_pad, pl, prr_pad, prr_pad, pad, dmin, num, 0, n,
                              2.0, 1.0)
+    _shear_in(&c, shear)
+    _check_columns(&c, col)
     with nogil:
         _cost_start(&c, y0, &col[0, 0])
 
@@ -232,7 +369,8 @@ def cost_start(const float[:, ::1] pl, const float[:, ::1] prr_pad, Py_ssize_t p
 def cost_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad, const float[:, ::1] el,
               const float[:, ::1] err_pad, const float[:, ::1] irr_pad, Py_ssize_t pad,
               Py_ssize_t dmin, Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
-              double scale, Py_ssize_t y0, Py_ssize_t y1, uint16_t[:, :, ::1] out):
+              double scale, object shear, Py_ssize_t y0, Py_ssize_t y1,
+              uint16_t[:, :, ::1] out):
     """Quantised Eq. 10 costs of rows y0..y1-1 into ``out`` (H, W, D) uint16.
 
     ``pl``: (H, W) float32 prefiltered left image; ``prr_pad``: (H, W + 2 pad) the
@@ -242,10 +380,19 @@ def cost_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad, const float[:
     ``irr_pad``: (H, W + 2 pad) the right window energies and their inverse square
     roots, reversed and padded likewise (0 where the window has no energy or the centre
     is outside the image). (2m+1) x (2n+1) windows, D = ``num`` from ``dmin``.
+
+    ``shear``: None, or the window sheared by the ground plane's disparity gradient in
+    the rows from ``horizon_row`` down, ``(horizon_row, shifts, err_s, irr_s)``: window
+    row ``dv`` (-n..n) compares the left row ``y + dv`` with the right row shifted by
+    ``shifts[dv + n]`` px more (the ground's disparity there is that much larger), so
+    a pixel's right partner ``x - d`` stays the window's centre; ``err_s``, ``irr_s``
+    the sheared windows' right energies (and inverse roots), laid out as ``err_pad``.
+    ``pad`` must hold the largest shift too.
     """
     cdef CostIn c = _cost_in(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n,
                              c_max, scale)
-    cdef float[:, ::1] col = np.zeros((c.width + 1, num), np.float32)
+    _shear_in(&c, shear)
+    cdef float[:, ::1] col = cost_columns(c.width, num, shear)
     cdef float[::1] hs = np.zeros(num, np.float32)
     cdef Py_ssize_t y
     with nogil:
@@ -438,16 +585,20 @@ def first_sweep_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad,
                      const float[:, ::1] el, const float[:, ::1] err_pad,
                      const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
                      Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max, double scale,
-                     int p1, int p2, bint eight, const uint8_t[:, ::1] grey, double p2_grad,
-                     uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, Py_ssize_t y0,
+                     object shear, int p1, int p2, bint eight, const uint8_t[:, ::1] grey,
+                     double p2_grad, uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a,
+                     Py_ssize_t y0,
                      Py_ssize_t y1, bint with_cost, float[:, ::1] col, float[::1] hs,
                      int16_t[:, ::1] paths, int32_t[:, :, ::1] mins):
     """Rows y0..y1-1 of the top-down sweep into ``s_a``, each row's costs first (with
     ``with_cost``; the column sums ``col`` at row y0 - 1, :func:`cost_start`) or read
     from ``cost`` (computed by another thread). ``paths``, ``mins``: the sweep's state
-    (:func:`sweep_state`), carried from the rows before."""
+    (:func:`sweep_state`), carried from the rows before; ``shear``: :func:`cost_rows`."""
     cdef CostIn c = _cost_in(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n,
                              c_max, scale)
+    _shear_in(&c, shear)
+    if with_cost:
+        _check_columns(&c, col)
     cdef Py_ssize_t y, width = c.width
     cdef int32_t table[511]
     cdef const int32_t *p2_step
@@ -465,19 +616,19 @@ def cost_and_first_sweep(const float[:, ::1] pl, const float[:, ::1] prr_pad,
                          const float[:, ::1] el, const float[:, ::1] err_pad,
                          const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
                          Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
-                         double scale, int p1, int p2, bint eight,
+                         double scale, object shear, int p1, int p2, bint eight,
                          const uint8_t[:, ::1] grey, double p2_grad,
                          uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a):
     """Costs (H, W, D) uint16 into ``cost`` and the top-down sweep's sums into ``s_a``
     (:func:`cost_rows` and :func:`aggregate_pass`, row by row, while each row's costs
-    are in cache)."""
+    are in cache; ``shear``: :func:`cost_rows`)."""
     width = pl.shape[1]
-    col = np.zeros((width + 1, num), np.float32)
+    col = cost_columns(width, num, shear)
     hs = np.zeros(num, np.float32)
     paths, mins = sweep_state(width, num)
-    cost_start(pl, prr_pad, pad, dmin, num, n, 0, col)
+    cost_start(pl, prr_pad, pad, dmin, num, n, 0, col, shear)
     first_sweep_rows(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
-                     p1, p2, eight, grey, p2_grad, cost, s_a, 0, pl.shape[0], True, col, hs,
+                     shear, p1, p2, eight, grey, p2_grad, cost, s_a, 0, pl.shape[0], True, col, hs,
                      paths, mins)
 
 
