@@ -145,15 +145,16 @@ def sheared_right_energies(pr: np.ndarray, m: int, n: int, shifts: np.ndarray,
         (column ``xr`` at ``pad + W - 1 - xr``), as the SGM cost kernels read them.
     """
     h, w = pr.shape
-    sq = pr.astype(np.float64) ** 2
-    c = np.cumsum(np.pad(sq, ((n, n), (m + 1, m))), axis=1)
-    rows = c[:, 2 * m + 1:] - c[:, :-2 * m - 1]        # (H + 2n, W) row sums, 2m+1 wide
     smax = int(np.abs(shifts).max())
-    e = np.zeros((h, w + 2 * smax))
+    sq = pr.astype(np.float64) ** 2
+    # (H + 2n, W + 2 smax) sums over 2m+1 columns, centres -smax .. W - 1 + smax
+    c = np.cumsum(np.pad(sq, ((n, n), (m + 1 + smax, m + smax))), axis=1)
+    rows = c[:, 2 * m + 1:] - c[:, :-2 * m - 1]
+    e = np.zeros((h, w))
     for dv, s in zip(range(-n, n + 1), shifts, strict=True):
         # row y + dv of the window at right column xr reads columns around xr - s
-        e[:, smax + s:smax + s + w] += rows[n + dv:n + dv + h]
-    e = e[:, smax:smax + w].astype(np.float32)
+        e += rows[n + dv:n + dv + h, smax - s:smax - s + w]
+    e = e.astype(np.float32)
     err = np.zeros((h, w + 2 * pad), np.float32)
     irr = np.zeros((h, w + 2 * pad), np.float32)
     err[:, pad:pad + w] = e[:, ::-1]

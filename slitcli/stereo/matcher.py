@@ -68,7 +68,7 @@ from __future__ import annotations
 import math
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
-from dataclasses import KW_ONLY, dataclass
+from dataclasses import KW_ONLY, dataclass, replace
 
 import cv2
 import numpy as np
@@ -387,6 +387,34 @@ def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
     disp = np.where(valid, raw.astype(np.float32) / 16.0, np.float32(np.nan))
     reason = np.where(valid, Reason.VALID, Reason.OPENCV).astype(np.uint8)
     return DisparityResult(disp.astype(np.float32), reason)
+
+
+def with_rig_ground(params: MatcherParams, floor_disparity_px: np.ndarray) -> MatcherParams:
+    """``params`` with the ground's disparity gradient and horizon row taken from the rig.
+
+    SGM's window is sheared by the ground plane's disparity gradient below the horizon
+    (``sgm_ground_px_per_row``, ``sgm_ground_horizon_row_px``); where they are None
+    (the defaults) the rig says where the ground is: both are read from its floor
+    disparities (:func:`slitcli.stereo.cost.ground_shear_from_floor`). Values set
+    explicitly stay; so do the local matcher's parameters.
+
+    Parameters
+    ----------
+    params : MatcherParams
+    floor_disparity_px : ndarray, float32, shape (H, W)
+        ``StereoGeometry.floor_disparity_px`` of the rig (0 above the horizon).
+    """
+    from slitcli.stereo.cost import ground_shear_from_floor
+
+    if params.aggregation != "sgm" or (params.sgm_ground_px_per_row is not None
+                                       and params.sgm_ground_horizon_row_px is not None):
+        return params
+    grad, horizon = ground_shear_from_floor(floor_disparity_px)
+    if params.sgm_ground_px_per_row is not None:
+        grad = params.sgm_ground_px_per_row
+    if params.sgm_ground_horizon_row_px is not None:
+        horizon = params.sgm_ground_horizon_row_px
+    return replace(params, sgm_ground_px_per_row=grad, sgm_ground_horizon_row_px=horizon)
 
 
 def compute_disparity(left: np.ndarray, right: np.ndarray,

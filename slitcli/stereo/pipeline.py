@@ -14,7 +14,7 @@ from slitcli.calibrate.rectify import rectify_pair
 from slitcli.errors import SlitcliError
 from slitcli.rig import Rig
 from slitcli.stereo.geometry import StereoGeometry
-from slitcli.stereo.matcher import MatcherParams, compute_disparity, to_grey
+from slitcli.stereo.matcher import MatcherParams, compute_disparity, to_grey, with_rig_ground
 from slitcli.stereo.obstacles import (
     MaskInputs,
     ObstacleParams,
@@ -122,7 +122,9 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left, right = rectify_pair(rig, left_bgr, right_bgr, maps=geometry.rectification)
     # grey once per frame: the matcher and the mask filters read the same grey pair
     left_grey, right_grey = to_grey(left), to_grey(right)
-    disp = compute_disparity(left_grey, right_grey, p.matcher)
+    # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
+    disp = compute_disparity(left_grey, right_grey,
+                             with_rig_ground(p.matcher, geometry.floor_disparity_px))
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
     inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)
     obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)

@@ -60,7 +60,6 @@ def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
     """What the cost kernels read: the prefiltered images, window energies and counts,
     the right image's rows reversed and padded (see slitcli.stereo._sgm.cost_rows)."""
     from slitcli.stereo import _sgm
-
     from slitcli.stereo.cost import ground_window_shifts, sheared_right_energies
 
     m, n = params.window_w_px // 2, params.window_h_px // 2
