@@ -72,13 +72,16 @@ def test_rig_gradient_and_horizon_from_the_floor():
                                      rel=1e-5)
         assert horizon == pytest.approx(rig.left.cy_px - rig.focal_px * math.tan(t),
                                         abs=1e-3)
-    floor = StereoGeometry.for_rig(ROAD_RIG).floor_disparity_px
-    sgm = with_rig_ground(MatcherParams(aggregation="sgm"), floor)
+    geo = StereoGeometry.for_rig(ROAD_RIG)
+    sgm = with_rig_ground(MatcherParams(aggregation="sgm"), geo)
     assert sgm.sgm_ground_px_per_row == pytest.approx(0.3614, abs=1e-4)
+    # a 1 degree tilt error moves the floor's disparity by f W / h x 1 deg (at the
+    # horizon; the tilt's cosine term vanishes there): 250 x 0.25 / 0.65 x 0.01745
+    assert sgm.sgm_ground_band_px == pytest.approx(250 * 0.25 / 0.65 * math.radians(1.0))
     # explicit values stay; the local matcher has no window to shear
     assert with_rig_ground(MatcherParams(aggregation="sgm", sgm_ground_px_per_row=0.0),
-                           floor).sgm_ground_px_per_row == 0.0
-    assert with_rig_ground(MatcherParams(), floor).sgm_ground_px_per_row is None
+                           geo).sgm_ground_px_per_row == 0.0
+    assert with_rig_ground(MatcherParams(), geo).sgm_ground_px_per_row is None
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -95,12 +98,36 @@ def test_sheared_cost_is_eq10_over_sheared_windows(seed):
     top = round(COST_MAX * COST_SCALE)
     flat = brute_force_sheared(pl, pr, 8, 2, 2, np.zeros(5, np.int64))
     sheared = brute_force_sheared(pl, pr, 8, 2, 2, ground_window_shifts(0.5, 2))
-    ref = np.concatenate([flat[:horizon], sheared[horizon:]])
+    # no band: the sheared window is the second hypothesis for every disparity
+    ref = np.concatenate([flat[:horizon], np.minimum(flat, sheared)[horizon:]])
     assert (cost[~np.isfinite(ref)] == top).all()
     fin = np.isfinite(ref)
     want = np.minimum(ref[fin], COST_MAX) * COST_SCALE
     # half a quantisation step, plus the float32 reciprocal square roots
     np.testing.assert_array_less(np.abs(cost[fin] - want), 0.5 + 1e-3 * want + 1e-6)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_sheared_hypothesis_only_near_the_ground(seed):
+    """With a band, only disparities within it of the ground's at each row (0.5 px per
+    row from the horizon at row 4.5) may cost less than the fronto-parallel window;
+    every other cost is the fronto-parallel one, bit for bit."""
+    rng = np.random.default_rng(seed)
+    left = rng.integers(20, 236, (40, 48)).astype(np.uint8)
+    right = np.roll(left, -5, axis=1)
+    flat = MatcherParams(num_disparities=16, window_w_px=5, window_h_px=5,
+                         aggregation="sgm", sgm_ground_px_per_row=0.0)
+    band = replace(flat, sgm_ground_px_per_row=0.5, sgm_ground_horizon_row_px=4.5,
+                   sgm_ground_band_px=1.5)
+    pl, pr = prefilter_image(left, flat), prefilter_image(right, flat)
+    c0, _, _ = cost_volume(pl, pr, flat)
+    c1, _, _ = cost_volume(pl, pr, band)
+    ground = 0.5 * (np.arange(40) - 4.5)
+    near = np.abs(np.arange(16)[None, :] - ground[:, None]) <= 1.5   # (rows, D)
+    near[:5] = False                                                # above the horizon
+    near = np.broadcast_to(near[:, None, :], c0.shape)
+    np.testing.assert_array_equal(c1[~near], c0[~near])
+    assert (c1[near] <= c0[near]).all() and (c1[near] < c0[near]).any()
 
 
 def slanted_pair(seed: int, slope: float, d0: float = 8.0
@@ -128,7 +155,8 @@ def test_fused_passes_equal_the_stages_with_the_shear(threads, num):
     left, right, _ = slanted_pair(7, 0.36, d0=2.0)
     left, right = left[:, :200], right[:, :200]
     p = MatcherParams(num_disparities=num, window_w_px=7, window_h_px=7, aggregation="sgm",
-                      sgm_ground_px_per_row=0.36, sgm_ground_horizon_row_px=37.2)
+                      sgm_ground_px_per_row=0.36, sgm_ground_horizon_row_px=37.2,
+                      sgm_ground_band_px=2.0)
     pl, pr = prefilter_image(left, p), prefilter_image(right, p)
     h, w = left.shape
     tests = (0, np.float32(0.15), 1.0, True, np.float32(16.0), np.uint16(512), np.float32(256))
@@ -179,7 +207,9 @@ def test_sheared_window_removes_the_slant_bias(seed):
     left, right, d = slanted_pair(seed, slope)
     reg = (slice(10, 230), slice(100, 310))
     flat = MatcherParams(num_disparities=112, aggregation="sgm", sgm_ground_px_per_row=0.0)
-    shear = replace(flat, sgm_ground_px_per_row=slope, sgm_ground_horizon_row_px=0.0)
+    # the plane is the "ground": its disparity 8 + 0.36 v is 0 at row -8 / 0.36
+    shear = replace(flat, sgm_ground_px_per_row=slope, sgm_ground_horizon_row_px=-8.0 / slope,
+                    sgm_ground_band_px=1.5)
     shifts = ground_window_shifts(slope, shear.sgm_window_px // 2)
     pred = _energy_centroid_error(left, shear, slope, shifts)[reg]
     got = compute_disparity(left, right, shear).disparity_px[reg]

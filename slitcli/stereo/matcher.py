@@ -69,6 +69,7 @@ import math
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import KW_ONLY, dataclass, replace
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -78,6 +79,9 @@ from slitcli.stereo.bands import kernel_threads, run_row_bands, thread_setting
 from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.reasons import Reason
+
+if TYPE_CHECKING:
+    from slitcli.stereo.geometry import StereoGeometry
 
 MATCHERS = ("nssd", "bm", "sgbm")
 AGGREGATIONS = ("none", "sgm")
@@ -137,6 +141,8 @@ class MatcherParams:
     sgm_bracket_span_px: float = 1.0
     sgm_ground_px_per_row: float | None = None
     sgm_ground_horizon_row_px: float | None = None
+    sgm_ground_band_px: float | None = None
+    sgm_ground_tilt_tol_deg: float = 1.0
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -200,6 +206,13 @@ def _check_sgm(p: MatcherParams) -> None:
         raise SlitcliError(f"sgm_ground_px_per_row {g} must lie in 0..2 px of disparity per "
                            "image row (0 = fronto-parallel windows, None = from the rig)",
                            param="sgm_ground_px_per_row")
+    b = p.sgm_ground_band_px
+    if b is not None and not (math.isfinite(b) and b >= 0):
+        raise SlitcliError(f"sgm_ground_band_px {b} must be >= 0 px or None (from the rig)",
+                           param="sgm_ground_band_px")
+    if not 0 <= p.sgm_ground_tilt_tol_deg <= 10:
+        raise SlitcliError(f"sgm_ground_tilt_tol_deg {p.sgm_ground_tilt_tol_deg} must lie in "
+                           "0..10 deg", param="sgm_ground_tilt_tol_deg")
     v = p.sgm_ground_horizon_row_px
     if v is not None and not math.isfinite(v):
         raise SlitcliError(f"sgm_ground_horizon_row_px {v} must be a finite row (px) or None "
@@ -389,32 +402,39 @@ def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
     return DisparityResult(disp.astype(np.float32), reason)
 
 
-def with_rig_ground(params: MatcherParams, floor_disparity_px: np.ndarray) -> MatcherParams:
-    """``params`` with the ground's disparity gradient and horizon row taken from the rig.
+def with_rig_ground(params: MatcherParams, geometry: StereoGeometry) -> MatcherParams:
+    """``params`` with the ground's disparity gradient, horizon row and band from the rig.
 
     SGM's window is sheared by the ground plane's disparity gradient below the horizon
-    (``sgm_ground_px_per_row``, ``sgm_ground_horizon_row_px``); where they are None
-    (the defaults) the rig says where the ground is: both are read from its floor
-    disparities (:func:`slitcli.stereo.cost.ground_shear_from_floor`). Values set
-    explicitly stay; so do the local matcher's parameters.
+    (``sgm_ground_px_per_row``, ``sgm_ground_horizon_row_px``) for the disparities
+    within ``sgm_ground_band_px`` of the ground's; where they are None (the defaults)
+    the rig says where the ground is: the gradient and horizon from its floor
+    disparities (:func:`slitcli.stereo.cost.ground_shear_from_floor`), the band from
+    how far a tilt error of ``sgm_ground_tilt_tol_deg`` moves the floor's disparity
+    (``f W / h`` px per radian at the horizon: 0.6 px per degree for the paper rig,
+    4 px for KITTI's). Values set explicitly stay; so do the local matcher's.
 
     Parameters
     ----------
     params : MatcherParams
-    floor_disparity_px : ndarray, float32, shape (H, W)
-        ``StereoGeometry.floor_disparity_px`` of the rig (0 above the horizon).
+    geometry : StereoGeometry
+        The rig's (``floor_disparity_px``, 0 above the horizon, and the rig itself).
     """
     from slitcli.stereo.cost import ground_shear_from_floor
 
-    if params.aggregation != "sgm" or (params.sgm_ground_px_per_row is not None
-                                       and params.sgm_ground_horizon_row_px is not None):
+    if params.aggregation != "sgm":
         return params
-    grad, horizon = ground_shear_from_floor(floor_disparity_px)
-    if params.sgm_ground_px_per_row is not None:
-        grad = params.sgm_ground_px_per_row
-    if params.sgm_ground_horizon_row_px is not None:
-        horizon = params.sgm_ground_horizon_row_px
-    return replace(params, sgm_ground_px_per_row=grad, sgm_ground_horizon_row_px=horizon)
+    grad, horizon = ground_shear_from_floor(geometry.floor_disparity_px)
+    rig = geometry.rig
+    band = (rig.focal_px * rig.baseline_m / rig.mount.height_m
+            * math.radians(params.sgm_ground_tilt_tol_deg))
+    return replace(params, sgm_ground_px_per_row=_given(params.sgm_ground_px_per_row, grad),
+                   sgm_ground_horizon_row_px=_given(params.sgm_ground_horizon_row_px, horizon),
+                   sgm_ground_band_px=_given(params.sgm_ground_band_px, band))
+
+
+def _given(value: float | None, default: float) -> float:
+    return default if value is None else value
 
 
 def compute_disparity(left: np.ndarray, right: np.ndarray,

@@ -124,7 +124,7 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left_grey, right_grey = to_grey(left), to_grey(right)
     # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
     disp = compute_disparity(left_grey, right_grey,
-                             with_rig_ground(p.matcher, geometry.floor_disparity_px))
+                             with_rig_ground(p.matcher, geometry))
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
     inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)
     obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)

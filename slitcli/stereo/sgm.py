@@ -78,10 +78,14 @@ def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
     shear = None
     if shifts.any():
         # the window sheared by the ground's disparity gradient from the horizon down
-        # (slitcli.stereo.cost.ground_window_shifts)
-        horizon = params.sgm_ground_horizon_row_px
-        shear = (0 if horizon is None else max(0, math.ceil(horizon)), shifts,
-                 *sheared_right_energies(pr, m, n, shifts, pad))
+        # (slitcli.stereo.cost.ground_window_shifts), its cost the second hypothesis
+        # for the disparities near the ground's
+        horizon = params.sgm_ground_horizon_row_px or 0.0
+        band = params.sgm_ground_band_px
+        shear = (max(0, math.ceil(horizon)), shifts,
+                 *sheared_right_energies(pr, m, n, shifts, pad),
+                 float(params.sgm_ground_px_per_row), float(horizon),
+                 float(2 * num + 2 * abs(dmin)) if band is None else float(band))
     return {"pl": pl, "prr": prr, "el": el, "err": err, "irr": irr, "pad": pad, "dmin": dmin,
             "num": num, "m": m, "n": n, "count": count, "shear": shear}
 

@@ -31,7 +31,7 @@ divisibility, on the processor, on the bands or on the fusion: the same integer 
 float operations in the same order.
 """
 
-from libc.math cimport fabsf, rint, sqrtf
+from libc.math cimport ceilf, fabsf, floorf, rint, sqrtf
 from libc.stdint cimport int16_t, int32_t, int64_t, uint8_t, uint16_t
 
 from slitcli.stereo._c.sgm_loops cimport (
@@ -41,6 +41,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     add_floats,
     column_slide,
     copy_floats,
+    min_u16,
     cost_pixels16,
     path_pair,
     pixel_costs,
@@ -150,6 +151,9 @@ cdef struct CostIn:
     Py_ssize_t g_hi[MAX_GROUPS]
     const float *err_s
     const float *irr_s
+    # the sheared window's cost is a second hypothesis for disparities within band px
+    # of the ground's (grad (y - horizon_px)): the smaller of both costs is kept
+    float grad, horizon_px, band
 
 
 cdef CostIn _cost_in(const float[:, ::1] pl, const float[:, ::1] prr_pad,
@@ -192,7 +196,7 @@ cdef void _shear_in(CostIn *c, object shear) except *:
     cdef Py_ssize_t k = 0, dv
     if shear is None:
         return
-    horizon, shifts, e, r = shear
+    horizon, shifts, e, r, grad, horizon_px, band = shear
     if shifts.shape[0] != 2 * c.n + 1 or e.shape[0] != c.height or e.shape[1] != c.stride \
             or r.shape[0] != c.height or r.shape[1] != c.stride:
         raise ValueError("shear: shifts, err_s or irr_s do not fit the window and image")
@@ -214,19 +218,23 @@ cdef void _shear_in(CostIn *c, object shear) except *:
     c.horizon = max(0, min(<Py_ssize_t>horizon, c.height))
     c.err_s = &e[0, 0]
     c.irr_s = &r[0, 0]
+    c.grad = grad
+    c.horizon_px = horizon_px
+    c.band = band
 
 
 def cost_columns(Py_ssize_t width, Py_ssize_t num, object shear):
-    """The cost rows' column sums, zeros: (W + 1, D) float32, with a sheared window
-    (``shear``, :func:`cost_rows`) one more (W + 1, D) block per row group."""
+    """The cost rows' column sums, zeros: (W + 1, D) float32; with a sheared window
+    (``shear``, :func:`cost_rows`) (W + 1, D) blocks for the fronto-parallel sums, the
+    sheared sums, one per row group and a scratch row of sheared costs."""
     cdef Py_ssize_t blocks = 1
     if shear is not None:
-        blocks += len(np.unique(np.asarray(shear[1])))
+        blocks += 2 + len(np.unique(np.asarray(shear[1])))
     return np.zeros((blocks * (width + 1), num), np.float32)
 
 
 cdef void _check_columns(const CostIn *c, float[:, ::1] col) except *:
-    if col.shape[1] != c.num or col.shape[0] < (c.groups + 1 if c.groups > 1 else 1) * (
+    if col.shape[1] != c.num or col.shape[0] < (c.groups + 3 if c.groups > 1 else 1) * (
             c.width + 1):
         raise ValueError("col: too small for the window's row groups (cost_columns)")
 
@@ -274,14 +282,32 @@ cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, float *col,
 
 cdef void _sheared_columns(const CostIn *c, Py_ssize_t y, float *col,
                            bint fresh) noexcept nogil:
-    """The sheared window's column sums at row y into ``col``'s first block: each row
-    group's sums (blocks 1..groups) slid (or, ``fresh``, summed anew), then added."""
+    """The sheared window's column sums at row y into ``col``'s second block: each row
+    group's sums (blocks 2 ..) slid (or, ``fresh``, summed anew), then added."""
     cdef Py_ssize_t k, size = (c.width + 1) * c.num
     for k in range(c.groups):
-        _group_slide(c, k, y, col + (k + 1) * size, fresh)
-    copy_floats(col + c.num, col + size + c.num, size - c.num)
+        _group_slide(c, k, y, col + (k + 2) * size, fresh)
+    copy_floats(col + size + c.num, col + 2 * size + c.num, size - c.num)
     for k in range(1, c.groups):
-        add_floats(col + c.num, col + (k + 1) * size + c.num, size - c.num)
+        add_floats(col + size + c.num, col + (k + 2) * size + c.num, size - c.num)
+
+
+cdef void _ground_hypothesis(const CostIn *c, Py_ssize_t y, uint16_t *o_row,
+                             const uint16_t *sheared) noexcept nogil:
+    """Row ``y``'s costs ``o_row`` (W x D) become the smaller of theirs and the sheared
+    window's ``sheared`` where the candidate disparity lies within ``band`` px of the
+    ground's at this row: ground is expected there, and only there. Elsewhere (an
+    object standing on the ground: nearer than the ground at its rows) the
+    fronto-parallel window stays, which the sheared one would misregister by up to
+    its largest shift."""
+    cdef float ground = c.grad * (<float>y - c.horizon_px)
+    cdef Py_ssize_t i0 = max(0, <Py_ssize_t>ceilf(ground - c.band) - c.dmin)
+    cdef Py_ssize_t i1 = min(c.num - 1, <Py_ssize_t>floorf(ground + c.band) - c.dmin)
+    cdef Py_ssize_t x
+    if i1 < i0:
+        return
+    for x in range(c.width):
+        min_u16(o_row + x * c.num + i0, sheared + x * c.num + i0, i1 - i0 + 1)
 
 
 cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil:
@@ -289,34 +315,39 @@ cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil
     y0-1+n) into ``col`` ((W + 1) x D, row 0 the zero column)."""
     cdef Py_ssize_t yy, x
     cdef const float *ra
-    if _sheared(c, y0 - 1):
-        _sheared_columns(c, y0 - 1, col, True)
-        return
     for yy in range(max(0, y0 - 1 - c.n), min(c.height, y0 + c.n)):
         for x in range(c.width):
             ra = c.prr + yy * c.stride + c.pad + c.width - 1 - x + c.dmin
             column_slide(col + (x + 1) * c.num, ra, ra, c.pl[yy * c.width + x], 0.0, c.num)
+    if _sheared(c, y0 - 1):
+        _sheared_columns(c, y0 - 1, col, True)
 
 
 cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
                     uint16_t *o_row) noexcept nogil:
     """Row ``y`` of the quantised costs into ``o_row`` (W x D), the column sums ``col``
-    slid one row down first."""
+    slid one row down first; below the horizon with a sheared window (``c.groups`` >
+    1) its costs too, taken where the ground's disparity is near (_ground_hypothesis)."""
+    cdef Py_ssize_t size = (c.width + 1) * c.num
+    _plain_slide(c, y, col)
+    _costs_from_columns(c, y, col, hs, c.err, c.irr, o_row)
+    if not _sheared(c, y):
+        return
+    # the window sheared by the ground's disparity gradient (fresh at the first
+    # sheared row: the sums before it are of other windows)
+    _sheared_columns(c, y, col, y == c.horizon)
+    _costs_from_columns(c, y, col + size, hs, c.err_s, c.irr_s,
+                        <uint16_t *>(col + (c.groups + 2) * size))
+    _ground_hypothesis(c, y, o_row, <const uint16_t *>(col + (c.groups + 2) * size))
+
+
+cdef void _plain_slide(const CostIn *c, Py_ssize_t y, float *col) noexcept nogil:
+    """The fronto-parallel window's column sums ``col`` slid from row y - 1 to y."""
     cdef Py_ssize_t width = c.width, num = c.num, height = c.height
-    cdef Py_ssize_t ya = y + c.n, ys = y - c.n - 1, x, xx, xa, xs, i, base, k
-    cdef float a, b, wa, ws, e1, r1
-    # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
-    # into uint16 unchanged
+    cdef Py_ssize_t ya = y + c.n, ys = y - c.n - 1, x, base, k
+    cdef float a, b
     cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
-    cdef const float *err = c.err
-    cdef const float *irr = c.irr
-    if _sheared(c, y):
-        # the window sheared by the ground's disparity gradient (fresh at the first
-        # sheared row: the fronto-parallel sums before it are of another window)
-        _sheared_columns(c, y, col, y == c.horizon)
-        err = c.err_s
-        irr = c.irr_s
-    elif lanes and (ya < height or ys >= 0):
+    if lanes and (ya < height or ys >= 0):
         k = c.pad + width - 1 + c.dmin
         slide_columns16(col, c.pl + ya * width if ya < height else NULL,
                         c.pl + ys * width if ys >= 0 else NULL,
@@ -329,6 +360,18 @@ cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
             b = c.pl[ys * width + x] if ys >= 0 else <float>0.0
             column_slide(col + (x + 1) * num, c.prr + min(ya, height - 1) * c.stride + base,
                          c.prr + max(ys, 0) * c.stride + base, a, b, num)
+
+
+cdef void _costs_from_columns(const CostIn *c, Py_ssize_t y, const float *col, float *hs,
+                              const float *err, const float *irr,
+                              uint16_t *o_row) noexcept nogil:
+    """Row ``y``'s quantised costs into ``o_row`` from the column sums ``col`` (slid
+    along the row) and the right energies ``err``, ``irr`` (layout of ``err_pad``)."""
+    cdef Py_ssize_t width = c.width, num = c.num, x, xx, xa, xs, i, k
+    cdef float wa, ws, e1, r1
+    # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
+    # into uint16 unchanged
+    cdef bint lanes = HAVE_COSTS16 and num % 16 == 0 and c.c_max * c.scale < 60000
     for i in range(num):
         hs[i] = 0.0
     for xx in range(min(c.m, width)):

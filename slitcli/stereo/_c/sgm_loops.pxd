@@ -606,6 +606,13 @@ cdef inline void add_floats(fp dst, cfp src, Py_ssize_t n) noexcept nogil:
         dst[i] += src[i]
 
 
+cdef inline void min_u16(up dst, cup src, Py_ssize_t n) noexcept nogil:
+    """``dst[:n] = min(dst[:n], src[:n])``."""
+    cdef Py_ssize_t i
+    for i in range(n):
+        dst[i] = src[i] if src[i] < dst[i] else dst[i]
+
+
 cdef inline void column_slide(fp col, cfp ra, cfp rs, float a, float b,
                               Py_ssize_t n) noexcept nogil:
     """The vertical window sums of the cross term of one column, one row down:
