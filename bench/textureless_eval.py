@@ -37,7 +37,7 @@ from slitcli.rig import paper_rig
 from slitcli.sim.render import render_frame
 from slitcli.sim.scene import scene_from_dict
 from slitcli.stereo.geometry import StereoGeometry
-from slitcli.stereo.matcher import MatcherParams, compute_disparity
+from slitcli.stereo.matcher import MatcherParams, compute_disparity, with_rig_ground
 from slitcli.stereo.pipeline import StereoParams, process_stereo_pair
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -233,12 +233,16 @@ def slanted_floor(cache: Path, baseline_m: float, seeds: range,
     num = int(16 * np.ceil(np.nanmax(frames[0]["disparity_px"][120:]) / 16 + 0.5))
     print(f"baseline {baseline_m} m, floor contrast {contrast}, {len(frames)} frames, "
           f"{num} disparities")
-    for name, kw in SETTINGS.items():
+    # the matcher as the stereo pipeline runs it for this rig (SGM's ground shear)
+    geo = StereoGeometry.for_rig(rig)
+    settings = {**SETTINGS, "sgm, fronto-parallel": {"aggregation": "sgm",
+                                                     "sgm_ground_px_per_row": 0.0}}
+    for name, kw in settings.items():
         n = valid = bad1 = bad2 = near = 0
         errs = []
         for z in frames:
-            disp = compute_disparity(z["left"], z["right"],
-                                     MatcherParams(num_disparities=num, **kw)).disparity_px
+            params = with_rig_ground(MatcherParams(num_disparities=num, **kw), geo)
+            disp = compute_disparity(z["left"], z["right"], params).disparity_px
             gt = z["disparity_px"]
             floor = (z["object_id"] == 0) & (z["depth_m"] <= 3.0) & np.isfinite(gt)
             v = floor & np.isfinite(disp)

@@ -85,21 +85,33 @@ def test_rig_gradient_and_horizon_from_the_floor():
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_sheared_cost_is_eq10_over_sheared_windows(seed):
+@pytest.mark.parametrize(("num", "band"), [(8, None), (32, 1.0), (20, 2.5)])
+def test_sheared_cost_is_eq10_over_sheared_windows(seed, num, band):
+    """From the horizon row down, the cost is the smaller of the fronto-parallel and
+    the sheared window's Eq. 10 for the disparities within ``band`` of the ground's
+    (0.5 px per row from the horizon at row 4.5; every disparity without a band), the
+    fronto-parallel one elsewhere. 32 disparities: the 16-lane rows on a block of 16
+    (moved down the image with the ground), 20: the scalar loops."""
     rng = np.random.default_rng(seed)
-    left = rng.integers(20, 236, (16, 30)).astype(np.uint8)
+    h = 40
+    left = rng.integers(20, 236, (h, 36)).astype(np.uint8)
     right = np.roll(left, -3, axis=1)
-    right[:, -3:] = rng.integers(20, 236, (16, 3))
+    right[:, -3:] = rng.integers(20, 236, (h, 3))
     horizon = 5
-    p = MatcherParams(num_disparities=8, window_w_px=5, window_h_px=5, aggregation="sgm",
-                      sgm_ground_px_per_row=0.5, sgm_ground_horizon_row_px=horizon - 0.5)
+    p = MatcherParams(num_disparities=num, window_w_px=5, window_h_px=5, aggregation="sgm",
+                      sgm_ground_px_per_row=0.5, sgm_ground_horizon_row_px=horizon - 0.5,
+                      sgm_ground_band_px=band)
     pl, pr = prefilter_image(left, p), prefilter_image(right, p)
     cost, _, _ = cost_volume(pl, pr, p)
     top = round(COST_MAX * COST_SCALE)
-    flat = brute_force_sheared(pl, pr, 8, 2, 2, np.zeros(5, np.int64))
-    sheared = brute_force_sheared(pl, pr, 8, 2, 2, ground_window_shifts(0.5, 2))
-    # no band: the sheared window is the second hypothesis for every disparity
-    ref = np.concatenate([flat[:horizon], np.minimum(flat, sheared)[horizon:]])
+    flat = brute_force_sheared(pl, pr, num, 2, 2, np.zeros(5, np.int64))
+    sheared = brute_force_sheared(pl, pr, num, 2, 2, ground_window_shifts(0.5, 2))
+    near = np.ones((h, num), bool)
+    if band is not None:
+        ground = 0.5 * (np.arange(h) - (horizon - 0.5))
+        near = np.abs(np.arange(num)[None, :] - ground[:, None]) <= band
+    near[:horizon] = False
+    ref = np.where(near[:, None, :], np.minimum(flat, sheared), flat)
     assert (cost[~np.isfinite(ref)] == top).all()
     fin = np.isfinite(ref)
     want = np.minimum(ref[fin], COST_MAX) * COST_SCALE

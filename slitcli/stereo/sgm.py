@@ -85,7 +85,7 @@ def _cost_inputs(pl: np.ndarray, pr: np.ndarray, params: MatcherParams) -> dict:
         shear = (max(0, math.ceil(horizon)), shifts,
                  *sheared_right_energies(pr, m, n, shifts, pad),
                  float(params.sgm_ground_px_per_row), float(horizon),
-                 float(2 * num + 2 * abs(dmin)) if band is None else float(band))
+                 float("inf") if band is None else float(band))
     return {"pl": pl, "prr": prr, "el": el, "err": err, "irr": irr, "pad": pad, "dmin": dmin,
             "num": num, "m": m, "n": n, "count": count, "shear": shear}
 

@@ -154,6 +154,7 @@ cdef struct CostIn:
     # the sheared window's cost is a second hypothesis for disparities within band px
     # of the ground's (grad (y - horizon_px)): the smaller of both costs is kept
     float grad, horizon_px, band
+    Py_ssize_t nb
 
 
 cdef CostIn _cost_in(const float[:, ::1] pl, const float[:, ::1] prr_pad,
@@ -221,20 +222,27 @@ cdef void _shear_in(CostIn *c, object shear) except *:
     c.grad = grad
     c.horizon_px = horizon_px
     c.band = band
+    # the block of disparities computed with the sheared window: the band's (at most
+    # 2 band + 1 whole disparities) with one to spare, whole 16-lane vectors where
+    # the rows run in them
+    c.nb = min(c.num, <Py_ssize_t>(2 * min(c.band, <float>c.num)) + 2)
+    if HAVE_COSTS16 and c.num % 16 == 0:
+        c.nb = min(c.num, 16 * ((c.nb + 15) // 16))
 
 
 def cost_columns(Py_ssize_t width, Py_ssize_t num, object shear):
     """The cost rows' column sums, zeros: (W + 1, D) float32; with a sheared window
     (``shear``, :func:`cost_rows`) (W + 1, D) blocks for the fronto-parallel sums, the
-    sheared sums, one per row group and a scratch row of sheared costs."""
+    sheared sums, one per row group, a scratch row of sheared costs and the state of
+    the block of disparities they cover (_sheared_row)."""
     cdef Py_ssize_t blocks = 1
     if shear is not None:
-        blocks += 2 + len(np.unique(np.asarray(shear[1])))
+        blocks += 3 + len(np.unique(np.asarray(shear[1])))
     return np.zeros((blocks * (width + 1), num), np.float32)
 
 
 cdef void _check_columns(const CostIn *c, float[:, ::1] col) except *:
-    if col.shape[1] != c.num or col.shape[0] < (c.groups + 3 if c.groups > 1 else 1) * (
+    if col.shape[1] != c.num or col.shape[0] < (c.groups + 4 if c.groups > 1 else 1) * (
             c.width + 1):
         raise ValueError("col: too small for the window's row groups (cost_columns)")
 
@@ -243,26 +251,27 @@ cdef inline bint _sheared(const CostIn *c, Py_ssize_t y) noexcept nogil:
     return c.groups > 1 and y >= c.horizon
 
 
-cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, float *col,
-                       bint fresh) noexcept nogil:
+cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, Py_ssize_t j0,
+                       float *col, bint fresh) noexcept nogil:
     """Row group ``k``'s column sums (its window rows, right samples shifted by its
-    shift) slid from row y - 1 to row y; ``fresh``: summed from zeros at row y."""
-    cdef Py_ssize_t width = c.width, num = c.num, height = c.height, x, r, r0, r1, base
-    cdef Py_ssize_t off = c.pad + width - 1 + c.dmin + c.g_shift[k]
+    shift) of the ``c.nb`` disparities from index ``j0`` ((W + 1) x nb) slid from row
+    y - 1 to row y; ``fresh``: summed from zeros at row y."""
+    cdef Py_ssize_t width = c.width, nb = c.nb, height = c.height, x, r, r0, r1, base
+    cdef Py_ssize_t off = c.pad + width - 1 + c.dmin + j0 + c.g_shift[k]
     cdef Py_ssize_t ya = y + c.g_hi[k], ys = y + c.g_lo[k] - 1
     cdef bint a_in = 0 <= ya < height, s_in = 0 <= ys < height
-    cdef bint lanes = HAVE_COSTS16 and num % 16 == 0
+    cdef bint lanes = HAVE_COSTS16 and nb % 16 == 0
     cdef float a, b
     if fresh:
-        for x in range((width + 1) * num):
+        for x in range((width + 1) * nb):
             col[x] = 0.0
         r0 = max(0, y + c.g_lo[k])
         r1 = min(height, y + c.g_hi[k] + 1)
         for r in range(r0, r1):
             for x in range(width):
                 base = r * c.stride + off - x
-                column_slide(col + (x + 1) * num, c.prr + base, c.prr + base,
-                             c.pl[r * width + x], 0.0, num)
+                column_slide(col + (x + 1) * nb, c.prr + base, c.prr + base,
+                             c.pl[r * width + x], 0.0, nb)
         return
     if not (a_in or s_in):
         return
@@ -270,44 +279,54 @@ cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, float *col,
         slide_columns16(col, c.pl + ya * width if a_in else NULL,
                         c.pl + ys * width if s_in else NULL,
                         c.prr + min(max(ya, 0), height - 1) * c.stride + off,
-                        c.prr + min(max(ys, 0), height - 1) * c.stride + off, width, num)
+                        c.prr + min(max(ys, 0), height - 1) * c.stride + off, width, nb)
         return
     for x in range(width):
         a = c.pl[ya * width + x] if a_in else <float>0.0
         b = c.pl[ys * width + x] if s_in else <float>0.0
-        column_slide(col + (x + 1) * num,
+        column_slide(col + (x + 1) * nb,
                      c.prr + min(max(ya, 0), height - 1) * c.stride + off - x,
-                     c.prr + min(max(ys, 0), height - 1) * c.stride + off - x, a, b, num)
+                     c.prr + min(max(ys, 0), height - 1) * c.stride + off - x, a, b, nb)
 
 
-cdef void _sheared_columns(const CostIn *c, Py_ssize_t y, float *col,
-                           bint fresh) noexcept nogil:
-    """The sheared window's column sums at row y into ``col``'s second block: each row
-    group's sums (blocks 2 ..) slid (or, ``fresh``, summed anew), then added."""
-    cdef Py_ssize_t k, size = (c.width + 1) * c.num
-    for k in range(c.groups):
-        _group_slide(c, k, y, col + (k + 2) * size, fresh)
-    copy_floats(col + size + c.num, col + 2 * size + c.num, size - c.num)
-    for k in range(1, c.groups):
-        add_floats(col + size + c.num, col + (k + 2) * size + c.num, size - c.num)
-
-
-cdef void _ground_hypothesis(const CostIn *c, Py_ssize_t y, uint16_t *o_row,
-                             const uint16_t *sheared) noexcept nogil:
+cdef void _sheared_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
+                       uint16_t *o_row) noexcept nogil:
     """Row ``y``'s costs ``o_row`` (W x D) become the smaller of theirs and the sheared
-    window's ``sheared`` where the candidate disparity lies within ``band`` px of the
-    ground's at this row: ground is expected there, and only there. Elsewhere (an
-    object standing on the ground: nearer than the ground at its rows) the
-    fronto-parallel window stays, which the sheared one would misregister by up to
-    its largest shift."""
+    window's where the candidate disparity lies within ``band`` px of the ground's at
+    this row: ground is expected there, and only there. Elsewhere (an object standing
+    on the ground: nearer than the ground at its rows) the fronto-parallel window
+    stays, which the sheared one would misregister by up to its largest shift.
+
+    Only ``c.nb`` disparities from index ``j0`` are computed (a block holding the
+    band, kept while the band stays inside it: the ground's disparity grows by
+    ``grad`` per row). ``col``'s blocks (:func:`cost_columns`): 1 the sheared sums,
+    2 .. the row groups' (W + 1) x nb sums, then a W x nb uint16 scratch row and the
+    current ``j0`` (-1: none, the groups' sums to be summed anew)."""
+    cdef Py_ssize_t size = (c.width + 1) * c.num, nb = c.nb, k, x
+    cdef float *state = col + (c.groups + 3) * size
+    cdef uint16_t *tmp = <uint16_t *>(col + (c.groups + 2) * size)
     cdef float ground = c.grad * (<float>y - c.horizon_px)
-    cdef Py_ssize_t i0 = max(0, <Py_ssize_t>ceilf(ground - c.band) - c.dmin)
-    cdef Py_ssize_t i1 = min(c.num - 1, <Py_ssize_t>floorf(ground + c.band) - c.dmin)
-    cdef Py_ssize_t x
+    # the band's disparity indices, clamped in float (an infinite band: all of them)
+    cdef float lo = ceilf(ground - c.band) - <float>c.dmin
+    cdef float hi = floorf(ground + c.band) - <float>c.dmin
+    cdef Py_ssize_t i0 = 0 if lo <= 0 else (<Py_ssize_t>lo if lo < c.num else c.num)
+    cdef Py_ssize_t i1 = c.num - 1 if hi >= c.num - 1 else (<Py_ssize_t>hi if hi >= 0 else -1)
+    cdef Py_ssize_t j0 = <Py_ssize_t>state[0]
+    cdef bint fresh = j0 < 0 or i0 < j0 or i1 >= j0 + nb
     if i1 < i0:
+        state[0] = -1.0
         return
+    if fresh:
+        j0 = min(i0, c.num - nb)
+        state[0] = <float>j0
+    for k in range(c.groups):
+        _group_slide(c, k, y, j0, col + (k + 2) * size, fresh)
+    copy_floats(col + size + nb, col + 2 * size + nb, c.width * nb)
+    for k in range(1, c.groups):
+        add_floats(col + size + nb, col + (k + 2) * size + nb, c.width * nb)
+    _costs_from_columns(c, y, col + size, hs, c.err_s, c.irr_s, j0, nb, tmp)
     for x in range(c.width):
-        min_u16(o_row + x * c.num + i0, sheared + x * c.num + i0, i1 - i0 + 1)
+        min_u16(o_row + x * c.num + i0, tmp + x * nb + i0 - j0, i1 - i0 + 1)
 
 
 cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil:
@@ -319,26 +338,20 @@ cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil
         for x in range(c.width):
             ra = c.prr + yy * c.stride + c.pad + c.width - 1 - x + c.dmin
             column_slide(col + (x + 1) * c.num, ra, ra, c.pl[yy * c.width + x], 0.0, c.num)
-    if _sheared(c, y0 - 1):
-        _sheared_columns(c, y0 - 1, col, True)
+    if c.groups > 1:
+        col[(c.groups + 3) * (c.width + 1) * c.num] = -1.0   # no band block yet
 
 
 cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
                     uint16_t *o_row) noexcept nogil:
     """Row ``y`` of the quantised costs into ``o_row`` (W x D), the column sums ``col``
     slid one row down first; below the horizon with a sheared window (``c.groups`` >
-    1) its costs too, taken where the ground's disparity is near (_ground_hypothesis)."""
-    cdef Py_ssize_t size = (c.width + 1) * c.num
+    1) the sheared window's cost is the second hypothesis near the ground's disparity
+    (_sheared_row)."""
     _plain_slide(c, y, col)
-    _costs_from_columns(c, y, col, hs, c.err, c.irr, o_row)
-    if not _sheared(c, y):
-        return
-    # the window sheared by the ground's disparity gradient (fresh at the first
-    # sheared row: the sums before it are of other windows)
-    _sheared_columns(c, y, col, y == c.horizon)
-    _costs_from_columns(c, y, col + size, hs, c.err_s, c.irr_s,
-                        <uint16_t *>(col + (c.groups + 2) * size))
-    _ground_hypothesis(c, y, o_row, <const uint16_t *>(col + (c.groups + 2) * size))
+    _costs_from_columns(c, y, col, hs, c.err, c.irr, 0, c.num, o_row)
+    if _sheared(c, y):
+        _sheared_row(c, y, col, hs, o_row)
 
 
 cdef void _plain_slide(const CostIn *c, Py_ssize_t y, float *col) noexcept nogil:
@@ -363,11 +376,12 @@ cdef void _plain_slide(const CostIn *c, Py_ssize_t y, float *col) noexcept nogil
 
 
 cdef void _costs_from_columns(const CostIn *c, Py_ssize_t y, const float *col, float *hs,
-                              const float *err, const float *irr,
-                              uint16_t *o_row) noexcept nogil:
-    """Row ``y``'s quantised costs into ``o_row`` from the column sums ``col`` (slid
-    along the row) and the right energies ``err``, ``irr`` (layout of ``err_pad``)."""
-    cdef Py_ssize_t width = c.width, num = c.num, x, xx, xa, xs, i, k
+                              const float *err, const float *irr, Py_ssize_t j0,
+                              Py_ssize_t num, uint16_t *o_row) noexcept nogil:
+    """Row ``y``'s quantised costs of the ``num`` disparities from index ``j0`` into
+    ``o_row`` (W x num) from the column sums ``col`` ((W + 1) x num, slid along the
+    row) and the right energies ``err``, ``irr`` (layout of ``err_pad``)."""
+    cdef Py_ssize_t width = c.width, x, xx, xa, xs, i, k
     cdef float wa, ws, e1, r1
     # the AVX2 lanes (pixel_costs16) where D is a multiple of 16 and every cost packs
     # into uint16 unchanged
@@ -378,7 +392,7 @@ cdef void _costs_from_columns(const CostIn *c, Py_ssize_t y, const float *col, f
         for i in range(num):
             hs[i] += col[(xx + 1) * num + i]
     if lanes:
-        k = y * c.stride + c.pad + width - 1 + c.dmin
+        k = y * c.stride + c.pad + width - 1 + c.dmin + j0
         cost_pixels16(hs, col, c.el + y * width, err + k, irr + k, width, num, c.m, c.top,
                       c.scale, c.c_max, o_row)
         return
@@ -389,7 +403,7 @@ cdef void _costs_from_columns(const CostIn *c, Py_ssize_t y, const float *col, f
         ws = <float>1.0 if xs >= 0 else <float>0.0
         e1 = c.el[y * width + x]
         r1 = <float>1.0 / sqrtf(e1) if e1 > 0 else <float>0.0
-        k = y * c.stride + c.pad + width - 1 - x + c.dmin
+        k = y * c.stride + c.pad + width - 1 - x + c.dmin + j0
         pixel_costs(hs, col + (min(xa, width - 1) + 1) * num, col + (max(xs, -1) + 1) * num,
                     wa, ws, e1, r1, err + k, irr + k, c.top, c.scale, c.c_max,
                     o_row + x * num, num)
