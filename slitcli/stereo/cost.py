@@ -144,23 +144,13 @@ def sheared_right_energies(pr: np.ndarray, m: int, n: int, shifts: np.ndarray,
         Energies and their inverse square roots (0 where no energy), along x reversed
         (column ``xr`` at ``pad + W - 1 - xr``), as the SGM cost kernels read them.
     """
+    from slitcli.stereo._c.sgm import sheared_energies
+
     h, w = pr.shape
-    smax = int(np.abs(shifts).max())
-    sq = pr.astype(np.float64) ** 2
-    # (H + 2n, W + 2 smax) sums over 2m+1 columns, centres -smax .. W - 1 + smax
-    c = np.cumsum(np.pad(sq, ((n, n), (m + 1 + smax, m + smax))), axis=1)
-    rows = c[:, 2 * m + 1:] - c[:, :-2 * m - 1]
-    e = np.zeros((h, w))
-    for dv, s in zip(range(-n, n + 1), shifts, strict=True):
-        # row y + dv of the window at right column xr reads columns around xr - s
-        e += rows[n + dv:n + dv + h, smax - s:smax - s + w]
-    e = e.astype(np.float32)
     err = np.zeros((h, w + 2 * pad), np.float32)
     irr = np.zeros((h, w + 2 * pad), np.float32)
-    err[:, pad:pad + w] = e[:, ::-1]
-    with np.errstate(divide="ignore"):
-        inv = np.float32(1.0) / np.sqrt(e[:, ::-1])
-    irr[:, pad:pad + w] = np.where(e[:, ::-1] > 0, inv, np.float32(0.0))
+    sheared_energies(np.ascontiguousarray(pr, np.float32), int(m), int(n),
+                     np.ascontiguousarray(shifts, np.int64), int(pad), err, irr)
     return err, irr
 
 

@@ -40,7 +40,6 @@ from slitcli.stereo._c.sgm_loops cimport (
     SENTINEL,
     add_floats,
     column_slide,
-    copy_floats,
     min_u16,
     cost_pixels16,
     path_pair,
@@ -130,6 +129,55 @@ def window_inputs(const float[:, ::1] pl, const float[:, ::1] pr, Py_ssize_t m,
 cdef enum:
     # most row groups of a sheared window (2 x the largest shift + 1)
     MAX_GROUPS = 15
+
+
+def sheared_energies(const float[:, ::1] pr, Py_ssize_t m, Py_ssize_t n,
+                     const int64_t[::1] shifts, Py_ssize_t pad, float[:, ::1] err_pad,
+                     float[:, ::1] irr_pad):
+    """Right window energies over sheared windows (slitcli.stereo.cost.
+    sheared_right_energies): row dv (-n..n) of the window at right column xr sums the
+    squares of columns ``xr - shifts[dv + n] - m .. + m`` (zeros outside), written
+    along x reversed into ``err_pad[:, pad + W - 1 - xr]`` with the inverse square
+    roots into ``irr_pad`` (0 where no energy); the padding is left untouched. The
+    prefiltered values are whole quarter DN, so every sum is exact."""
+    cdef Py_ssize_t height = pr.shape[0], width = pr.shape[1], smax = 0, y, x, k, r, xx
+    cdef Py_ssize_t span
+    for k in range(2 * n + 1):
+        smax = max(smax, abs(shifts[k]))
+    span = width + 2 * smax
+    # row sums over 2m+1 columns, centres -smax .. W - 1 + smax
+    cdef float[:, ::1] rows = np.zeros((height, span), np.float32)
+    cdef float[::1] acc_row = np.zeros(width, np.float32)
+    cdef double acc
+    cdef float e, v
+    with nogil:
+        for r in range(height):
+            acc = 0.0
+            for xx in range(-smax - m, -smax + m):
+                if 0 <= xx < width:
+                    v = pr[r, xx]
+                    acc += v * v
+            for x in range(span):
+                xx = x - smax + m
+                if 0 <= xx < width:
+                    v = pr[r, xx]
+                    acc += v * v
+                xx = x - smax - m - 1
+                if 0 <= xx < width:
+                    v = pr[r, xx]
+                    acc -= v * v
+                rows[r, x] = <float>acc
+        for y in range(height):
+            for x in range(width):
+                acc_row[x] = 0.0
+            for k in range(2 * n + 1):
+                r = y + k - n
+                if 0 <= r < height:
+                    add_floats(&acc_row[0], &rows[r, smax - shifts[k]], width)
+            for x in range(width):
+                e = acc_row[x]
+                err_pad[y, pad + width - 1 - x] = e
+                irr_pad[y, pad + width - 1 - x] = <float>1.0 / sqrtf(e) if e > 0 else <float>0.0
 
 
 cdef struct CostIn:
@@ -233,17 +281,16 @@ cdef void _shear_in(CostIn *c, object shear) except *:
 def cost_columns(Py_ssize_t width, Py_ssize_t num, object shear):
     """The cost rows' column sums, zeros: (W + 1, D) float32; with a sheared window
     (``shear``, :func:`cost_rows`) (W + 1, D) blocks for the fronto-parallel sums, the
-    sheared sums, one per row group, a scratch row of sheared costs and the state of
-    the block of disparities they cover (_sheared_row)."""
+    sheared sums, a scratch row of sheared costs and the state of the block of
+    disparities they cover (_sheared_row)."""
     cdef Py_ssize_t blocks = 1
     if shear is not None:
-        blocks += 3 + len(np.unique(np.asarray(shear[1])))
+        blocks += 3
     return np.zeros((blocks * (width + 1), num), np.float32)
 
 
 cdef void _check_columns(const CostIn *c, float[:, ::1] col) except *:
-    if col.shape[1] != c.num or col.shape[0] < (c.groups + 4 if c.groups > 1 else 1) * (
-            c.width + 1):
+    if col.shape[1] != c.num or col.shape[0] < (4 if c.groups > 1 else 1) * (c.width + 1):
         raise ValueError("col: too small for the window's row groups (cost_columns)")
 
 
@@ -251,42 +298,49 @@ cdef inline bint _sheared(const CostIn *c, Py_ssize_t y) noexcept nogil:
     return c.groups > 1 and y >= c.horizon
 
 
-cdef void _group_slide(const CostIn *c, Py_ssize_t k, Py_ssize_t y, Py_ssize_t j0,
-                       float *col, bint fresh) noexcept nogil:
-    """Row group ``k``'s column sums (its window rows, right samples shifted by its
-    shift) of the ``c.nb`` disparities from index ``j0`` ((W + 1) x nb) slid from row
-    y - 1 to row y; ``fresh``: summed from zeros at row y."""
-    cdef Py_ssize_t width = c.width, nb = c.nb, height = c.height, x, r, r0, r1, base
-    cdef Py_ssize_t off = c.pad + width - 1 + c.dmin + j0 + c.g_shift[k]
-    cdef Py_ssize_t ya = y + c.g_hi[k], ys = y + c.g_lo[k] - 1
-    cdef bint a_in = 0 <= ya < height, s_in = 0 <= ys < height
+cdef void _sheared_slide(const CostIn *c, Py_ssize_t y, Py_ssize_t j0, float *col,
+                         bint fresh) noexcept nogil:
+    """The sheared window's column sums of the ``c.nb`` disparities from index ``j0``
+    ((W + 1) x nb) slid from row y - 1 to row y: each row group (window rows lo..hi,
+    right samples shifted by its shift) takes in its row y + hi and lets go of row
+    y + lo - 1 (whole numbers below 2^24: exact in any order); ``fresh``: summed from
+    zeros at row y."""
+    cdef Py_ssize_t width = c.width, nb = c.nb, height = c.height, x, r, k, base, off
+    cdef Py_ssize_t ya, ys
+    cdef bint a_in, s_in
     cdef bint lanes = HAVE_COSTS16 and nb % 16 == 0
     cdef float a, b
     if fresh:
         for x in range((width + 1) * nb):
             col[x] = 0.0
-        r0 = max(0, y + c.g_lo[k])
-        r1 = min(height, y + c.g_hi[k] + 1)
-        for r in range(r0, r1):
-            for x in range(width):
-                base = r * c.stride + off - x
-                column_slide(col + (x + 1) * nb, c.prr + base, c.prr + base,
-                             c.pl[r * width + x], 0.0, nb)
+        for k in range(c.groups):
+            off = c.pad + width - 1 + c.dmin + j0 + c.g_shift[k]
+            for r in range(max(0, y + c.g_lo[k]), min(height, y + c.g_hi[k] + 1)):
+                for x in range(width):
+                    base = r * c.stride + off - x
+                    column_slide(col + (x + 1) * nb, c.prr + base, c.prr + base,
+                                 c.pl[r * width + x], 0.0, nb)
         return
-    if not (a_in or s_in):
-        return
-    if lanes:
-        slide_columns16(col, c.pl + ya * width if a_in else NULL,
-                        c.pl + ys * width if s_in else NULL,
-                        c.prr + min(max(ya, 0), height - 1) * c.stride + off,
-                        c.prr + min(max(ys, 0), height - 1) * c.stride + off, width, nb)
-        return
-    for x in range(width):
-        a = c.pl[ya * width + x] if a_in else <float>0.0
-        b = c.pl[ys * width + x] if s_in else <float>0.0
-        column_slide(col + (x + 1) * nb,
-                     c.prr + min(max(ya, 0), height - 1) * c.stride + off - x,
-                     c.prr + min(max(ys, 0), height - 1) * c.stride + off - x, a, b, nb)
+    for k in range(c.groups):
+        off = c.pad + width - 1 + c.dmin + j0 + c.g_shift[k]
+        ya = y + c.g_hi[k]
+        ys = y + c.g_lo[k] - 1
+        a_in = 0 <= ya < height
+        s_in = 0 <= ys < height
+        if not (a_in or s_in):
+            continue
+        if lanes:
+            slide_columns16(col, c.pl + ya * width if a_in else NULL,
+                            c.pl + ys * width if s_in else NULL,
+                            c.prr + min(max(ya, 0), height - 1) * c.stride + off,
+                            c.prr + min(max(ys, 0), height - 1) * c.stride + off, width, nb)
+            continue
+        for x in range(width):
+            a = c.pl[ya * width + x] if a_in else <float>0.0
+            b = c.pl[ys * width + x] if s_in else <float>0.0
+            column_slide(col + (x + 1) * nb,
+                         c.prr + min(max(ya, 0), height - 1) * c.stride + off - x,
+                         c.prr + min(max(ys, 0), height - 1) * c.stride + off - x, a, b, nb)
 
 
 cdef void _sheared_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
@@ -299,12 +353,12 @@ cdef void _sheared_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
 
     Only ``c.nb`` disparities from index ``j0`` are computed (a block holding the
     band, kept while the band stays inside it: the ground's disparity grows by
-    ``grad`` per row). ``col``'s blocks (:func:`cost_columns`): 1 the sheared sums,
-    2 .. the row groups' (W + 1) x nb sums, then a W x nb uint16 scratch row and the
-    current ``j0`` (-1: none, the groups' sums to be summed anew)."""
-    cdef Py_ssize_t size = (c.width + 1) * c.num, nb = c.nb, k, x
-    cdef float *state = col + (c.groups + 3) * size
-    cdef uint16_t *tmp = <uint16_t *>(col + (c.groups + 2) * size)
+    ``grad`` per row). ``col``'s blocks (:func:`cost_columns`): 1 the sheared sums
+    ((W + 1) x nb), 2 a W x nb uint16 scratch row, 3 the current ``j0`` (-1: none,
+    the sums to be summed anew)."""
+    cdef Py_ssize_t size = (c.width + 1) * c.num, nb = c.nb, x
+    cdef float *state = col + 3 * size
+    cdef uint16_t *tmp = <uint16_t *>(col + 2 * size)
     cdef float ground = c.grad * (<float>y - c.horizon_px)
     # the band's disparity indices, clamped in float (an infinite band: all of them)
     cdef float lo = ceilf(ground - c.band) - <float>c.dmin
@@ -319,11 +373,7 @@ cdef void _sheared_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,
     if fresh:
         j0 = min(i0, c.num - nb)
         state[0] = <float>j0
-    for k in range(c.groups):
-        _group_slide(c, k, y, j0, col + (k + 2) * size, fresh)
-    copy_floats(col + size + nb, col + 2 * size + nb, c.width * nb)
-    for k in range(1, c.groups):
-        add_floats(col + size + nb, col + (k + 2) * size + nb, c.width * nb)
+    _sheared_slide(c, y, j0, col + size, fresh)
     _costs_from_columns(c, y, col + size, hs, c.err_s, c.irr_s, j0, nb, tmp)
     for x in range(c.width):
         min_u16(o_row + x * c.num + i0, tmp + x * nb + i0 - j0, i1 - i0 + 1)
@@ -339,7 +389,7 @@ cdef void _cost_start(const CostIn *c, Py_ssize_t y0, float *col) noexcept nogil
             ra = c.prr + yy * c.stride + c.pad + c.width - 1 - x + c.dmin
             column_slide(col + (x + 1) * c.num, ra, ra, c.pl[yy * c.width + x], 0.0, c.num)
     if c.groups > 1:
-        col[(c.groups + 3) * (c.width + 1) * c.num] = -1.0   # no band block yet
+        col[3 * (c.width + 1) * c.num] = -1.0   # no band block yet
 
 
 cdef void _cost_row(const CostIn *c, Py_ssize_t y, float *col, float *hs,

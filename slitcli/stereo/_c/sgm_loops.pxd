@@ -591,16 +591,9 @@ cdef extern from *:
                                          Py_ssize_t n) noexcept nogil
 
 
-cdef inline void copy_floats(fp dst, cfp src, Py_ssize_t n) noexcept nogil:
-    """``dst[:n] = src[:n]``."""
-    cdef Py_ssize_t i
-    for i in range(n):
-        dst[i] = src[i]
-
-
 cdef inline void add_floats(fp dst, cfp src, Py_ssize_t n) noexcept nogil:
-    """``dst[:n] += src[:n]`` (the sheared window's row groups added up: whole
-    numbers below 2^24, so exact in any order)."""
+    """``dst[:n] += src[:n]`` (sums of whole numbers below 2^24: exact in any
+    order)."""
     cdef Py_ssize_t i
     for i in range(n):
         dst[i] += src[i]
