@@ -354,14 +354,19 @@ def run_method(kw: dict | None, left: np.ndarray, right: np.ndarray, num: int) -
                                                         **kw)).disparity_px
 
 
-def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0) -> None:
+def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
+                 ground: tuple[float, float, float | None] | None = None) -> None:
     """Score the local Eq. 10 matcher, SGM over Eq. 10 and StereoSGBM on every pair of
     ``folder`` (:func:`find_pairs`) and print bad2 over all GT pixels, bad2 on valid
-    pixels, density and time per pair, then pooled over all pairs (KITTI apart)."""
+    pixels, density and time per pair, then pooled over all pairs (KITTI apart).
+
+    ``ground``: (px per row, horizon row px, band px or None) of the pairs' rig at
+    their full size: SGM with its window sheared by that ground is scored too
+    (``sgm-ground``; horizon and band scaled with the pair)."""
     pairs = find_pairs(folder)
     if not pairs:
         raise SystemExit(f"{folder}: no pairs found (see find_pairs)")
-    methods = FOLDER_METHODS
+    methods = dict(FOLDER_METHODS)
     pooled: dict[tuple[str, str], dict] = {}
     for name, lp, rp, gp in pairs:
         left = cv2.imread(str(lp), cv2.IMREAD_GRAYSCALE)
@@ -373,6 +378,12 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0) 
             left = cv2.resize(left, size, interpolation=cv2.INTER_AREA)
             right = cv2.resize(right, size, interpolation=cv2.INTER_AREA)
             gt = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST) * f
+        if ground is not None:
+            # a gradient in px per row is the same at any scale; rows and bands scale
+            methods["sgm-ground"] = {
+                "aggregation": "sgm", "sgm_ground_px_per_row": ground[0],
+                "sgm_ground_horizon_row_px": ground[1] * f,
+                "sgm_ground_band_px": None if ground[2] is None else ground[2] * f}
         num = int(16 * np.ceil((np.nanmax(gt) + 2) / 16))
         num = min(num, (left.shape[1] // 2) // 16 * 16)
         group = "kitti" if name.startswith("kitti/") else "all"
@@ -426,10 +437,20 @@ def main() -> int:
                     help="8-bit PNG ground truth: disparity = value / this")
     ap.add_argument("--export-motorcycle", action="store_true",
                     help="first write scikit-image's motorcycle pair into FOLDER")
+    ap.add_argument("--ground", type=float, nargs=2, metavar=("PX_PER_ROW", "HORIZON_ROW_PX"),
+                    help="also score sgm with its window sheared by this ground (the "
+                    "rig's disparity gradient and horizon row at full size; KITTI about "
+                    "0.33 and the principal point's row)")
+    ap.add_argument("--ground-band-px", type=float, default=None,
+                    help="--ground: disparities within this of the ground's take the "
+                    "sheared window (px at full size; default every disparity; KITTI, "
+                    "1 deg of pitch: f W / h x 0.0175 = 4.1)")
     args = ap.parse_args()
     if args.export_motorcycle:
         export_motorcycle(args.folder)
-    score_folder(args.folder, max_width=args.max_width, png_scale=args.png_scale)
+    ground = None if args.ground is None else (*args.ground, args.ground_band_px)
+    score_folder(args.folder, max_width=args.max_width, png_scale=args.png_scale,
+                 ground=ground)
     return 0
 
 
