@@ -102,8 +102,8 @@ def cost_volume(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
     cost = np.empty((h, w, c["num"]), np.uint16)
     kernel = _sgm.cost_rows
     args = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], c["num"],
-            c["m"], c["n"], COST_MAX, COST_SCALE, c["shear"])
-    run_row_bands(lambda y0, y1: kernel(*args, y0, y1, cost), h, pool, threads,
+            c["m"], c["n"], COST_MAX, COST_SCALE)
+    run_row_bands(lambda y0, y1: kernel(*args, y0, y1, cost, c["shear"]), h, pool, threads,
                   min_rows=2 * c["n"] + 1)
     return cost, c["el"], c["count"]
 
@@ -239,10 +239,11 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     eight = params.sgm_paths == 8
     g = float(params.sgm_p2_edge_dn)
     cargs = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], num, c["m"],
-             c["n"], COST_MAX, COST_SCALE, c["shear"])
+             c["n"], COST_MAX, COST_SCALE)
+    shear = c["shear"]
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
     if one_thread:
-        _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a)
+        _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a, shear)
         _k.second_sweep_winners(cost, s_a, *bargs)
         return cost
     # the split row balances the phases: this thread's top rows carry costs and the
@@ -250,20 +251,20 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     # picks the top rows' winners. Per-thread CPU time, summed over the phases' larger
     # share (320 x 240 / 64 d): 5.7 ms split at the middle, 4.8 ms at 2/5
     half = 2 * h // 5
-    col = _k.cost_columns(w, num, c["shear"])
+    col = _k.cost_columns(w, num, shear)
     hs = np.zeros(num, np.float32)
     state_a = _k.sweep_state(w, num)
     state_b = _k.sweep_state(w, num)
     s_b = volumes[2]
-    job = pool.submit(_k.cost_rows, *cargs, half, h, cost)
-    _k.cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col, c["shear"])
+    job = pool.submit(_k.cost_rows, *cargs, half, h, cost, shear)
+    _k.cost_start(c["pl"], c["prr"], c["pad"], c["dmin"], num, c["n"], 0, col, shear)
     _k.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, 0, half, True, col,
-                                hs, *state_a)
+                                hs, *state_a, shear)
     job.result()
     job = pool.submit(_k.second_sweep_rows, cost, s_a, *bargs, 0, h - half, False, s_b,
                       *state_b)
     _k.first_sweep_rows(*cargs, p1, p2, eight, grey, g, cost, s_a, half, h, False, col,
-                                hs, *state_a)
+                                hs, *state_a, shear)
     job.result()
     job = pool.submit(_k.second_sweep_rows, cost, s_a, *bargs, h - half, h, True, s_b,
                       *state_b)

@@ -476,8 +476,8 @@ def cost_start(const float[:, ::1] pl, const float[:, ::1] prr_pad, Py_ssize_t p
 def cost_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad, const float[:, ::1] el,
               const float[:, ::1] err_pad, const float[:, ::1] irr_pad, Py_ssize_t pad,
               Py_ssize_t dmin, Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
-              double scale, object shear, Py_ssize_t y0, Py_ssize_t y1,
-              uint16_t[:, :, ::1] out):
+              double scale, Py_ssize_t y0, Py_ssize_t y1, uint16_t[:, :, ::1] out,
+              object shear=None):
     """Quantised Eq. 10 costs of rows y0..y1-1 into ``out`` (H, W, D) uint16.
 
     ``pl``: (H, W) float32 prefiltered left image; ``prr_pad``: (H, W + 2 pad) the
@@ -692,11 +692,11 @@ def first_sweep_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad,
                      const float[:, ::1] el, const float[:, ::1] err_pad,
                      const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
                      Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max, double scale,
-                     object shear, int p1, int p2, bint eight, const uint8_t[:, ::1] grey,
+                     int p1, int p2, bint eight, const uint8_t[:, ::1] grey,
                      double p2_grad, uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a,
                      Py_ssize_t y0,
                      Py_ssize_t y1, bint with_cost, float[:, ::1] col, float[::1] hs,
-                     int16_t[:, ::1] paths, int32_t[:, :, ::1] mins):
+                     int16_t[:, ::1] paths, int32_t[:, :, ::1] mins, object shear=None):
     """Rows y0..y1-1 of the top-down sweep into ``s_a``, each row's costs first (with
     ``with_cost``; the column sums ``col`` at row y0 - 1, :func:`cost_start`) or read
     from ``cost`` (computed by another thread). ``paths``, ``mins``: the sweep's state
@@ -723,9 +723,9 @@ def cost_and_first_sweep(const float[:, ::1] pl, const float[:, ::1] prr_pad,
                          const float[:, ::1] el, const float[:, ::1] err_pad,
                          const float[:, ::1] irr_pad, Py_ssize_t pad, Py_ssize_t dmin,
                          Py_ssize_t num, Py_ssize_t m, Py_ssize_t n, double c_max,
-                         double scale, object shear, int p1, int p2, bint eight,
+                         double scale, int p1, int p2, bint eight,
                          const uint8_t[:, ::1] grey, double p2_grad,
-                         uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a):
+                         uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, object shear=None):
     """Costs (H, W, D) uint16 into ``cost`` and the top-down sweep's sums into ``s_a``
     (:func:`cost_rows` and :func:`aggregate_pass`, row by row, while each row's costs
     are in cache; ``shear``: :func:`cost_rows`)."""
@@ -735,8 +735,8 @@ def cost_and_first_sweep(const float[:, ::1] pl, const float[:, ::1] prr_pad,
     paths, mins = sweep_state(width, num)
     cost_start(pl, prr_pad, pad, dmin, num, n, 0, col, shear)
     first_sweep_rows(pl, prr_pad, el, err_pad, irr_pad, pad, dmin, num, m, n, c_max, scale,
-                     shear, p1, p2, eight, grey, p2_grad, cost, s_a, 0, pl.shape[0], True, col, hs,
-                     paths, mins)
+                     p1, p2, eight, grey, p2_grad, cost, s_a, 0, pl.shape[0], True, col, hs,
+                     paths, mins, shear)
 
 
 def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1, int p2,
