@@ -299,3 +299,30 @@ def test_no_shift_no_change(seed):
         sgm_ground_horizon_row_px=28.5))
     np.testing.assert_array_equal(a.disparity_px, b.disparity_px)
     np.testing.assert_array_equal(a.invalid_reason, b.invalid_reason)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize(("dmin", "num", "split"), [(0, 32, 7), (-3, 32, 19), (4, 13, 11)])
+def test_sheared_costs_do_not_depend_on_the_bands(seed, dmin, num, split):
+    """Two bands of rows (as with two threads) give the sheared costs of one: each
+    band sums its sheared window afresh at its first row below the horizon, and the
+    block of disparities it computes moves with the ground wherever the band starts."""
+    from slitcli.stereo import _sgm
+    from slitcli.stereo.sgm import _cost_inputs
+
+    rng = np.random.default_rng(seed)
+    left = rng.integers(0, 256, (40, 48)).astype(np.uint8)
+    right = np.roll(left, -5, axis=1)
+    p = MatcherParams(num_disparities=num, window_w_px=7, window_h_px=7, aggregation="sgm",
+                      min_disparity_px=dmin, sgm_ground_px_per_row=0.6,
+                      sgm_ground_horizon_row_px=5.3, sgm_ground_band_px=1.0)
+    c = _cost_inputs(prefilter_image(left, p), prefilter_image(right, p), p)
+    assert c["shear"] is not None
+    args = (c["pl"], c["prr"], c["el"], c["err"], c["irr"], c["pad"], c["dmin"], c["num"],
+            c["m"], c["n"], COST_MAX, COST_SCALE)
+    a = np.empty((40, 48, num), np.uint16)
+    b = np.empty_like(a)
+    _sgm.cost_rows(*args, 0, 40, a, c["shear"])
+    _sgm.cost_rows(*args, 0, split, b, c["shear"])
+    _sgm.cost_rows(*args, split, 40, b, c["shear"])
+    np.testing.assert_array_equal(a, b)
