@@ -9,7 +9,10 @@
   of every pixel and disparity (window sums of the prefiltered images, zeros outside
   the image), quantised to ``round(min(C, c_max) scale)`` in a uint16 volume (H, W, D);
   a candidate whose partner leaves the right image or whose window has no energy costs
-  ``c_max scale``;
+  ``c_max scale``; below the horizon, for the disparities near the ground's, the
+  smaller of that and the cost over a window sheared by the ground's disparity
+  gradient (``shear``; the rows in sgm_cost.pxd, :func:`sheared_energies` the
+  sheared windows' right energies);
 - :func:`aggregate_pass`: the sum of the path costs ``L_r(p, d) = C(p, d) + min(L_r(p-r,
   d), L_r(p-r, d+-1) + P1, min_k L_r(p-r, k) + P2) - min_k L_r(p-r, k)`` of one sweep
   over the rows: top-down (left to right, top, and with 8 paths top-left and
