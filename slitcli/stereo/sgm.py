@@ -38,6 +38,7 @@ from contextlib import nullcontext
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from slitcli.stereo.bands import kernel_threads, run_row_bands
@@ -123,10 +124,11 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
     return s_a, s_b
 
 
-def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ...]
-                  ) -> np.ndarray:
+def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ...],
+                  edge: np.ndarray | None) -> np.ndarray:
     """(H, W) bool: pixels of a code in ``weak_codes`` bracketed by ``reason == VALID``
-    pixels (slitcli.stereo._bracket, reach/tol/span from ``sgm_bracket_*``)."""
+    pixels (slitcli.stereo._bracket, reach/tol/span from ``sgm_bracket_*``; ``edge``:
+    :func:`edge_lines`, or None)."""
     from slitcli.stereo import _bracket
 
     p = x.params
@@ -135,8 +137,33 @@ def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ..
     weak[list(weak_codes)] = True
     _bracket.bracket_rows(x.disparity_px, reason, int(Reason.VALID), weak,
                           int(p.sgm_bracket_px), np.float32(p.sgm_bracket_tol_px),
-                          np.float32(p.sgm_bracket_span_px), keep)
+                          np.float32(p.sgm_bracket_span_px), keep, edge)
     return keep
+
+
+def edge_lines(left_grey: np.ndarray, step_dn: float, half_px: int) -> np.ndarray:
+    """(H, W) uint8: where a line of the bracket test runs along a grey step.
+
+    Bit 1: within ``half_px`` rows of a step of more than ``step_dn`` between two rows
+    (3 x 3 mean grey levels of the left image, DN); bit 2: within ``half_px`` columns of
+    such a step between two columns. A window centred within half its size of a
+    horizontal step sees the texture beyond it on one side only and takes that side's
+    disparity (the step itself moves with no horizontal disparity: the aperture
+    problem), and so do its neighbours along the row: a row there brackets a pixel with
+    copies of one guess. At a plain box's top edge before a textured wall, the box's
+    first rows carry the wall's disparity, and the row brackets the pixels between them.
+    The column across the step, and the row across a vertical step, stay tests."""
+    g = cv2.blur(np.asarray(left_grey, np.float32), (3, 3))
+    rows = np.zeros(g.shape, np.uint8)
+    cols = np.zeros(g.shape, np.uint8)
+    rows[1:] = np.abs(g[1:] - g[:-1]) > step_dn
+    cols[:, 1:] = np.abs(g[:, 1:] - g[:, :-1]) > step_dn
+    # row y holds the step between rows y - 1 and y: rows y - half_px .. y + half_px
+    # (half_px rows above the step and half_px + 1 below) are marked
+    k = np.ones((2 * half_px + 1, 1), np.uint8)
+    rows = cv2.dilate(rows, k)
+    cols = cv2.dilate(cols, k.T)
+    return rows | (cols << 1)
 
 
 def _small_regions(x: FilterInputs) -> np.ndarray:
@@ -161,15 +188,21 @@ def _bracket(x: FilterInputs) -> None:
     a plain region, whose fill neighbours lie within ``speckle_range_px`` of it.
     Pass 2: a region the speckle filter would have removed before pass 1 is evidence
     of one small patch only; its pixels stay valid where the other valid pixels
-    (fills included) bracket them, as for pass 1's candidates."""
-    small = _small_regions(x) if x.params.speckle_window_px > 0 else None
-    keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)))
+    (fills included) bracket them, as for pass 1's candidates. With
+    ``sgm_bracket_edge_dn`` > 0 neither pass brackets along a line that runs within half
+    a window of a grey step parallel to it (:func:`edge_lines`)."""
+    p = x.params
+    small = _small_regions(x) if p.speckle_window_px > 0 else None
+    edge = (edge_lines(x.left_grey, p.sgm_bracket_edge_dn, p.window_h_px // 2)
+            if p.sgm_bracket_edge_dn > 0 else None)
+    keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)),
+                         edge)
     x.invalid_reason[keep] = Reason.VALID
     if small is None or not small.any():
         return
     reason = x.invalid_reason.copy()
     reason[small] = Reason.SPECKLE
-    keep = _bracket_pass(x, reason, (int(Reason.SPECKLE),))
+    keep = _bracket_pass(x, reason, (int(Reason.SPECKLE),), edge)
     x.invalid_reason[small & ~keep] = Reason.SPECKLE
 
 
@@ -356,4 +389,4 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     return DisparityResult(disp, reason, mcost)
 
 
-__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "match_sgm"]
+__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "edge_lines", "match_sgm"]

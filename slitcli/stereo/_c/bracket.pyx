@@ -8,6 +8,12 @@ smooth surface (plain, slanted or not) the aggregated disparity runs between tho
 its textured borders; where the aggregation carried a neighbour's disparity across an
 edge onto a plain surface (a floor's or a wall's disparity into a plain box, whose
 own silhouette matched at the box's disparity) the box's borders do not bracket it.
+
+``edge`` marks where a line may not bracket: bit 1, no bracket along the row (the
+pixel lies within half a window of a horizontal grey step: the window there sees the
+texture beyond the step, on one side only, and the pixels along the row all carry its
+disparity: they are no independent evidence of the pixel's own); bit 2, none along the
+column (a vertical step nearby). slitcli.stereo.sgm sets it (``sgm_bracket_edge_dn``).
 """
 
 from libc.math cimport fabsf
@@ -28,10 +34,12 @@ cdef inline bint _between(float d, float a, float b, float tol, float span) noex
 
 def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int code_valid,
                  const uint8_t[::1] weak, Py_ssize_t reach, float tol, float span,
-                 uint8_t[:, ::1] keep):
+                 const uint8_t[:, ::1] edge, uint8_t[:, ::1] keep):
     """Set ``keep`` (H, W) bool where a pixel whose code is marked in ``weak`` (bool per
     code, 256) is bracketed along its row or its column by pixels of code
-    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module).
+    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module), where
+    ``edge`` (H, W) uint8 allows the line (bit 1 set: not along the row; bit 2: not
+    along the column).
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
     written (False for the other non-valid pixels; valid pixels untouched)."""
@@ -65,7 +73,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                 if not weak[r]:
                     continue
                 a = up_d[y, x]
-                if last_y[x] - y <= reach and a == a:
+                if last_y[x] - y <= reach and a == a and not (edge[y, x] & 2):
                     keep[y, x] = _between(disp[y, x], a, last_d[x], tol, span)
         for y in range(height):
             ld = NAN
@@ -85,7 +93,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                     rd = disp[y, x]
                     rx = x
                     continue
-                if not weak[r] or keep[y, x]:
+                if not weak[r] or keep[y, x] or (edge[y, x] & 1):
                     continue
                 a = left[x]
                 if rx - x <= reach and a == a:
