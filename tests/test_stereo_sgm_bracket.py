@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stereo_synth import plane_pair
+from stereo_synth import occlusion_pair, plane_pair
 from test_stereo_rendered import SCENE
 
 from slitcli.rig import paper_rig
@@ -14,16 +14,19 @@ from slitcli.sim.scene import scene_from_dict
 from slitcli.stereo import _bracket
 from slitcli.stereo.matcher import MatcherParams, compute_disparity
 from slitcli.stereo.pipeline import StereoParams, process_stereo_pair
+from slitcli.stereo.sgm import edge_lines
 
 SEEDS = [0, 1, 2, 3, 4]
 VALID, WEAK, WEAK2, OTHER = 0, 7, 3, 4
 
 
-def reference_bracket(disp, reason, reach, tol, span):
+def reference_bracket(disp, reason, reach, tol, span, edge=None):
     """Plain loops: a WEAK pixel is kept when the nearest VALID pixels on both sides
-    along its row (or along its column), each within ``reach``, bracket it."""
+    along its row (or along its column), each within ``reach``, bracket it; ``edge``
+    bit 1 / bit 2 bars the row / the column."""
     h, w = disp.shape
     keep = np.zeros((h, w), bool)
+    edge = np.zeros((h, w), np.uint8) if edge is None else edge
 
     def nearest(line, i, step):
         j = i + step
@@ -38,7 +41,10 @@ def reference_bracket(disp, reason, reach, tol, span):
             if reason[y, x] not in (WEAK, WEAK2):
                 continue
             d = disp[y, x]
-            for line, i in (((disp[y], reason[y]), x), ((disp[:, x], reason[:, x]), y)):
+            for line, i, bit in (((disp[y], reason[y]), x, 1),
+                                 ((disp[:, x], reason[:, x]), y, 2)):
+                if edge[y, x] & bit:
+                    continue
                 a, b = nearest(line, i, -1), nearest(line, i, 1)
                 if a is None or b is None:
                     continue
@@ -61,6 +67,69 @@ def test_bracket_kernel_equals_reference(seed):
         _bracket.bracket_rows(disp, reason, VALID, weak, reach, np.float32(tol),
                               np.float32(span), keep)
         np.testing.assert_array_equal(keep, reference_bracket(disp, reason, reach, tol, span))
+        edge = rng.integers(0, 4, (h, w)).astype(np.uint8)
+        keep = np.zeros((h, w), np.bool_)
+        _bracket.bracket_rows(disp, reason, VALID, weak, reach, np.float32(tol),
+                              np.float32(span), keep, edge)
+        np.testing.assert_array_equal(keep, reference_bracket(disp, reason, reach, tol, span,
+                                                              edge))
+
+
+def test_edge_lines_mark_half_a_window_along_a_step():
+    # a 100 DN step between rows 9 and 10: the 3 x 3 mean spreads it over rows 9..11
+    # (steps of 33 DN between rows 9/10 and 10/11, and from row 8 to 9), each marking
+    # half_px rows above and half_px below its lower row; no column is barred
+    g = np.zeros((24, 12), np.uint8)
+    g[10:] = 100
+    e = edge_lines(g, 8.0, 3)
+    rows = np.nonzero(e[:, 5] & 1)[0]
+    assert rows.min() == 9 - 3 and rows.max() == 11 + 3
+    assert not (e & 2).any()
+    e = edge_lines(g.T.copy(), 8.0, 3)
+    assert not (e & 1).any() and np.nonzero(e[5] & 2)[0].max() == 11 + 3
+    assert not edge_lines(g, 40.0, 3).any()   # 33 DN steps stay below 40 DN
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_edge_rule_keeps_fills_across_a_step(seed):
+    # the plain strip's borders are vertical steps: its rows cross them, so the row
+    # brackets that fill it are allowed by sgm_bracket_edge_dn (only the column
+    # brackets within half a window of the strip's sides are barred, and a row
+    # brackets those pixels too)
+    d = 9.4
+    left, right = plane_pair(d, noise_dn=1.0, plain_cols=(150, 174), seed=seed)
+    strip = (slice(10, 230), slice(154, 170))
+    got = {e: compute_disparity(left, right, MatcherParams(
+        aggregation="sgm", sgm_bracket_edge_dn=e)).disparity_px[strip] for e in (0.0, 8.0)}
+    ok = np.isfinite(got[8.0])
+    assert ok.sum() >= 0.95 * np.isfinite(got[0.0]).sum()
+    err = np.abs(got[8.0][ok] - d)
+    p = MatcherParams()
+    assert err.max() <= p.sgm_bracket_tol_px + p.sgm_bracket_span_px + 0.5
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_edge_rule_withholds_fills_along_a_step(seed):
+    # a plain square (grey 128) at 14 px in front of a textured background (mean 90 DN)
+    # at 6 px: nothing in the images carries the square's disparity inside it, so every
+    # valid pixel there is the background's guess, carried past the square's edges by
+    # the window (the support test passes where its 3 x 3 block holds the step) and
+    # along the edges by the bracket. With sgm_bracket_edge_dn the rows along the
+    # horizontal edges and the columns along the vertical ones bracket nothing: the
+    # valid pixels are a subset of those without it (fewer fills, fewer small regions
+    # bracketed, smaller regions for the speckle filter) and strictly fewer in the square
+    x0, x1, y0, y1 = 100, 220, 80, 200
+    left, right, truth = occlusion_pair(6.0, 14.0, (x0, x1, y0, y1),
+                                        foreground_contrast_dn=0.0, background_dn=90.0,
+                                        seed=seed)
+    square = np.zeros(truth.shape, bool)
+    square[y0:y1, x0:x1] = True
+    valid = {e: np.isfinite(compute_disparity(left, right, MatcherParams(
+        aggregation="sgm", sgm_bracket_edge_dn=e)).disparity_px) for e in (0.0, 8.0)}
+    assert not (valid[8.0] & ~valid[0.0]).any()
+    removed = square & valid[0.0] & ~valid[8.0]
+    assert removed.sum() >= 1
+    assert (square & valid[8.0]).sum() < (square & valid[0.0]).sum()
 
 
 @pytest.mark.parametrize("seed", SEEDS)
