@@ -206,6 +206,73 @@ def _bracket(x: FilterInputs) -> None:
     x.invalid_reason[small & ~keep] = Reason.SPECKLE
 
 
+def image_noise_dn(grey: np.ndarray) -> float:
+    """Robust standard deviation of the sensor noise of a grey image, DN: the median
+    absolute response to the 3 x 3 mask [1 -2 1; -2 4 -2; 1 -2 1] (zero on any plane,
+    so on smooth shading; 36 sigma^2 of white noise, sqrt(36) = 6) over 0.6745. Edges
+    and texture add to few pixels' responses and move the median little."""
+    mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    response = cv2.filter2D(np.asarray(grey, np.float32), cv2.CV_32F, mask)[1:-1, 1:-1]
+    return float(np.median(np.abs(response))) * 1.4826 / 6.0
+
+
+def plain_runs(x: FilterInputs) -> None:
+    """Reject valid pixels whose plain row run is not one surface at their disparity.
+
+    A run is a maximal stretch of a row's valid pixels whose 3 x 3 mean grey steps by
+    less than ``3 sigma`` from pixel to pixel (``sigma``: :func:`image_noise_dn` of the
+    left image; nothing in the run but noise) and whose disparities step by at most
+    1 px. Nothing in a plain run carries its disparity; the paths and the bracket
+    brought it. If it is the disparity of the surface the run lies on, the right image
+    at ``x - d`` repeats the run's grey levels along its whole length. If it is a
+    farther neighbour's (a plain box's top rows carry the textured wall's disparity
+    behind them, and the bracket fills between them), the run is shifted by the
+    difference ``e`` against the box in the right image, and its last ``e`` pixels
+    sample the wall's texture there: the run is refuted at an end. So a run is
+    rejected (:attr:`Reason.PLAIN_RUN`) where at least 2 of the ``sgm_window_px - 1``
+    pixels at one of its ends differ from the right image at their disparities
+    (linear interpolation, 3 x 3 means) by more than ``sgm_run_check_sigma`` robust
+    standard deviations of that difference over all valid pixels (its median removed:
+    a gain or offset between the cameras). One such pixel may be noise; two within a
+    few pixels of one end are the other surface."""
+    p = x.params
+    d, reason = x.disparity_px, x.invalid_reason
+    h, w = d.shape
+    gl = cv2.blur(np.asarray(x.left_grey, np.float32), (3, 3))
+    gr = cv2.blur(np.asarray(x.right_grey, np.float32), (3, 3))
+    valid = reason == Reason.VALID
+    map_x = (np.arange(w, dtype=np.float32)[None, :] - np.where(valid, d, np.float32(0)))
+    map_y = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
+    warped = cv2.remap(gr, np.ascontiguousarray(map_x, np.float32),
+                       np.ascontiguousarray(map_y), cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
+    residual = gl - warped
+    seen = valid & np.isfinite(residual)
+    if seen.sum() < 100:
+        return
+    offset = float(np.median(residual[seen]))
+    spread = float(np.median(np.abs(residual[seen] - offset))) * 1.4826
+    refuted = seen & (np.abs(residual - offset) > p.sgm_run_check_sigma * spread)
+    step = np.zeros((h, w), np.float32)
+    step[:, 1:] = np.abs(gl[:, 1:] - gl[:, :-1])
+    plain_dn = 3.0 * image_noise_dn(x.left_grey)
+    plain = np.maximum(step, np.roll(step, -1, axis=1)) < plain_dn
+    member = valid & plain
+    # run ids along the flattened rows: a new run wherever the chain breaks
+    joined = np.zeros((h, w), np.bool_)
+    joined[:, 1:] = member[:, 1:] & member[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) <= 1.0)
+    ids = np.cumsum(~joined.ravel()).reshape(h, w)
+    col = np.broadcast_to(np.arange(w)[None, :], (h, w))
+    first = np.full(ids.max() + 1, w, np.int64)
+    last = np.full(ids.max() + 1, -1, np.int64)
+    np.minimum.at(first, ids[member], col[member])
+    np.maximum.at(last, ids[member], col[member])
+    to_end = np.minimum(col - first[ids], last[ids] - col)
+    ends = member & refuted & (to_end < max(int(p.window_w_px) - 1, 1))
+    count = np.bincount(ids[ends], minlength=ids.max() + 1)
+    reason[member & (count[ids] >= 2)] = Reason.PLAIN_RUN
+
+
 #: The filters after the SGM winner step: the local matcher's chain with the bracket
 #: test (``sgm_bracket_px``, slitcli.stereo._bracket) between the support test and the
 #: speckle filter. Its candidates: pixels rejected by the support test (their own
@@ -221,6 +288,10 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
                     "valid again; then regions the speckle filter would have removed "
                     "before (speckle_window_px) stay valid only where so bracketed",
                     lambda p: p.sgm_bracket_px > 0, _bracket),
+    DisparityFilter("sgm_plain_runs", (Reason.PLAIN_RUN,),
+                    "valid pixels in a row run of plain pixels at one disparity whose ends "
+                    "do not match the right image at it (sgm_run_check_sigma)",
+                    lambda p: p.sgm_run_check_sigma > 0, plain_runs),
     DISPARITY_FILTERS[-1],
 )
 
@@ -389,4 +460,5 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     return DisparityResult(disp, reason, mcost)
 
 
-__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "edge_lines", "match_sgm"]
+__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "edge_lines",
+           "image_noise_dn", "match_sgm", "plain_runs"]
