@@ -163,13 +163,15 @@ def test_narrow_plain_strip_on_a_plane_is_matched(seed):
 @pytest.fixture(scope="module", params=[11, 12, 13, 14, 15])
 def corridor_sgm(request):
     """Frame 0 of the rendered corridor (tests/test_stereo_rendered.py) and the local
-    and SGM pipelines' results on it (``sgm edge``: with ``sgm_bracket_edge_dn`` 8)."""
+    and SGM pipelines' results on it (``sgm edge``: with ``sgm_bracket_edge_dn`` 8,
+    ``sgm runs``: with ``sgm_run_check_sigma`` 4)."""
     scene = scene_from_dict({**SCENE, "seed": request.param}, "stereo-test scene")
     rig = paper_rig()
     frame = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
     out = {}
     for name, kw in (("none", {}), ("sgm", {"aggregation": "sgm"}),
-                     ("sgm edge", {"aggregation": "sgm", "sgm_bracket_edge_dn": 8.0})):
+                     ("sgm edge", {"aggregation": "sgm", "sgm_bracket_edge_dn": 8.0}),
+                     ("sgm runs", {"aggregation": "sgm", "sgm_run_check_sigma": 4.0})):
         params = StereoParams(matcher=MatcherParams(**kw))
         out[name] = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, params)
     return frame, out
@@ -218,3 +220,57 @@ def test_edge_rule_on_the_rendered_corridor(corridor_sgm):
     plain = ~t.textured & np.isfinite(t.disparity_px)
     wrong = plain & np.isfinite(edge) & (np.abs(edge - t.disparity_px) > 1.0)
     assert wrong.sum() / plain.sum() <= 0.05
+
+
+def test_run_check_on_the_rendered_corridor(corridor_sgm):
+    # sgm_run_check_sigma rejects runs of plain pixels whose ends contradict their
+    # disparity: the valid pixels are a subset of the default's, the share of them more
+    # than 1 px off falls, and the textured surfaces keep issue 23's bounds
+    frame, out = corridor_sgm
+    t = frame.truth
+    runs, base = out["sgm runs"].disparity_px, out["sgm"].disparity_px
+    assert not (np.isfinite(runs) & ~np.isfinite(base)).any()
+    truth = np.isfinite(t.disparity_px)
+
+    def wrong_share(d):
+        valid = truth & np.isfinite(d)
+        return (valid & (np.abs(d - t.disparity_px) > 1.0)).sum() / valid.sum()
+
+    assert wrong_share(runs) < wrong_share(base)
+    near = t.textured & (t.depth_m <= 3.0) & truth
+    valid = near & np.isfinite(runs)
+    assert valid.sum() / near.sum() >= 0.85
+    assert np.median(np.abs(runs[valid] - t.disparity_px[valid])) <= 0.15
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_plain_run_is_refuted_at_its_end(seed):
+    # by hand: a plain box (128 DN, columns 100..159) at 14 px before a textured
+    # background (mean 90 DN) at 6 px. Rows 40..59 of the box given the background's
+    # disparity (6 px) up to its right silhouette: the run's last 8 pixels sample the
+    # background's texture in the right image (the box ends 14 px left of them there),
+    # so the run is rejected; the same rows at the box's own 14 px match the right
+    # image along the whole run and stay, as do rows at 6 px over the background alone
+    from slitcli.stereo.filters import FilterInputs
+    from slitcli.stereo.reasons import Reason
+    from slitcli.stereo.sgm import plain_runs
+
+    left, right, truth = occlusion_pair(6.0, 14.0, (100, 160, 30, 90),
+                                        foreground_contrast_dn=0.0, background_dn=90.0,
+                                        noise_dn=2.0, seed=seed)
+    params = MatcherParams(aggregation="sgm", sgm_run_check_sigma=4.0, window_w_px=7,
+                           window_h_px=7)
+    rows, box = slice(40, 60), slice(100, 160)
+    # the 3 x 3 means of columns 99..100 and 159..160 straddle the silhouette (steps
+    # above 3 sigma): the run is columns 101..158, or one less at each end
+    inner = slice(102, 158)
+    for d_box, rejected in ((6.0, True), (14.0, False)):
+        disp = truth.astype(np.float32).copy()
+        disp[rows, box] = d_box
+        reason = np.zeros(disp.shape, np.uint8)
+        reason[:, :20] = Reason.LEFT_RIGHT   # no partner in the right image
+        plain_runs(FilterInputs(left, right, left, params, disp, reason, disp, None, 1))
+        hit = reason[rows, inner] == Reason.PLAIN_RUN
+        assert hit.all() if rejected else not (reason[rows, box] == Reason.PLAIN_RUN).any()
+        # the textured background at its own disparity is never a plain run
+        assert not (reason[95:, 20:] == Reason.PLAIN_RUN).any()
