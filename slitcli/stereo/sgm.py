@@ -234,7 +234,10 @@ def plain_runs(x: FilterInputs) -> None:
     (linear interpolation, 3 x 3 means) by more than ``sgm_run_check_sigma`` robust
     standard deviations of that difference over all valid pixels (its median removed:
     a gain or offset between the cameras). One such pixel may be noise; two within a
-    few pixels of one end are the other surface."""
+    few pixels of one end are the other surface. The runs are scanned by
+    slitcli/stereo/_c/bracket.pyx (``plain_run_rows``)."""
+    from slitcli.stereo._c.bracket import plain_run_rows
+
     p = x.params
     d, reason = x.disparity_px, x.invalid_reason
     h, w = d.shape
@@ -258,19 +261,9 @@ def plain_runs(x: FilterInputs) -> None:
     plain_dn = 3.0 * image_noise_dn(x.left_grey)
     plain = np.maximum(step, np.roll(step, -1, axis=1)) < plain_dn
     member = valid & plain
-    # run ids along the flattened rows: a new run wherever the chain breaks
-    joined = np.zeros((h, w), np.bool_)
-    joined[:, 1:] = member[:, 1:] & member[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) <= 1.0)
-    ids = np.cumsum(~joined.ravel()).reshape(h, w)
-    col = np.broadcast_to(np.arange(w)[None, :], (h, w))
-    first = np.full(ids.max() + 1, w, np.int64)
-    last = np.full(ids.max() + 1, -1, np.int64)
-    np.minimum.at(first, ids[member], col[member])
-    np.maximum.at(last, ids[member], col[member])
-    to_end = np.minimum(col - first[ids], last[ids] - col)
-    ends = member & refuted & (to_end < max(int(p.window_w_px) - 1, 1))
-    count = np.bincount(ids[ends], minlength=ids.max() + 1)
-    reason[member & (count[ids] >= 2)] = Reason.PLAIN_RUN
+    plain_run_rows(np.ascontiguousarray(d, np.float32), member.view(np.uint8),
+                   refuted.view(np.uint8), max(int(p.window_w_px) - 1, 1),
+                   int(Reason.PLAIN_RUN), reason)
 
 
 #: The filters after the SGM winner step: the local matcher's chain with the bracket

@@ -99,3 +99,35 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                 if rx - x <= reach and a == a:
                     d = disp[y, x]
                     keep[y, x] = _between(d, a, rd, tol, span)
+
+
+def plain_run_rows(const float[:, ::1] disp, const uint8_t[:, ::1] member,
+                   const uint8_t[:, ::1] refuted, Py_ssize_t end_px, int code,
+                   uint8_t[:, ::1] reason):
+    """The plain-run check's scan (slitcli.stereo.sgm.plain_runs): along each row, a
+    run is a maximal stretch of ``member`` pixels whose disparities (``disp``, px) step
+    by at most 1 px; where at least 2 of its pixels within ``end_px`` of one of its
+    ends (``min(x - first, last - x) < end_px``) are ``refuted``, every pixel of the run
+    gets ``code`` in ``reason``. All arrays (H, W); ``member``, ``refuted`` 0/1."""
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y, a, b, k
+    cdef int hits
+    with nogil:
+        for y in range(height):
+            x = 0
+            while x < width:
+                if not member[y, x]:
+                    x += 1
+                    continue
+                a = x
+                while x + 1 < width and member[y, x + 1] and \
+                        fabsf(disp[y, x + 1] - disp[y, x]) <= 1.0:
+                    x += 1
+                b = x
+                hits = 0
+                for k in range(a, b + 1):
+                    if refuted[y, k] and (k - a < end_px or b - k < end_px):
+                        hits += 1
+                if hits >= 2:
+                    for k in range(a, b + 1):
+                        reason[y, k] = code
+                x += 1
