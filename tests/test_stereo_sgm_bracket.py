@@ -23,7 +23,7 @@ VALID, WEAK, WEAK2, OTHER = 0, 7, 3, 4
 def reference_bracket(disp, reason, reach, tol, span, edge=None):
     """Plain loops: a WEAK pixel is kept when the nearest VALID pixels on both sides
     along its row (or along its column), each within ``reach``, bracket it; ``edge``
-    bit 1 / bit 2 bars the row / the column."""
+    bit 1 / bit 2 bars the row / the column, value 4 needs both."""
     h, w = disp.shape
     keep = np.zeros((h, w), bool)
     edge = np.zeros((h, w), np.uint8) if edge is None else edge
@@ -41,15 +41,14 @@ def reference_bracket(disp, reason, reach, tol, span, edge=None):
             if reason[y, x] not in (WEAK, WEAK2):
                 continue
             d = disp[y, x]
+            found = []
             for line, i, bit in (((disp[y], reason[y]), x, 1),
                                  ((disp[:, x], reason[:, x]), y, 2)):
-                if edge[y, x] & bit:
-                    continue
                 a, b = nearest(line, i, -1), nearest(line, i, 1)
-                if a is None or b is None:
-                    continue
-                if min(a, b) - tol <= d <= max(a, b) + tol and abs(a - b) <= span:
-                    keep[y, x] = True
+                found.append(not edge[y, x] & bit and a is not None and b is not None
+                             and min(a, b) - tol <= d <= max(a, b) + tol
+                             and abs(a - b) <= span)
+            keep[y, x] = all(found) if edge[y, x] & 4 else any(found)
     return keep
 
 
@@ -67,7 +66,7 @@ def test_bracket_kernel_equals_reference(seed):
         _bracket.bracket_rows(disp, reason, VALID, weak, reach, np.float32(tol),
                               np.float32(span), keep)
         np.testing.assert_array_equal(keep, reference_bracket(disp, reason, reach, tol, span))
-        edge = rng.integers(0, 4, (h, w)).astype(np.uint8)
+        edge = rng.integers(0, 8, (h, w)).astype(np.uint8)
         keep = np.zeros((h, w), np.bool_)
         _bracket.bracket_rows(disp, reason, VALID, weak, reach, np.float32(tol),
                               np.float32(span), keep, edge)

@@ -15,7 +15,8 @@ def bracket_rows(disp: np.ndarray, reason: np.ndarray, code_valid: int, weak: np
     bool per code) is bracketed along its row or its column by pixels of code
     ``code_valid`` within ``reach`` px: ``min(d_a, d_b) - tol <= d <= max(d_a, d_b) +
     tol`` with ``|d_a - d_b| <= span`` (px). ``edge`` (H, W) uint8, optional: bit 1 set,
-    the row does not bracket the pixel; bit 2, the column does not (None: both may).
+    the row does not bracket the pixel; bit 2, the column does not; value 4, the row
+    and the column must both bracket it (None: either may).
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is written
     (False at the other non-valid pixels, valid pixels untouched)."""

@@ -137,6 +137,7 @@ class MatcherParams:
     sgm_bracket_span_px: float = 1.0
     sgm_bracket_edge_dn: float = 0.0
     sgm_run_check_sigma: float = 0.0
+    sgm_bracket_plain_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -187,6 +188,10 @@ def _check_sgm(p: MatcherParams) -> None:
     if not 0 <= p.sgm_bracket_edge_dn <= 255:
         raise SlitcliError(f"sgm_bracket_edge_dn {p.sgm_bracket_edge_dn} must lie in 0..255 DN "
                            "(0 = off)", param="sgm_bracket_edge_dn")
+    if not p.sgm_bracket_plain_sigma >= 0:
+        raise SlitcliError(f"sgm_bracket_plain_sigma {p.sgm_bracket_plain_sigma} must be >= 0 "
+                           "(noise standard deviations; 0 = off)",
+                           param="sgm_bracket_plain_sigma")
     if not p.sgm_run_check_sigma >= 0:
         raise SlitcliError(f"sgm_run_check_sigma {p.sgm_run_check_sigma} must be >= 0 "
                            "(robust standard deviations; 0 = off)", param="sgm_run_check_sigma")

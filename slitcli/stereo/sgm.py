@@ -190,11 +190,16 @@ def _bracket(x: FilterInputs) -> None:
     of one small patch only; its pixels stay valid where the other valid pixels
     (fills included) bracket them, as for pass 1's candidates. With
     ``sgm_bracket_edge_dn`` > 0 neither pass brackets along a line that runs within half
-    a window of a grey step parallel to it (:func:`edge_lines`)."""
+    a window of a grey step parallel to it (:func:`edge_lines`); with
+    ``sgm_bracket_plain_sigma`` > 0 a plain pixel (:func:`plain_pixels`) needs both its
+    row and its column to bracket it."""
     p = x.params
     small = _small_regions(x) if p.speckle_window_px > 0 else None
     edge = (edge_lines(x.left_grey, p.sgm_bracket_edge_dn, p.window_h_px // 2)
             if p.sgm_bracket_edge_dn > 0 else None)
+    if p.sgm_bracket_plain_sigma > 0:
+        both = plain_pixels(x, p.sgm_bracket_plain_sigma).view(np.uint8) << 2
+        edge = both if edge is None else edge | both
     keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)),
                          edge)
     x.invalid_reason[keep] = Reason.VALID
@@ -204,6 +209,44 @@ def _bracket(x: FilterInputs) -> None:
     reason[small] = Reason.SPECKLE
     keep = _bracket_pass(x, reason, (int(Reason.SPECKLE),), edge)
     x.invalid_reason[small & ~keep] = Reason.SPECKLE
+
+
+def match_noise_dn(x: FilterInputs) -> float:
+    """Sensor noise of one image, DN, from the matches: the robust standard deviation of
+    left grey minus right grey at the valid pixels' disparities (linear interpolation),
+    over sqrt(2) (two images' noise). Interpolation on steep texture adds to it; 0 when
+    fewer than 100 pixels are valid."""
+    d, valid = x.disparity_px, x.invalid_reason == Reason.VALID
+    h, w = d.shape
+    map_x = np.arange(w, dtype=np.float32)[None, :] - np.where(valid, d, np.float32(0))
+    map_y = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
+    warped = cv2.remap(np.asarray(x.right_grey, np.float32),
+                       np.ascontiguousarray(map_x, np.float32), np.ascontiguousarray(map_y),
+                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                       borderValue=float("nan"))
+    residual = np.asarray(x.left_grey, np.float32) - warped
+    seen = residual[valid & np.isfinite(residual)]
+    if seen.size < 100:
+        return 0.0
+    return float(np.median(np.abs(seen - np.median(seen)))) * 1.4826 / math.sqrt(2.0)
+
+
+def plain_pixels(x: FilterInputs, sigmas: float) -> np.ndarray:
+    """(H, W) bool: pixels whose window (``window_w_px`` x ``window_h_px``) of the left
+    grey image varies by less than ``sigmas`` times the noise (:func:`match_noise_dn`):
+    nothing but noise in it. A bracket along one line fills such a pixel with whatever
+    that line carries (on a plain box, the wall's disparity along its top rows, between
+    two fattened silhouettes); a weakly textured floor, whose windows vary by about
+    twice the noise, is not plain, and its rows (constant disparity on a level floor)
+    still bracket alone."""
+    from slitcli.stereo.filters import window_std_dn
+
+    p = x.params
+    noise = match_noise_dn(x)
+    if noise <= 0:
+        return np.zeros(x.disparity_px.shape, np.bool_)
+    spread = window_std_dn(np.asarray(x.left_grey, np.float32), p.window_w_px, p.window_h_px)
+    return spread < sigmas * noise
 
 
 def image_noise_dn(grey: np.ndarray) -> float:
@@ -454,4 +497,4 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
 
 
 __all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "edge_lines",
-           "image_noise_dn", "match_sgm", "plain_runs"]
+           "image_noise_dn", "match_noise_dn", "match_sgm", "plain_pixels", "plain_runs"]

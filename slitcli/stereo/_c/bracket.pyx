@@ -13,7 +13,9 @@ own silhouette matched at the box's disparity) the box's borders do not bracket 
 pixel lies within half a window of a horizontal grey step: the window there sees the
 texture beyond the step, on one side only, and the pixels along the row all carry its
 disparity: they are no independent evidence of the pixel's own); bit 2, none along the
-column (a vertical step nearby). slitcli.stereo.sgm sets it (``sgm_bracket_edge_dn``).
+column (a vertical step nearby); bit 3 (value 4), the pixel needs both its row and its
+column to bracket it (a plain pixel: ``sgm_bracket_plain_sigma``). slitcli.stereo.sgm
+sets it (``sgm_bracket_edge_dn``).
 """
 
 from libc.math cimport fabsf
@@ -39,7 +41,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
     code, 256) is bracketed along its row or its column by pixels of code
     ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module), where
     ``edge`` (H, W) uint8 allows the line (bit 1 set: not along the row; bit 2: not
-    along the column).
+    along the column; value 4: both lines must bracket the pixel).
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
     written (False for the other non-valid pixels; valid pixels untouched)."""
@@ -93,7 +95,18 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                     rd = disp[y, x]
                     rx = x
                     continue
-                if not weak[r] or keep[y, x] or (edge[y, x] & 1):
+                if not weak[r]:
+                    continue
+                if edge[y, x] & 4:
+                    # both lines needed: the column's verdict is in keep
+                    if not keep[y, x]:
+                        continue
+                    keep[y, x] = False
+                    a = left[x]
+                    if not (edge[y, x] & 1) and rx - x <= reach and a == a:
+                        keep[y, x] = _between(disp[y, x], a, rd, tol, span)
+                    continue
+                if keep[y, x] or (edge[y, x] & 1):
                     continue
                 a = left[x]
                 if rx - x <= reach and a == a:
