@@ -273,3 +273,28 @@ def test_plain_run_is_refuted_at_its_end(seed):
         assert hit.all() if rejected else not (reason[rows, box] == Reason.PLAIN_RUN).any()
         # the textured background at its own disparity is never a plain run
         assert not (reason[95:, 20:] == Reason.PLAIN_RUN).any()
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_plain_pixels_are_the_noise_only_windows(seed):
+    # a textured plane at 9.4 px (texture contrast 40 DN) with a uniform strip (columns
+    # 150..173) and 2 DN noise: the noise estimated from the matches (true disparity,
+    # every pixel valid) is the sensor's, within interpolation (bilinear on the texture
+    # adds to it: at most +50 %); a 7 x 7 window inside the strip varies by the noise
+    # alone (its standard deviation ~ sigma), so at 1.35 sigma it is plain; windows on
+    # the texture vary by ~ 10 sigma and never are
+    from slitcli.stereo.filters import FilterInputs
+    from slitcli.stereo.sgm import match_noise_dn, plain_pixels
+
+    noise = 2.0
+    left, right = plane_pair(9.4, noise_dn=noise, plain_cols=(150, 174), seed=seed)
+    disp = np.full(left.shape, 9.4, np.float32)
+    disp[:, :10] = np.nan
+    reason = np.where(np.isfinite(disp), 0, 4).astype(np.uint8)
+    params = MatcherParams(aggregation="sgm", window_w_px=7, window_h_px=7)
+    x = FilterInputs(left, right, left, params, disp, reason, disp, None, 1)
+    assert noise * 0.9 <= match_noise_dn(x) <= noise * 1.5
+    plain = plain_pixels(x, 1.35)
+    inside = plain[10:230, 153:171]
+    assert inside.mean() >= 0.9
+    assert not plain[:, 20:140].any() and not plain[:, 184:].any()
