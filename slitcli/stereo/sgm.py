@@ -18,9 +18,15 @@ left-right consistency on the aggregated costs, the subpixel parabola) and the l
 matcher's post-filter chain with one more step, the bracket test (:data:`SGM_FILTERS`,
 slitcli.stereo._bracket): a pixel whose own neighbourhood does not carry the match is
 kept where valid pixels on both sides of it agree with each other and with it, and so
-is a small isolated region. Last, :func:`raw_subpixel` refits the subpixel offsets to
-the pixels' own Eq. 10 costs (the sums' parabola is pulled to the whole pixel by the
-path penalties).
+is a small isolated region. Three optional tests (off by default, measured in
+docs/notes/stereo-sgm.md, session 7) aim at plain surfaces, where the paths carry a
+neighbour's disparity: no bracket along a line that runs beside a grey step
+(``sgm_bracket_edge_dn``, :func:`edge_lines`), both lines needed for a pixel whose
+window holds nothing but noise (``sgm_bracket_plain_sigma``, :func:`plain_pixels`), and
+a plain row run rejected where its ends contradict its disparity
+(``sgm_run_check_sigma``, :func:`plain_runs`). Last, :func:`raw_subpixel` refits the
+subpixel offsets to the pixels' own Eq. 10 costs (the sums' parabola is pulled to the
+whole pixel by the path penalties).
 
 Cost: two fused passes (compiled kernels, slitcli/stereo/_c/sgm.pyx): the costs of each
 row with the top-down sweep over them, then the bottom-up sweep with each row's winner
