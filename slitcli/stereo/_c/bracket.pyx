@@ -8,6 +8,14 @@ smooth surface (plain, slanted or not) the aggregated disparity runs between tho
 its textured borders; where the aggregation carried a neighbour's disparity across an
 edge onto a plain surface (a floor's or a wall's disparity into a plain box, whose
 own silhouette matched at the box's disparity) the box's borders do not bracket it.
+
+``edge`` marks where a line may not bracket: bit 1, no bracket along the row (the
+pixel lies within half a window of a horizontal grey step: the window there sees the
+texture beyond the step, on one side only, and the pixels along the row all carry its
+disparity: they are no independent evidence of the pixel's own); bit 2, none along the
+column (a vertical step nearby); bit 3 (value 4), the pixel needs both its row and its
+column to bracket it (a plain pixel: ``sgm_bracket_plain_sigma``). slitcli.stereo.sgm
+sets it (``sgm_bracket_edge_dn``).
 """
 
 from libc.math cimport fabsf
@@ -28,10 +36,12 @@ cdef inline bint _between(float d, float a, float b, float tol, float span) noex
 
 def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int code_valid,
                  const uint8_t[::1] weak, Py_ssize_t reach, float tol, float span,
-                 uint8_t[:, ::1] keep):
+                 const uint8_t[:, ::1] edge, uint8_t[:, ::1] keep):
     """Set ``keep`` (H, W) bool where a pixel whose code is marked in ``weak`` (bool per
     code, 256) is bracketed along its row or its column by pixels of code
-    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module).
+    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module), where
+    ``edge`` (H, W) uint8 allows the line (bit 1 set: not along the row; bit 2: not
+    along the column; value 4: both lines must bracket the pixel).
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
     written (False for the other non-valid pixels; valid pixels untouched)."""
@@ -65,7 +75,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                 if not weak[r]:
                     continue
                 a = up_d[y, x]
-                if last_y[x] - y <= reach and a == a:
+                if last_y[x] - y <= reach and a == a and not (edge[y, x] & 2):
                     keep[y, x] = _between(disp[y, x], a, last_d[x], tol, span)
         for y in range(height):
             ld = NAN
@@ -85,9 +95,52 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                     rd = disp[y, x]
                     rx = x
                     continue
-                if not weak[r] or keep[y, x]:
+                if not weak[r]:
+                    continue
+                if edge[y, x] & 4:
+                    # both lines needed: the column's verdict is in keep
+                    if not keep[y, x]:
+                        continue
+                    keep[y, x] = False
+                    a = left[x]
+                    if not (edge[y, x] & 1) and rx - x <= reach and a == a:
+                        keep[y, x] = _between(disp[y, x], a, rd, tol, span)
+                    continue
+                if keep[y, x] or (edge[y, x] & 1):
                     continue
                 a = left[x]
                 if rx - x <= reach and a == a:
                     d = disp[y, x]
                     keep[y, x] = _between(d, a, rd, tol, span)
+
+
+def plain_run_rows(const float[:, ::1] disp, const uint8_t[:, ::1] member,
+                   const uint8_t[:, ::1] refuted, Py_ssize_t end_px, int code,
+                   uint8_t[:, ::1] reason):
+    """The plain-run check's scan (slitcli.stereo.sgm.plain_runs): along each row, a
+    run is a maximal stretch of ``member`` pixels whose disparities (``disp``, px) step
+    by at most 1 px; where at least 2 of its pixels within ``end_px`` of one of its
+    ends (``min(x - first, last - x) < end_px``) are ``refuted``, every pixel of the run
+    gets ``code`` in ``reason``. All arrays (H, W); ``member``, ``refuted`` 0/1."""
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y, a, b, k
+    cdef int hits
+    with nogil:
+        for y in range(height):
+            x = 0
+            while x < width:
+                if not member[y, x]:
+                    x += 1
+                    continue
+                a = x
+                while x + 1 < width and member[y, x + 1] and \
+                        fabsf(disp[y, x + 1] - disp[y, x]) <= 1.0:
+                    x += 1
+                b = x
+                hits = 0
+                for k in range(a, b + 1):
+                    if refuted[y, k] and (k - a < end_px or b - k < end_px):
+                        hits += 1
+                if hits >= 2:
+                    for k in range(a, b + 1):
+                        reason[y, k] = code
+                x += 1
