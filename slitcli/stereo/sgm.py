@@ -34,13 +34,12 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from slitcli.stereo.bands import kernel_threads, run_row_bands
+from slitcli.stereo.bands import frame_pool, kernel_threads, run_row_bands
 from slitcli.stereo.filters import (
     DISPARITY_FILTERS,
     DisparityFilter,
@@ -293,7 +292,8 @@ def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) 
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
-              params: MatcherParams) -> DisparityResult:
+              params: MatcherParams, pool: ThreadPoolExecutor | None = None
+              ) -> DisparityResult:
     """Eq. 10 cost, SGM aggregation, winner-take-all, validity tests, post-filters.
 
     Parameters
@@ -303,6 +303,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     params : MatcherParams
         ``aggregation = "sgm"``; ``sgm_window_px``, ``sgm_p1``, ``sgm_p2``,
         ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``.
+    pool : ThreadPoolExecutor, optional
+        Helper threads held by the caller for a sequence
+        (slitcli.stereo.matcher.compute_disparity).
 
     Returns
     -------
@@ -321,7 +324,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
-    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+    with frame_pool(pool, threads) as pool:
         right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
         pr = right_job.result() if right_job else prefilter_image(right_grey, params)
