@@ -14,8 +14,9 @@ from slitcli.stereo._c.kernel import (
     floor_check,
     reproject,
     speckle_finish,
+    speckle_small,
     trim_silhouettes,
 )
 
 __all__ = ["bin_percentile", "clip_quantise", "floor_check", "reproject", "speckle_finish",
-           "trim_silhouettes"]
+           "speckle_small", "trim_silhouettes"]

@@ -140,14 +140,15 @@ def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ..
 
 def _small_regions(x: FilterInputs) -> np.ndarray:
     """(H, W) bool: valid pixels that the speckle filter would remove now (regions of
-    at most ``speckle_window_px`` pixels within ``speckle_range_px``)."""
+    at most ``speckle_window_px`` pixels within ``speckle_range_px``; the speckle
+    filter's own regions, marked without copying or changing the maps)."""
     from slitcli.stereo import _kernel
 
     p = x.params
-    d, r = x.disparity_px.copy(), x.invalid_reason.copy()
-    _kernel.speckle_finish(d, r, int(p.speckle_window_px),
-                           max(1, math.ceil(p.speckle_range_px * 16.0)), int(Reason.SPECKLE))
-    return (r == Reason.SPECKLE) & (x.invalid_reason == Reason.VALID)
+    small = np.empty(x.disparity_px.shape, np.bool_)
+    _kernel.speckle_small(x.disparity_px, x.invalid_reason, int(p.speckle_window_px),
+                          max(1, math.ceil(p.speckle_range_px * 16.0)), small.view(np.uint8))
+    return small
 
 
 def _bracket(x: FilterInputs) -> None:

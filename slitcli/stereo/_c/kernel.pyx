@@ -7,7 +7,8 @@
 - :func:`trim_silhouettes`: obstacle runs cut back to their last intensity step where
   they end on a plain (unmatched) background;
 - :func:`floor_check`: obstacle pixels that the floor explains better than their match;
-- :func:`speckle_finish`: speckle removal and the NaN of invalid pixels.
+- :func:`speckle_finish`: speckle removal and the NaN of invalid pixels;
+  :func:`speckle_small`: the pixels it would remove, marked only.
 
 All release the GIL, so bands of rows can run on plain threads. The arithmetic is that
 of the expressions as written, in their order, with one exception: :func:`reproject`
@@ -484,13 +485,12 @@ cdef inline int32_t _root(int32_t* parent, int32_t i) noexcept nogil:
     return i
 
 
-cdef void _speckle_regions(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
-                           int64_t max_diff_16, int64_t speckle_code, int32_t* fixed,
-                           int32_t* parent, int32_t* size) noexcept nogil:
-    """The union-find pass and the marking pass of :func:`speckle_finish`."""
+cdef void _speckle_union(const float[:, ::1] disp, const uint8_t[:, ::1] reason,
+                         int64_t max_diff_16, int32_t* fixed, int32_t* parent,
+                         int32_t* size) noexcept nogil:
+    """The union-find pass of :func:`speckle_finish` (reads ``disp`` and ``reason``)."""
     cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
-    cdef int32_t run, f, root, up, lo, hi, r
-    cdef float nan32 = NAN
+    cdef int32_t run, f, root, up, lo, hi
     for y in range(height):
         run = -1     # root of the set of pixel x - 1, -1 when it is invalid
         for x in range(width):
@@ -519,6 +519,16 @@ cdef void _speckle_regions(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t m
                     size[lo] += size[hi]
                     root = lo
             run = root
+
+
+cdef void _speckle_regions(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
+                           int64_t max_diff_16, int64_t speckle_code, int32_t* fixed,
+                           int32_t* parent, int32_t* size) noexcept nogil:
+    """The union-find pass and the marking pass of :func:`speckle_finish`."""
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
+    cdef int32_t r
+    cdef float nan32 = NAN
+    _speckle_union(disp, reason, max_diff_16, fixed, parent, size)
     for y in range(height):
         for x in range(width):
             i = y * width + x
@@ -573,4 +583,43 @@ def speckle_finish(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
     with nogil:
         _speckle_regions(disp, reason, max_size, max_diff_16, speckle_code, buf,
                          buf + npx + 1, buf + 2 * (npx + 1))
+    free(buf)
+
+
+def speckle_small(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int64_t max_size,
+                  int64_t max_diff_16, uint8_t[:, ::1] small) -> None:
+    """The valid pixels :func:`speckle_finish` would mark, without marking them.
+
+    ``small`` (H, W) bool (as uint8) is set to 1 at valid pixels (``reason`` 0) of
+    regions of at most ``max_size`` pixels, 0 elsewhere; the regions are those of
+    :func:`speckle_finish` (the same union-find), ``disp`` and ``reason`` are only
+    read (no copies, no NaN pass: the SGM bracket test asks this before its fills).
+    ``max_size`` must be > 0.
+    """
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
+    cdef Py_ssize_t npx = height * width
+    cdef int32_t r
+    if (reason.shape[0] != height or reason.shape[1] != width or small.shape[0] != height
+            or small.shape[1] != width):
+        raise ValueError("speckle_small: disp, reason and small (H, W)")
+    if npx >= 2 ** 31:
+        raise ValueError("speckle_small: at most 2**31 - 1 pixels")
+    if max_size <= 0:
+        raise ValueError("speckle_small: max_size must be > 0")
+    cdef int32_t* buf = <int32_t*> malloc(3 * (npx + 1) * sizeof(int32_t))
+    if buf == NULL:
+        raise MemoryError()
+    cdef int32_t* parent = buf + npx + 1
+    cdef int32_t* size = buf + 2 * (npx + 1)
+    with nogil:
+        _speckle_union(disp, reason, max_diff_16, buf, parent, size)
+        for y in range(height):
+            for x in range(width):
+                i = y * width + x
+                if reason[y, x] == 0:
+                    r = parent[parent[i]]   # parent[i] < i is already flattened to its root
+                    parent[i] = r
+                    small[y, x] = size[r] <= max_size
+                else:
+                    small[y, x] = 0
     free(buf)
