@@ -260,7 +260,8 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     return cost
 
 
-def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) -> None:
+def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float,
+                 where: np.ndarray | None = None) -> None:
     """Subpixel offsets from the Eq. 10 costs where the winner is their local minimum.
 
     The winner step fits its parabola to the aggregated sums; with path penalties
@@ -286,10 +287,14 @@ def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) 
         the costs' parabola; ``sgm_p1`` (quantised) in match_sgm: where the pixel's own
         curvature is below the penalty a 1 px step costs, its costs do not locate the
         minimum better than the paths do.
+    where : ndarray, bool, shape (H, W), optional
+        Only these pixels are refitted (the others keep their offsets), in one pass
+        without copies of the map.
     """
     from slitcli.stereo._c.subpixel import cost_subpixel
 
-    cost_subpixel(disp, cost, int(dmin), float(den_min), float(round(COST_MAX * COST_SCALE)))
+    cost_subpixel(disp, cost, int(dmin), float(den_min), float(round(COST_MAX * COST_SCALE)),
+                  None if where is None else where.view(np.uint8))
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -352,10 +357,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
             # road bad2-all 0.220 against 0.230 with the costs' offsets in the filters);
             # and only where the pixel's own costs carry the match: not on the
             # bracket's fills, whose costs are flat (rendered wrong plain pixels 4125 -> 4000)
-            own_disp = np.where(own, disp, np.float32(np.nan))
-            raw_subpixel(own_disp, cost, int(params.min_disparity_px),
-                         params.sgm_p1 * COST_SCALE)
-            disp[own] = own_disp[own]
+            raw_subpixel(disp, cost, int(params.min_disparity_px), params.sgm_p1 * COST_SCALE,
+                         where=own)
         del cost
     return DisparityResult(disp, reason, mcost)
 
