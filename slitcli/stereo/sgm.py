@@ -162,8 +162,17 @@ def _bracket(x: FilterInputs) -> None:
     Pass 2: a region the speckle filter would have removed before pass 1 is evidence
     of one small patch only; its pixels stay valid where the other valid pixels
     (fills included) bracket them, as for pass 1's candidates."""
-    small = _small_regions(x) if x.params.speckle_window_px > 0 else None
+    small = small_job = None
+    if x.params.speckle_window_px > 0:
+        # on the frame's helper thread, while this one runs pass 1 (both only read
+        # the codes; they change once both are done)
+        if x.pool is not None:
+            small_job = x.pool.submit(_small_regions, x)
+        else:
+            small = _small_regions(x)
     keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)))
+    if small_job is not None:
+        small = small_job.result()
     x.invalid_reason[keep] = Reason.VALID
     if small is None or not small.any():
         return
@@ -343,6 +352,16 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         grey = np.ascontiguousarray(left_grey)
         cost = _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
                             threads)
+        refit = params.subpixel == "parabola" and params.sgm_subpixel == "cost"
+        refit_job = None
+        if refit and pool is not None:
+            # the costs' offsets of every winner on the helper thread while the filters
+            # run (they change only codes, and disparities only to NaN, so a valid
+            # pixel's refit from now equals the refit after them); kept where the pixel
+            # passed on its own (below)
+            refit_disp = disp.copy()
+            refit_job = pool.submit(raw_subpixel, refit_disp, cost,
+                                    int(params.min_disparity_px), params.sgm_p1 * COST_SCALE)
         inputs = FilterInputs(left_grey, right_grey, pl, params, disp, reason, rdisp, pool,
                               threads)
         split = [f.name for f in SGM_FILTERS].index("sgm_bracket")
@@ -350,13 +369,17 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         # pixels whose own neighbourhood carries the match (before the bracket's fills)
         own = reason == Reason.VALID
         run_disparity_filters(inputs, SGM_FILTERS[split:])
-        if params.subpixel == "parabola" and params.sgm_subpixel == "cost":
-            # after the filters: they compare a pixel's disparity with its neighbours'
-            # (support warp, bracket, speckle), where the sums' offsets, smoothed along
-            # the paths, serve better than each pixel's own (measured: weakly textured
-            # road bad2-all 0.220 against 0.230 with the costs' offsets in the filters);
-            # and only where the pixel's own costs carry the match: not on the
-            # bracket's fills, whose costs are flat (rendered wrong plain pixels 4125 -> 4000)
+        # the refit offsets replace the sums' after the filters: they compare a pixel's
+        # disparity with its neighbours' (support warp, bracket, speckle), where the
+        # sums' offsets, smoothed along the paths, serve better than each pixel's own
+        # (measured: weakly textured road bad2-all 0.220 against 0.230 with the costs'
+        # offsets in the filters); and only where the pixel's own costs carry the
+        # match: not on the bracket's fills, whose costs are flat (rendered wrong plain
+        # pixels 4125 -> 4000)
+        if refit_job is not None:
+            refit_job.result()
+            np.copyto(disp, refit_disp, where=own & (reason == Reason.VALID))
+        elif refit:
             raw_subpixel(disp, cost, int(params.min_disparity_px), params.sgm_p1 * COST_SCALE,
                          where=own)
         del cost
