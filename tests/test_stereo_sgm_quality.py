@@ -59,6 +59,25 @@ def test_raw_subpixel_equals_the_array_rule(seed, dmin):
     np.testing.assert_array_equal(disp, want)
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_raw_subpixel_where_refits_those_pixels_only(seed):
+    # match_sgm refits only the pixels whose own neighbourhood carried the match, in
+    # place: each of them as the rule says, every other pixel untouched (NaN included)
+    rng = np.random.default_rng(seed)
+    h, w, num, dmin = 19, 29, 11, -2
+    cost = rng.integers(0, TOP + 1, (h, w, num)).astype(np.uint16)
+    disp = (dmin + rng.uniform(-0.5, num - 0.5, (h, w))).astype(np.float32)
+    disp[rng.random((h, w)) < 0.1] = np.nan
+    where = rng.random((h, w)) < 0.6
+    full = reference_subpixel(disp, cost, dmin, 30.0)
+    want = np.where(where, full, disp)
+    got = disp.copy()
+    raw_subpixel(got, cost, dmin, 30.0, where=where)
+    np.testing.assert_array_equal(got, want)
+    changed = where & np.isfinite(disp) & (full != disp)
+    assert changed.sum() > 0 and (~where & (full != disp) & np.isfinite(disp)).sum() > 0
+
+
 def test_raw_subpixel_on_hand_built_costs():
     # pixel 0: a parabola with its minimum at 5.3 px: the parabola through the whole
     # costs at 4, 5, 6 gives back 5.3 (the costs are whole numbers: (k 1.69 - k 0.49)
