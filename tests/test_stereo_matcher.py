@@ -523,6 +523,73 @@ def test_speckle_regions_are_those_of_opencv_filter_speckles(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+def test_speckle_small_marks_what_speckle_finish_removes(seed):
+    # the SGM bracket test asks which valid pixels the speckle filter would remove,
+    # without removing them: the same regions (cv2.filterSpeckles'), maps unchanged
+    from slitcli.stereo._kernel import speckle_finish, speckle_small
+
+    rng = np.random.default_rng(seed)
+    marked = kept = 0
+    for trial in range(6):
+        h, w = 41 + trial, 47 + 5 * trial
+        disp = cv2.resize(rng.uniform(0, 40, (h // 3 + 1, w // 4 + 1)), (w, h),
+                          interpolation=cv2.INTER_NEAREST).astype(np.float32)
+        disp += rng.normal(0, 0.04 * trial, (h, w)).astype(np.float32)
+        reason = np.where(rng.random((h, w)) < 0.2, 3, 0).astype(np.uint8)
+        max_size, max_diff = [4, 12, 50, 100, 200, 9][trial], [1, 3, 16, 32, 8, 2][trial]
+        valid = reason == 0
+        fixed = np.where(valid, disp * np.float32(16.0), -32768.0).astype(np.int16)
+        cv2.filterSpeckles(fixed, -32768, max_size, max_diff)
+        expected = valid & (fixed == -32768)
+        before = disp.copy(), reason.copy()
+        small = np.ones((h, w), np.bool_)
+        speckle_small(disp, reason, max_size, max_diff, small.view(np.uint8))
+        marked += expected.sum()
+        kept += (valid & ~expected).sum()
+        np.testing.assert_array_equal(small, expected)
+        np.testing.assert_array_equal(disp, before[0])
+        np.testing.assert_array_equal(reason, before[1])
+        d2, r2 = disp.copy(), reason.copy()
+        speckle_finish(d2, r2, max_size, max_diff, 5)
+        np.testing.assert_array_equal(small, r2 == 5)
+    assert marked > 0 and kept > 0
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("aggregation", ["none", "sgm"])
+def test_a_caller_pool_gives_the_same_maps_and_stays_open(seed, aggregation, monkeypatch):
+    # a caller that matches a sequence holds one pool of helper threads: with two
+    # threads the maps are those of a frame that makes its own pool and of one thread
+    # (every array bit for bit), and the caller's pool is not shut down by the frame
+    from concurrent.futures import ThreadPoolExecutor
+
+    import slitcli.stereo.matcher as matcher_mod
+    import slitcli.stereo.sgm as sgm_mod
+
+    left, right = plane_pair(6.3, width=96, height=64, noise_dn=2.0, seed=seed,
+                             plain_cols=(40, 60))
+    p = MatcherParams(num_disparities=16, aggregation=aggregation)
+    maps = {}
+    for threads, caller in ((1, False), (2, False), (2, True)):
+        monkeypatch.setattr(matcher_mod, "kernel_threads", lambda t=threads: t)
+        monkeypatch.setattr(sgm_mod, "kernel_threads", lambda t=threads: t)
+        if caller:
+            with ThreadPoolExecutor(max_workers=1) as pool:
+                res = [compute_disparity(left, right, p, pool=pool) for _ in range(2)]
+                assert pool.submit(lambda: 7).result() == 7
+        else:
+            res = [compute_disparity(left, right, p)]
+        for r in res:
+            maps.setdefault((threads, caller), []).append(r)
+    want = maps[(1, False)][0]
+    assert want.valid.sum() > 0.5 * want.valid.size and (~want.valid).sum() > 50
+    for got in (r for rs in maps.values() for r in rs):
+        np.testing.assert_array_equal(got.disparity_px, want.disparity_px)
+        np.testing.assert_array_equal(got.invalid_reason, want.invalid_reason)
+        np.testing.assert_array_equal(got.match_cost, want.match_cost)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_row_window_minimum_is_an_erosion(seed):
     from slitcli.stereo._boundary import window_min
 

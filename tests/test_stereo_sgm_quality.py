@@ -59,6 +59,50 @@ def test_raw_subpixel_equals_the_array_rule(seed, dmin):
     np.testing.assert_array_equal(disp, want)
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_raw_subpixel_where_refits_those_pixels_only(seed):
+    # match_sgm refits only the pixels whose own neighbourhood carried the match, in
+    # place: each of them as the rule says, every other pixel untouched (NaN included)
+    rng = np.random.default_rng(seed)
+    h, w, num, dmin = 19, 29, 11, -2
+    cost = rng.integers(0, TOP + 1, (h, w, num)).astype(np.uint16)
+    disp = (dmin + rng.uniform(-0.5, num - 0.5, (h, w))).astype(np.float32)
+    disp[rng.random((h, w)) < 0.1] = np.nan
+    where = rng.random((h, w)) < 0.6
+    full = reference_subpixel(disp, cost, dmin, 30.0)
+    want = np.where(where, full, disp)
+    got = disp.copy()
+    raw_subpixel(got, cost, dmin, 30.0, where=where)
+    np.testing.assert_array_equal(got, want)
+    changed = where & np.isfinite(disp) & (full != disp)
+    assert changed.sum() > 0 and (~where & (full != disp) & np.isfinite(disp)).sum() > 0
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("dmin", [0, -5, 3])
+def test_raw_subpixel_vector_lanes_equal_the_rule(seed, dmin):
+    # whole rows take eight pixels per vector (AVX2), the row's tail and masked calls
+    # the scalar rule: both must give the array rule's bits, also for a least
+    # curvature that no float holds exactly (P1 0.4 x 256 = 102.4) and whole-pixel
+    # curvatures on both sides of it
+    rng = np.random.default_rng(seed)
+    h, w, num = 13, 8 * 5 + 3, 24
+    cost = rng.integers(0, TOP + 1, (h, w, num)).astype(np.uint16)
+    # curvatures 102 and 103 around the winner 9 of row 0 (local minima, refit or not)
+    cost[0, :2, 8:11] = [[151, 100, 151], [151, 100, 152]]
+    disp = (dmin + rng.uniform(-0.5, num - 0.5, (h, w))).astype(np.float32)
+    disp[rng.random((h, w)) < 0.1] = np.nan
+    disp[0, :2] = dmin + 9.2
+    want = reference_subpixel(disp, cost, dmin, 102.4)
+    got, masked = disp.copy(), disp.copy()
+    raw_subpixel(got, cost, dmin, 102.4)
+    raw_subpixel(masked, cost, dmin, 102.4, where=np.ones((h, w), np.bool_))
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(masked, want)
+    assert got[0, 0] == disp[0, 0] and got[0, 1] != disp[0, 1]
+    assert (got != disp).sum() > 0.05 * got.size
+
+
 def test_raw_subpixel_on_hand_built_costs():
     # pixel 0: a parabola with its minimum at 5.3 px: the parabola through the whole
     # costs at 4, 5, 6 gives back 5.3 (the costs are whole numbers: (k 1.69 - k 0.49)

@@ -2,7 +2,8 @@
 (slitcli.stereo._nssd) and its support and depth-edge tests (slitcli.stereo._boundary):
 the prefilter's clip, reprojection and obstacle tests, per-bearing percentiles,
 silhouette trimming, the floor check and speckle removal. Compiled ahead of time
-(Cython, :mod:`slitcli.stereo._c.kernel`, whose docstring lists them) and re-exported
+(Cython, :mod:`slitcli.stereo._c.kernel` and :mod:`slitcli.stereo._c.speckle`, whose
+docstrings list them) and re-exported
 here; all release the GIL, so bands of rows can run on plain threads.
 """
 
@@ -13,9 +14,9 @@ from slitcli.stereo._c.kernel import (
     clip_quantise,
     floor_check,
     reproject,
-    speckle_finish,
     trim_silhouettes,
 )
+from slitcli.stereo._c.speckle import speckle_finish, speckle_small
 
 __all__ = ["bin_percentile", "clip_quantise", "floor_check", "reproject", "speckle_finish",
-           "trim_silhouettes"]
+           "speckle_small", "trim_silhouettes"]

@@ -10,8 +10,9 @@ from __future__ import annotations
 import itertools
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
 from slitcli.errors import SlitcliError
 
@@ -20,19 +21,37 @@ from slitcli.errors import SlitcliError
 THREADS_ENV = "SLITCLI_THREADS"
 
 
-def thread_setting() -> int:
-    """Most threads a frame's kernels may use: ``SLITCLI_THREADS``, default the number of
-    cores. A value that is no positive whole number is a :class:`SlitcliError` naming the
-    variable (the stereo parameter checks call this before a run writes anything)."""
+def _setting() -> int | None:
+    """``SLITCLI_THREADS`` as a whole number, None when unset; a value that is no
+    positive whole number is a :class:`SlitcliError` naming the variable."""
     setting = os.environ.get(THREADS_ENV, "").strip()
+    if not setting:
+        return None
     try:
-        wanted = int(setting) if setting else (os.cpu_count() or 1)
+        wanted = int(setting)
     except ValueError:
         wanted = 0
     if wanted < 1:
         raise SlitcliError(f"{THREADS_ENV}={setting!r} is not a positive whole number of "
                            "threads; set it to 1 or more, or unset it for every core",
                            param=THREADS_ENV)
+    return wanted
+
+
+def check_thread_setting() -> None:
+    """Raise :class:`SlitcliError` naming ``SLITCLI_THREADS`` when it is set to no
+    positive whole number (the stereo parameter checks call this before a run writes
+    anything; unlike :func:`thread_setting` it does not count the cores)."""
+    _setting()
+
+
+def thread_setting(cores: int | None = None) -> int:
+    """Most threads a frame's kernels may use: ``SLITCLI_THREADS``, default the number of
+    cores (``cores``, counted here when None). A value that is no positive whole number
+    is a :class:`SlitcliError` naming the variable."""
+    wanted = _setting()
+    if wanted is None:
+        wanted = cores if cores is not None else (os.cpu_count() or 1)
     return wanted
 
 
@@ -45,9 +64,11 @@ def kernel_threads() -> int:
     band of rows handed to a core that another process holds waits for that core's
     time slice, and every kernel of the frame waits for its slowest band: measured on
     the 2-core development machine under a competing busy loop, a second thread made
-    a frame slower, not faster (docs/notes/stereo-kernels.md).
+    a frame slower, not faster (docs/notes/stereo-kernels.md). The cores are counted
+    once a call (``os.cpu_count`` reads sysfs: 0.02-0.14 ms).
     """
-    wanted = thread_setting()
+    cores = os.cpu_count() or 1
+    wanted = thread_setting(cores)
     if wanted <= 1:
         return 1
     try:
@@ -55,8 +76,25 @@ def kernel_threads() -> int:
             running = int(fh.read().split()[3].split("/")[0])
     except (OSError, ValueError, IndexError):
         return wanted
-    free = (os.cpu_count() or wanted) - (running - 1)
+    free = cores - (running - 1)
     return max(1, min(wanted, free))
+
+
+@contextmanager
+def frame_pool(pool: ThreadPoolExecutor | None, threads: int
+               ) -> Iterator[ThreadPoolExecutor | None]:
+    """The helper threads of one frame that runs on ``threads`` threads: None for one
+    thread; else the caller's ``pool`` (one per sequence, owned and shut down by the
+    caller: starting and joining a thread pool costs about 0.5 ms, a twentieth of a
+    320 x 240 frame), or, without one, a pool of ``threads - 1`` workers for this
+    frame only, shut down when the frame ends."""
+    if threads <= 1:
+        yield None
+    elif pool is not None:
+        yield pool
+    else:
+        with ThreadPoolExecutor(max_workers=threads - 1) as own:
+            yield own
 
 
 #: bands per thread, taken one at a time by whichever thread is free: a thread that
@@ -127,5 +165,5 @@ def run_row_bands(fn: Callable[[int, int], object], height: int,
     run_bands(fn, height, threads, min_len=min_rows, pool=pool)
 
 
-__all__ = ["BANDS_PER_THREAD", "THREADS_ENV", "kernel_threads", "run_bands", "run_row_bands",
-           "thread_setting"]
+__all__ = ["BANDS_PER_THREAD", "THREADS_ENV", "check_thread_setting", "frame_pool",
+           "kernel_threads", "run_bands", "run_row_bands", "thread_setting"]

@@ -67,7 +67,6 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
 from dataclasses import KW_ONLY, dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -75,7 +74,12 @@ import cv2
 import numpy as np
 
 from slitcli.errors import SlitcliError
-from slitcli.stereo.bands import kernel_threads, run_row_bands, thread_setting
+from slitcli.stereo.bands import (
+    check_thread_setting,
+    frame_pool,
+    kernel_threads,
+    run_row_bands,
+)
 from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.reasons import Reason
@@ -155,7 +159,7 @@ def check_matcher_params(p: MatcherParams, image_width_px: int | None = None) ->
     """Raise :class:`SlitcliError` naming the option for impossible parameters (with
     ``image_width_px``, also for a window or disparity range the image cannot hold)."""
     _check_names(p)
-    thread_setting()  # the environment's thread count, before a run writes anything
+    check_thread_setting()  # the environment's thread count, before a run writes anything
     _check_sgm(p)
     _check_sizes(p)
     _check_filters(p)
@@ -323,7 +327,8 @@ def _check_image(p: MatcherParams, image_width_px: int) -> None:
 
 
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
-               params: MatcherParams) -> DisparityResult:
+               params: MatcherParams, pool: ThreadPoolExecutor | None = None
+               ) -> DisparityResult:
     """The paper's matcher: Eq. 10 cost, winner-take-all, subpixel, validity filters.
 
     Parameters
@@ -331,6 +336,9 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     left_grey, right_grey : ndarray, uint8, shape (H, W)
         Rectified grey images (right camera at +baseline along x).
     params : MatcherParams
+    pool : ThreadPoolExecutor, optional
+        Helper threads held by the caller for a whole sequence (see
+        :func:`compute_disparity`).
 
     Returns
     -------
@@ -342,7 +350,7 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
-    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+    with frame_pool(pool, threads) as pool:
         if pool is not None:
             right_job = pool.submit(prefilter_image, right_grey, params)
             pl = prefilter_image(left_grey, params)
@@ -451,7 +459,8 @@ def _given(value: float | None, default: float) -> float:
 
 
 def compute_disparity(left: np.ndarray, right: np.ndarray,
-                      params: MatcherParams | None = None) -> DisparityResult:
+                      params: MatcherParams | None = None, *,
+                      pool: ThreadPoolExecutor | None = None) -> DisparityResult:
     """Disparity of a rectified pair with the chosen matcher.
 
     Parameters
@@ -460,6 +469,12 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         Rectified images of the same size.
     params : MatcherParams, optional
         Defaults to ``MatcherParams()`` (the paper's Eq. 10 matcher with filters).
+    pool : ThreadPoolExecutor, optional
+        Helper threads (at least one worker) for the Eq. 10 matchers, held by a caller
+        that matches a sequence of frames and shuts it down after the last one: a frame
+        still uses only the cores free right now (``SLITCLI_THREADS``, the load), but
+        does not start and join threads of its own (about 0.5 ms a frame). Without one
+        a frame that uses a second core makes its own pool.
 
     Raises
     ------
@@ -480,7 +495,7 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 
-        return match_sgm(lg, rg, p)
+        return match_sgm(lg, rg, p, pool)
     if p.matcher == "nssd":
-        return match_nssd(lg, rg, p)
+        return match_nssd(lg, rg, p, pool)
     return match_opencv(lg, rg, p)

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import KW_ONLY, dataclass, field
 
 import numpy as np
@@ -82,7 +83,8 @@ def check_stereo_params(rig: Rig, params: StereoParams) -> None:
 
 def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
                         params: StereoParams | None = None, *,
-                        geometry: StereoGeometry | None = None) -> StereoFrameResult:
+                        geometry: StereoGeometry | None = None,
+                        pool: ThreadPoolExecutor | None = None) -> StereoFrameResult:
     """Disparity, distance image, obstacle mask and ranges per bearing of one pair.
 
     Parameters
@@ -98,6 +100,9 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
         rig by callers that process many frames (and that check the parameters once
         with :func:`check_stereo_params`); built, and the parameters checked, here
         when None.
+    pool : ThreadPoolExecutor, optional
+        The matcher's helper threads, held by a caller that processes a sequence
+        (slitcli.stereo.matcher.compute_disparity); the frame makes its own when None.
 
     Returns
     -------
@@ -124,7 +129,7 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left_grey, right_grey = to_grey(left), to_grey(right)
     # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
     disp = compute_disparity(left_grey, right_grey,
-                             with_rig_ground(p.matcher, geometry))
+                             with_rig_ground(p.matcher, geometry), pool=pool)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
     inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)
     obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)

@@ -20,6 +20,7 @@ import time
 from collections import deque
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import asdict
 from pathlib import Path
 from types import MappingProxyType
@@ -44,6 +45,7 @@ from slitcli.io.progress import Progress, RunSummary
 from slitcli.io.sequence import StereoFrame
 from slitcli.ranges import STEREO_RANGES, csv_rows, format_time_s
 from slitcli.rig import Rig
+from slitcli.stereo.bands import thread_setting
 from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
@@ -99,15 +101,20 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
 
     frames = readable()
     # reading the next pair and encoding / writing the last frame's PNGs run on a
-    # helper thread (OpenCV releases the GIL) while this thread matches
-    with ThreadPoolExecutor(max_workers=1) as io_pool:
+    # helper thread (OpenCV releases the GIL) while this thread matches; the matcher's
+    # helper threads are one pool for the whole run (a frame still uses only the cores
+    # free at that moment; a pool per frame cost ~0.5 ms to start and join)
+    helpers = thread_setting() - 1
+    with ThreadPoolExecutor(max_workers=1) as io_pool, \
+            ThreadPoolExecutor(max_workers=helpers) if helpers > 0 else nullcontext() as pool:
         reads = deque(io_pool.submit(next, frames, None) for _ in range(2))
         writes: deque[Future] = deque()
         k = 0
         while (frame := reads.popleft().result()) is not None:
             reads.append(io_pool.submit(next, frames, None))
             batch.clear_skipped(frame.index)
-            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p, geometry=geometry)
+            res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p, geometry=geometry,
+                                      pool=pool)
             writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
             while len(writes) > 1:
                 writes.popleft().result()

@@ -24,9 +24,11 @@ neighbour's disparity: no bracket along a line that runs beside a grey step
 (``sgm_bracket_edge_dn``, :func:`edge_lines`), both lines needed for a pixel whose
 window holds nothing but noise (``sgm_bracket_plain_sigma``, :func:`plain_pixels`), and
 a plain row run rejected where its ends contradict its disparity
-(``sgm_run_check_sigma``, :func:`plain_runs`). Last, :func:`raw_subpixel` refits the
-subpixel offsets to the pixels' own Eq. 10 costs (the sums' parabola is pulled to the
-whole pixel by the path penalties).
+(``sgm_run_check_sigma``, :func:`plain_runs`). Last, the subpixel offsets of the
+pixels valid on their own are refitted to their own Eq. 10 costs (:func:`raw_subpixel`'s
+rule; the sums' parabola is pulled to the whole pixel by the path penalties), computed
+in the winner step while each row's costs are in cache, so the volumes are freed before
+the filters.
 
 Cost: two fused passes (compiled kernels, slitcli/stereo/_c/sgm.pyx): the costs of each
 row with the top-down sweep over them, then the bottom-up sweep with each row's winner
@@ -40,14 +42,13 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
-from slitcli.stereo.bands import kernel_threads, run_row_bands
+from slitcli.stereo.bands import frame_pool, kernel_threads, run_row_bands
 from slitcli.stereo.filters import (
     DISPARITY_FILTERS,
     DisparityFilter,
@@ -187,14 +188,15 @@ def edge_lines(left_grey: np.ndarray, step_dn: float, half_px: int) -> np.ndarra
 
 def _small_regions(x: FilterInputs) -> np.ndarray:
     """(H, W) bool: valid pixels that the speckle filter would remove now (regions of
-    at most ``speckle_window_px`` pixels within ``speckle_range_px``)."""
+    at most ``speckle_window_px`` pixels within ``speckle_range_px``; the speckle
+    filter's own regions, marked without copying or changing the maps)."""
     from slitcli.stereo import _kernel
 
     p = x.params
-    d, r = x.disparity_px.copy(), x.invalid_reason.copy()
-    _kernel.speckle_finish(d, r, int(p.speckle_window_px),
-                           max(1, math.ceil(p.speckle_range_px * 16.0)), int(Reason.SPECKLE))
-    return (r == Reason.SPECKLE) & (x.invalid_reason == Reason.VALID)
+    small = np.empty(x.disparity_px.shape, np.bool_)
+    _kernel.speckle_small(x.disparity_px, x.invalid_reason, int(p.speckle_window_px),
+                          max(1, math.ceil(p.speckle_range_px * 16.0)), small.view(np.uint8))
+    return small
 
 
 def _bracket(x: FilterInputs) -> None:
@@ -213,7 +215,14 @@ def _bracket(x: FilterInputs) -> None:
     ``sgm_bracket_plain_sigma`` > 0 a plain pixel (:func:`plain_pixels`) needs both its
     row and its column to bracket it."""
     p = x.params
-    small = _small_regions(x) if p.speckle_window_px > 0 else None
+    small = small_job = None
+    if p.speckle_window_px > 0:
+        # on the frame's helper thread, while this one runs pass 1 (both only read
+        # the codes; they change once both are done)
+        if x.pool is not None:
+            small_job = x.pool.submit(_small_regions, x)
+        else:
+            small = _small_regions(x)
     edge = (edge_lines(x.left_grey, p.sgm_bracket_edge_dn, p.window_h_px // 2)
             if p.sgm_bracket_edge_dn > 0 else None)
     if p.sgm_bracket_plain_sigma > 0:
@@ -221,6 +230,8 @@ def _bracket(x: FilterInputs) -> None:
         edge = both if edge is None else edge | both
     keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)),
                          edge)
+    if small_job is not None:
+        small = small_job.result()
     x.invalid_reason[keep] = Reason.VALID
     if small is None or not small.any():
         return
@@ -353,7 +364,7 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
 
 def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np.ndarray,
                  tests: tuple, outputs: tuple, pool: ThreadPoolExecutor | None = None,
-                 threads: int = 1) -> np.ndarray:
+                 threads: int = 1, refit: tuple = (None, 0.0)) -> np.ndarray:
     """Cost, SGM and the winner step in two fused passes over the rows
     (slitcli/stereo/_c/sgm.pyx): the costs of each row and the top-down sweep over
     them while they are in cache; then the bottom-up sweep with each row's winner step,
@@ -366,7 +377,12 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     top part's costs and sweep, the other the bottom part's costs; (2) this thread the
     top-down sweep over the bottom part, the other the bottom-up sweep over it (sums
     into a third volume); (3) this thread the bottom part's winners, the other the
-    bottom-up sweep and winners of the top part. The same results bit for bit."""
+    bottom-up sweep and winners of the top part. The same results bit for bit.
+
+    ``refit``: an (H, W) float32 array and ``den_min``: each row's winners refitted to
+    its own costs (:func:`raw_subpixel`'s rule) in the winner step, while the row is
+    in cache (the refit at the end of the frame took 1.2 ms of a 320 x 240 / 64 d
+    frame, reading the 20 MB volume back); (None, 0.0): no refit."""
     from slitcli.stereo._c import sgm as _k
 
     c = _cost_inputs(pl, pr, params)
@@ -390,7 +406,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     bargs = (p1, p2, eight, grey, g, c["el"], c["count"], *tests, *outputs)
     if one_thread:
         _k.cost_and_first_sweep(*cargs, p1, p2, eight, grey, g, cost, s_a, shear)
-        _k.second_sweep_winners(cost, s_a, *bargs)
+        _k.second_sweep_winners(cost, s_a, *bargs, *refit)
         return cost
     # the split row balances the phases: this thread's top rows carry costs and the
     # sweep, the other's bottom rows costs only; in phase 3 the other thread sweeps and
@@ -413,14 +429,15 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
                                 hs, *state_a, shear)
     job.result()
     job = pool.submit(_k.second_sweep_rows, cost, s_a, *bargs, h - half, h, True, s_b,
-                      *state_b)
+                      *state_b, *refit)
     _k.winners_rows(s_a, s_b, cost, c["el"], c["count"], *tests, half, h,
-                                  *outputs)
+                                  *outputs, *refit)
     job.result()
     return cost
 
 
-def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) -> None:
+def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float,
+                 where: np.ndarray | None = None) -> None:
     """Subpixel offsets from the Eq. 10 costs where the winner is their local minimum.
 
     The winner step fits its parabola to the aggregated sums; with path penalties
@@ -446,14 +463,19 @@ def raw_subpixel(disp: np.ndarray, cost: np.ndarray, dmin: int, den_min: float) 
         the costs' parabola; ``sgm_p1`` (quantised) in match_sgm: where the pixel's own
         curvature is below the penalty a 1 px step costs, its costs do not locate the
         minimum better than the paths do.
+    where : ndarray, bool, shape (H, W), optional
+        Only these pixels are refitted (the others keep their offsets), in one pass
+        without copies of the map.
     """
     from slitcli.stereo._c.subpixel import cost_subpixel
 
-    cost_subpixel(disp, cost, int(dmin), float(den_min), float(round(COST_MAX * COST_SCALE)))
+    cost_subpixel(disp, cost, int(dmin), float(den_min), float(round(COST_MAX * COST_SCALE)),
+                  None if where is None else where.view(np.uint8))
 
 
 def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
-              params: MatcherParams) -> DisparityResult:
+              params: MatcherParams, pool: ThreadPoolExecutor | None = None
+              ) -> DisparityResult:
     """Eq. 10 cost, SGM aggregation, winner-take-all, validity tests, post-filters.
 
     Parameters
@@ -463,6 +485,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     params : MatcherParams
         ``aggregation = "sgm"``; ``sgm_window_px``, ``sgm_p1``, ``sgm_p2``,
         ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``.
+    pool : ThreadPoolExecutor, optional
+        Helper threads held by the caller for a sequence
+        (slitcli.stereo.matcher.compute_disparity).
 
     Returns
     -------
@@ -481,7 +506,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     reason = np.empty((h, w), np.uint8)
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
-    with ThreadPoolExecutor(max_workers=threads - 1) if threads > 1 else nullcontext() as pool:
+    with frame_pool(pool, threads) as pool:
         right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
         pr = right_job.result() if right_job else prefilter_image(right_grey, params)
@@ -492,8 +517,11 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
                  float(params.lr_max_diff_px), params.subpixel == "parabola",
                  np.float32(energy_min), top, np.float32(COST_SCALE))
         grey = np.ascontiguousarray(left_grey)
-        cost = _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool,
-                            threads)
+        # the winners refitted to their own Eq. 10 costs, in the winner step (below)
+        refit = params.subpixel == "parabola" and params.sgm_subpixel == "cost"
+        refit_disp = np.empty((h, w), np.float32) if refit else None
+        _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool, threads,
+                     (refit_disp, params.sgm_p1 * COST_SCALE))
         inputs = FilterInputs(left_grey, right_grey, pl, params, disp, reason, rdisp, pool,
                               threads)
         split = [f.name for f in SGM_FILTERS].index("sgm_bracket")
@@ -501,18 +529,17 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         # pixels whose own neighbourhood carries the match (before the bracket's fills)
         own = reason == Reason.VALID
         run_disparity_filters(inputs, SGM_FILTERS[split:])
-        if params.subpixel == "parabola" and params.sgm_subpixel == "cost":
-            # after the filters: they compare a pixel's disparity with its neighbours'
-            # (support warp, bracket, speckle), where the sums' offsets, smoothed along
-            # the paths, serve better than each pixel's own (measured: weakly textured
-            # road bad2-all 0.220 against 0.230 with the costs' offsets in the filters);
-            # and only where the pixel's own costs carry the match: not on the
-            # bracket's fills, whose costs are flat (rendered wrong plain pixels 4125 -> 4000)
-            own_disp = np.where(own, disp, np.float32(np.nan))
-            raw_subpixel(own_disp, cost, int(params.min_disparity_px),
-                         params.sgm_p1 * COST_SCALE)
-            disp[own] = own_disp[own]
-        del cost
+        if refit:
+            # the refit offsets replace the sums' after the filters: they compare a
+            # pixel's disparity with its neighbours' (support warp, bracket, speckle),
+            # where the sums' offsets, smoothed along the paths, serve better than each
+            # pixel's own (measured: weakly textured road bad2-all 0.220 against 0.230
+            # with the costs' offsets in the filters); and only where the pixel's own
+            # costs carry the match: not on the bracket's fills, whose costs are flat
+            # (rendered wrong plain pixels 4125 -> 4000). The filters change codes, and
+            # disparities only to NaN, so a valid pixel's refit from the winner step is
+            # its refit after them.
+            np.copyto(disp, refit_disp, where=own & (reason == Reason.VALID))
     return DisparityResult(disp, reason, mcost)
 
 

@@ -7,7 +7,7 @@
 - :func:`trim_silhouettes`: obstacle runs cut back to their last intensity step where
   they end on a plain (unmatched) background;
 - :func:`floor_check`: obstacle pixels that the floor explains better than their match;
-- :func:`speckle_finish`: speckle removal and the NaN of invalid pixels.
+- speckle removal (``speckle_finish``, ``speckle_small``): slitcli/stereo/_c/speckle.pyx.
 
 All release the GIL, so bands of rows can run on plain threads. The arithmetic is that
 of the expressions as written, in their order, with one exception: :func:`reproject`
@@ -17,8 +17,7 @@ results are the same bits as before.
 """
 
 from libc.math cimport ceil, fabsf, floor, fma, fmaf, INFINITY, isnan, NAN, rintf, sqrtf
-from libc.stdint cimport int16_t, int32_t, int64_t, uint8_t
-from libc.stdlib cimport free, llabs, malloc
+from libc.stdint cimport int32_t, int64_t, uint8_t
 
 import numpy as np
 
@@ -472,105 +471,3 @@ cdef inline void _clip_row(const float* g, const float* s, float sign, float cap
         v = -cap if -cap > v else v   # Python's max(v, -cap), min(v, cap)
         v = cap if cap < v else v
         o[x] = rintf(v * scale)
-
-
-cdef inline int32_t _root(int32_t* parent, int32_t i) noexcept nogil:
-    """Root of i's set (path halving; every link points to an earlier pixel)."""
-    cdef int32_t p
-    while parent[i] != i:
-        p = parent[i]
-        parent[i] = parent[p]
-        i = p
-    return i
-
-
-cdef void _speckle_regions(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
-                           int64_t max_diff_16, int64_t speckle_code, int32_t* fixed,
-                           int32_t* parent, int32_t* size) noexcept nogil:
-    """The union-find pass and the marking pass of :func:`speckle_finish`."""
-    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
-    cdef int32_t run, f, root, up, lo, hi, r
-    cdef float nan32 = NAN
-    for y in range(height):
-        run = -1     # root of the set of pixel x - 1, -1 when it is invalid
-        for x in range(width):
-            i = y * width + x
-            if reason[y, x] != 0:
-                run = -1
-                continue
-            # numba's np.int16(float32): the conversion to 32 bits, then its low 16 bits
-            f = <int16_t> (<int32_t> (disp[y, x] * <float> 16.0))
-            fixed[i] = f
-            if run >= 0 and llabs(<int64_t> f - fixed[i - 1]) <= max_diff_16:
-                parent[i] = run
-                size[run] += 1
-                root = run
-            else:
-                parent[i] = <int32_t> i
-                size[i] = 1
-                root = <int32_t> i
-            if y > 0 and reason[y - 1, x] == 0 and \
-                    llabs(<int64_t> f - fixed[i - width]) <= max_diff_16:
-                up = _root(parent, <int32_t> (i - width))
-                if up != root:
-                    lo = up if up < root else root
-                    hi = up if up > root else root
-                    parent[hi] = lo
-                    size[lo] += size[hi]
-                    root = lo
-            run = root
-    for y in range(height):
-        for x in range(width):
-            i = y * width + x
-            if reason[y, x] == 0:
-                r = parent[parent[i]]   # parent[i] < i is already flattened to its root
-                parent[i] = r
-                if size[r] <= max_size:
-                    reason[y, x] = <uint8_t> speckle_code
-                    disp[y, x] = nan32
-            else:
-                disp[y, x] = nan32
-
-
-def speckle_finish(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
-                   int64_t max_diff_16, int64_t speckle_code) -> None:
-    """Speckle removal, then NaN for every invalid pixel, in place.
-
-    The regions are those of ``cv2.filterSpeckles`` on the disparities in 1/16 px
-    (``trunc(16 d)``): 4-connected valid pixels whose neighbours differ by at most
-    ``max_diff_16``. Valid pixels of regions of at most ``max_size`` pixels get
-    ``speckle_code`` (``max_size`` 0: no speckle removal). The regions are the
-    connected components of a union-find built in one raster pass (a pixel joins the
-    run on its left, runs join the row above; every set is rooted at its first pixel,
-    so a second raster pass reads each pixel's root in O(1)): O(pixels), and
-    independent of the order of the pass.
-
-    Parameters
-    ----------
-    disp : ndarray, shape (H, W), float32
-        Disparity, px; modified in place.
-    reason : ndarray, shape (H, W), uint8
-        Invalid reason (0 valid); modified in place.
-    max_size, max_diff_16, speckle_code : int
-    """
-    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x
-    cdef Py_ssize_t npx = height * width
-    cdef float nan32 = NAN
-    if reason.shape[0] != height or reason.shape[1] != width:
-        raise ValueError("speckle_finish: disp and reason (H, W)")
-    if npx >= 2 ** 31:
-        raise ValueError("speckle_finish: at most 2**31 - 1 pixels")
-    if max_size <= 0:
-        with nogil:
-            for y in range(height):
-                for x in range(width):
-                    if reason[y, x] != 0:
-                        disp[y, x] = nan32
-        return
-    cdef int32_t* buf = <int32_t*> malloc(3 * (npx + 1) * sizeof(int32_t))
-    if buf == NULL:
-        raise MemoryError()
-    with nogil:
-        _speckle_regions(disp, reason, max_size, max_diff_16, speckle_code, buf,
-                         buf + npx + 1, buf + 2 * (npx + 1))
-    free(buf)

@@ -52,6 +52,7 @@ from slitcli.stereo._c.sgm_loops cimport (
     sweep_row4,
     sweep_row8,
 )
+from slitcli.stereo._c.refit cimport refit_row
 from slitcli.stereo._c.sgm_winner cimport Tests, winner_row
 
 import numpy as np
@@ -473,7 +474,8 @@ def winners_rows(uint16_t[:, :, ::1] s_a, uint16_t[:, :, ::1] s_b, uint16_t[:, :
                  float uniq, double lr_tol, bint subpixel, float energy_min, uint16_t top,
                  float scale, Py_ssize_t y0, Py_ssize_t y1, float[:, ::1] disp_out,
                  float[:, ::1] cost_out, uint8_t[:, ::1] reason_out,
-                 float[:, ::1] rdisp_out):
+                 float[:, ::1] rdisp_out, float[:, ::1] refit_out=None,
+                 double refit_den_min=0.0):
     """Winner-take-all over ``s_a + s_b`` for rows y0..y1-1 with the validity tests.
 
     ``cost``: the quantised Eq. 10 volume (a pixel without any candidate below ``top``
@@ -484,8 +486,11 @@ def winners_rows(uint16_t[:, :, ::1] s_a, uint16_t[:, :, ::1] s_b, uint16_t[:, :
     within ``lr_tol`` px of the winner). Writes disparity (float32 px, NaN where none),
     the winner's Eq. 10 cost (``cost / scale``, inf where none), the reason code
     (uniqueness over left-right over texture) and the right view's integer disparities.
+    With ``refit_out`` (H, W) float32: the disparities refitted to the row's own costs
+    too (refit.pxd, ``den_min`` ``refit_den_min``, clip ``top``), while they are in cache.
     """
     cdef Py_ssize_t width = s_a.shape[1], num = s_a.shape[2], y
+    cdef bint refit = refit_out is not None and num >= 3
     cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
     cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
                          &buf[1, 0], &buf[2, 0], R_VALID, R_NO_CANDIDATE, R_TEXTURE,
@@ -495,6 +500,19 @@ def winners_rows(uint16_t[:, :, ::1] s_a, uint16_t[:, :, ::1] s_b, uint16_t[:, :
             winner_row(&t, &s_a[y, 0, 0], &s_b[y, 0, 0], &cost[y, 0, 0], &el[y, 0],
                     &count[y, 0], width, num, &disp_out[y, 0], &cost_out[y, 0],
                     &reason_out[y, 0], &rdisp_out[y, 0])
+            if refit:
+                _refit(&disp_out[y, 0], &refit_out[y, 0], &cost[y, 0, 0], width, num, dmin,
+                       refit_den_min, top)
+
+
+cdef inline void _refit(const float *disp, float *out, const uint16_t *cost, Py_ssize_t width,
+                        Py_ssize_t num, Py_ssize_t dmin, double den_min,
+                        uint16_t top) noexcept nogil:
+    """One row's winners refitted to its own costs (refit.pxd) into ``out``."""
+    cdef Py_ssize_t x
+    for x in range(width):
+        out[x] = disp[x]
+    refit_row(out, cost, NULL, width, num, dmin, den_min, <double>top)
 
 
 def first_sweep_rows(const float[:, ::1] pl, const float[:, ::1] prr_pad,
@@ -556,11 +574,14 @@ def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1,
                       float[:, ::1] cost_out, uint8_t[:, ::1] reason_out,
                       float[:, ::1] rdisp_out, Py_ssize_t v0, Py_ssize_t v1, bint winners,
                       uint16_t[:, :, ::1] s_b, int16_t[:, ::1] paths,
-                      int32_t[:, :, ::1] mins):
+                      int32_t[:, :, ::1] mins, float[:, ::1] refit_out=None,
+                      double refit_den_min=0.0):
     """Visits v0..v1-1 of the bottom-up sweep (image row H - 1 - v), state ``paths``,
     ``mins`` carried from the visits before. ``winners``: each row's winner step over
-    ``s_a`` + the row's sums (:func:`winners_rows`); else the sums into ``s_b``."""
+    ``s_a`` + the row's sums (:func:`winners_rows`, with its ``refit_out``); else the
+    sums into ``s_b``."""
     cdef Py_ssize_t height = cost.shape[0], width = cost.shape[1], num = cost.shape[2]
+    cdef bint refit = refit_out is not None and num >= 3
     cdef Py_ssize_t y, yy
     cdef int32_t[:, ::1] buf = _winner_buffers(width, num, dmin)
     cdef Tests t = Tests(dmin, uniq, lr_tol, subpixel, energy_min, top, scale, &buf[0, 0],
@@ -582,14 +603,18 @@ def second_sweep_rows(uint16_t[:, :, ::1] cost, uint16_t[:, :, ::1] s_a, int p1,
                 winner_row(&t, &s_a[yy, 0, 0], o_row, &cost[yy, 0, 0], &el[yy, 0],
                         &count[yy, 0], width, num, &disp_out[yy, 0], &cost_out[yy, 0],
                         &reason_out[yy, 0], &rdisp_out[yy, 0])
+                if refit:
+                    _refit(&disp_out[yy, 0], &refit_out[yy, 0], &cost[yy, 0, 0], width,
+                           num, dmin, refit_den_min, top)
 
 
 def second_sweep_winners(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq,
                          lr_tol, subpixel, energy_min, top, scale, disp_out, cost_out,
-                         reason_out, rdisp_out):
+                         reason_out, rdisp_out, refit_out=None, refit_den_min=0.0):
     """The bottom-up sweep (:func:`aggregate_pass`, ``reverse``) and, row by row, the
-    winner step over ``s_a`` + its sums (:func:`winners_rows`)."""
+    winner step over ``s_a`` + its sums (:func:`winners_rows`, with its ``refit_out``)."""
     paths, mins = sweep_state(cost.shape[1], cost.shape[2])
     second_sweep_rows(cost, s_a, p1, p2, eight, grey, p2_grad, el, count, dmin, uniq, lr_tol,
                       subpixel, energy_min, top, scale, disp_out, cost_out, reason_out,
-                      rdisp_out, 0, cost.shape[0], True, cost, paths, mins)
+                      rdisp_out, 0, cost.shape[0], True, cost, paths, mins, refit_out,
+                      refit_den_min)
