@@ -139,3 +139,30 @@ def test_candidates_refuse_columns_outside_the_image():
     with pytest.raises(ValueError, match="columns"):
         compiled.column_candidates(*args, 1.0, 0.6, 3.0, 10.0, 255, 4.0, 0.1, 4.0, 3.0,
                                    out, 4, 9)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_one_crossing_keeps_the_core_of_overlapping_fits(seed):
+    # the rule by hand on random tables (overlapping, nested and NaN candidates): a
+    # candidate is out when a valid one of its column overlaps it (centres closer than
+    # the two widths) while brighter and narrower
+    rng = np.random.default_rng(seed)
+    w, k = 64, 3
+    cand = np.full((w, k, profile.N_FIELDS), np.nan)
+    cand[..., profile.F_POS] = rng.uniform(10.0, 16.0, (w, k))
+    cand[..., profile.F_WIDTH] = rng.uniform(0.5, 3.0, (w, k))
+    cand[..., profile.F_AMP] = rng.uniform(5.0, 50.0, (w, k))
+    cand[rng.random((w, k)) < 0.2] = np.nan
+    ok = rng.random((w, k)) < 0.8
+    want = ok.copy()
+    for i, a, b in itertools.product(range(w), range(k), range(k)):
+        ca, cb = cand[i, a], cand[i, b]
+        if ok[i, a] and abs(ca[profile.F_POS] - cb[profile.F_POS]) \
+                < ca[profile.F_WIDTH] + cb[profile.F_WIDTH] \
+                and ca[profile.F_AMP] > cb[profile.F_AMP] \
+                and ca[profile.F_WIDTH] < cb[profile.F_WIDTH]:
+            want[i, b] = False
+    got = judge.one_crossing(cand, ok)
+    assert got.dtype == np.bool_ and got.shape == (w, k)
+    np.testing.assert_array_equal(got, want)
+    assert want.sum() < ok.sum()  # the tables do hold nested fits
