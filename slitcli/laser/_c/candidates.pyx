@@ -413,9 +413,12 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     (weights 1, 4, 6, 4, 1), ``mask`` (W, H) bool the searched pixels, ``sigma_y`` and
     ``sigma_avg`` the image's noise of the two (DN), ``sat_dn`` the saturation level,
     ``s_max`` the widest stripe's sigma, px. Seeds come from the averaged evidence (at
-    least ``seed_dn``); each is fitted on the column's own evidence, and where that fit
-    is less than ``strong_z`` significant also on the averaged one (noise about half, at
-    the cost of resolution along the stripe), the more significant fit kept. Fields:
+    least ``seed_dn``); each is fitted on the column's own evidence and on the averaged
+    one (noise about half, at the cost of resolution along the stripe), the more
+    significant fit kept: the evidence whose screen (below) is the larger first, the
+    other only where that screen over ``SEED_EFFICIENCY`` (what a fit can reach at most)
+    beats the first fit's significance; a fit on the column's own evidence at least
+    ``strong_z`` significant is kept without a fit on the averaged one. Fields:
     :mod:`slitcli.laser.profile`'s ``F_*`` (``F_T*`` the mean contrast of the core rows,
     ``F_K*`` the surface colour there, RGB). Where the Gaussian's reduced chi-square
     exceeds ``max_chi2`` a flat top is tried (``F_FLAT`` 1).
