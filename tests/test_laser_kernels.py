@@ -139,3 +139,89 @@ def test_candidates_refuse_columns_outside_the_image():
     with pytest.raises(ValueError, match="columns"):
         compiled.column_candidates(*args, 1.0, 0.6, 3.0, 10.0, 255, 4.0, 0.1, 4.0, 3.0,
                                    out, 4, 9)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_one_crossing_keeps_the_core_of_overlapping_fits(seed):
+    # the rule by hand on random tables (overlapping, nested and NaN candidates): a
+    # candidate is out when a valid one of its column overlaps it (centres closer than
+    # the two widths) while brighter and narrower
+    rng = np.random.default_rng(seed)
+    w, k = 64, 3
+    cand = np.full((w, k, profile.N_FIELDS), np.nan)
+    cand[..., profile.F_POS] = rng.uniform(10.0, 16.0, (w, k))
+    cand[..., profile.F_WIDTH] = rng.uniform(0.5, 3.0, (w, k))
+    cand[..., profile.F_AMP] = rng.uniform(5.0, 50.0, (w, k))
+    cand[rng.random((w, k)) < 0.2] = np.nan
+    ok = rng.random((w, k)) < 0.8
+    want = ok.copy()
+    for i, a, b in itertools.product(range(w), range(k), range(k)):
+        ca, cb = cand[i, a], cand[i, b]
+        if ok[i, a] and abs(ca[profile.F_POS] - cb[profile.F_POS]) \
+                < ca[profile.F_WIDTH] + cb[profile.F_WIDTH] \
+                and ca[profile.F_AMP] > cb[profile.F_AMP] \
+                and ca[profile.F_WIDTH] < cb[profile.F_WIDTH]:
+            want[i, b] = False
+    got = judge.one_crossing(cand, ok)
+    assert got.dtype == np.bool_ and got.shape == (w, k)
+    np.testing.assert_array_equal(got, want)
+    assert want.sum() < ok.sum()  # the tables do hold nested fits
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_covered_shift_moves_segment_ends_onto_the_surface(seed):
+    # a lit segment on one surface (ranges within jump_m) between unlit columns: each
+    # end column sees the share f = s_end / s_full - coverage_z sigma / s_full of its
+    # pixel, whose centre lies (1 - f) / 2 px inwards; inner columns stay
+    from slitcli.laser.edges import EdgeParams, covered_shift_px
+
+    rng = np.random.default_rng(seed)
+    edges = EdgeParams()
+    w, a, b = 40, int(rng.integers(3, 12)), int(rng.integers(24, 36))
+    rng_m = np.full(w, np.nan)
+    rng_m[a:b + 1] = 1.0 + rng.uniform(-0.2, 0.2) * edges.jump_m
+    full = rng.uniform(50.0, 200.0)
+    strength = np.full(w, np.nan)
+    strength[a:b + 1] = full
+    s_a, s_b = rng.uniform(0.2, 0.9, 2) * full
+    strength[a], strength[b] = s_a, s_b
+    sigma = rng.uniform(0.5, 3.0)
+    shift = covered_shift_px(rng_m, strength, sigma, edges)
+    f_a = np.clip(s_a / full - edges.coverage_z * sigma / full, 0.0, 1.0)
+    f_b = np.clip(s_b / full - edges.coverage_z * sigma / full, 0.0, 1.0)
+    assert shift[a] == pytest.approx(0.5 * (1.0 - f_a), abs=1e-12)
+    assert shift[b] == pytest.approx(-0.5 * (1.0 - f_b), abs=1e-12)
+    inner = np.r_[a + 1:b]
+    np.testing.assert_array_equal(shift[inner], 0.0)
+    np.testing.assert_array_equal(shift[:a], 0.0)
+    # a farther surface beyond the left end does not hide it; a nearer one does
+    rng_m[a - 1] = rng_m[a] + 10 * edges.jump_m
+    strength[a - 1] = full
+    assert covered_shift_px(rng_m, strength, sigma, edges)[a] == pytest.approx(shift[a])
+    rng_m[a - 1] = rng_m[a] - 10 * edges.jump_m
+    assert covered_shift_px(rng_m, strength, sigma, edges)[a] == 0.0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_grey_image_test_counts_the_sampled_share(seed):
+    # every 4th row and column sampled (GREY_STEP); grey when at most 0.1 % of them
+    # differ by more than GREY_DN: k coloured sampled pixels of n flip it at k > n / 1000
+    from slitcli.laser.diagnose import GREY_DN, GREY_SHARE, GREY_STEP, is_grey
+
+    rng = np.random.default_rng(seed)
+    h, w = 4 * int(rng.integers(40, 70)), 4 * int(rng.integers(40, 70))
+    img = np.repeat(rng.integers(10, 240, (h, w, 1)), 3, axis=2).astype(np.uint8)
+    img[..., 2] += rng.integers(0, GREY_DN + 1, (h, w)).astype(np.uint8)
+    n = (h // GREY_STEP) * (w // GREY_STEP)
+    k_max = max(k for k in range(n) if (n - k) / n >= GREY_SHARE)
+    rows = rng.choice(h // GREY_STEP, k_max + 1) * GREY_STEP
+    cols = rng.choice(w // GREY_STEP, k_max + 1, replace=False) * GREY_STEP
+    img[rows[:-1], cols[:-1], 2] = img[rows[:-1], cols[:-1], 1] + GREY_DN + 1
+    img[1::GREY_STEP, 1::GREY_STEP, 0] = 0  # unsampled pixels do not count
+    # (also as a view with strides of a larger array)
+    wider = np.zeros((h, w + 3, 3), np.uint8)
+    wider[:, 3:] = img
+    assert is_grey(img) and is_grey(wider[:, 3:])
+    img[rows[-1], cols[-1], 2] = img[rows[-1], cols[-1], 1] + GREY_DN + 1
+    wider[:, 3:] = img
+    assert not is_grey(img) and not is_grey(wider[:, 3:])

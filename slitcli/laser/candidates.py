@@ -13,9 +13,13 @@ The ``K`` strongest (clipped cores first) are fitted (:func:`~.profile.fit_gauss
 on the evidence in a window of ``3 s + 3`` rows either side (``s`` the seed's half-
 maximum width), clipped rows left out; a clipped core whose flank fit does not put
 its centre on the plateau is centred on the plateau (:func:`~.profile.plateau_centre`).
-Each fit's significance is judged against the local noise: the larger of the image's
-evidence noise and the robust noise of the evidence around the candidate (its core
-left out), so red texture that the colour cannot cancel raises the bar where it is.
+Each seed is fitted on the column's evidence and on the evidence averaged along the
+stripe, the more significant fit kept; a fit's significance is at most its seed screen
+(the matched filter at the seed's row and width) over ``SEED_EFFICIENCY``, so the
+evidence with the larger screen is fitted first and the other only where that bound can
+beat it. Each fit's significance is judged against the local noise: the larger of the
+image's evidence noise and the robust noise of the evidence around the candidate (its
+core left out), so red texture that the colour cannot cancel raises the bar where it is.
 
 The kernels (``column_candidates``, ``fill_gaps``, ``sheet_width_px``, ``evidence_live``
 and the seed screen ``_linear_z``) are compiled C, ``slitcli/laser/_c/candidates.pyx``,

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from slitcli.laser._c.evidence import grey_share_holds
+
 #: a pixel whose channels differ by at most this much is grey (DN; JPEG and
 #: demosaicing of a grey stream leave a little)
 GREY_DN = 2
@@ -29,7 +31,12 @@ GREY_SAMPLE = 12
 def is_grey(bgr: np.ndarray) -> bool:
     """Whether an image (H, W, 3) uint8 is grey: its channels equal within ``GREY_DN``
     on ``GREY_SHARE`` of its pixels (every ``GREY_STEP``-th row and column)."""
-    x = np.asarray(bgr)[::GREY_STEP, ::GREY_STEP].astype(np.int16)
+    x = np.asarray(bgr)
+    if x.dtype == np.uint8 and x.ndim == 3 and x.shape[2] == 3:
+        # (compiled: it stops at the first rows that settle it; numpy took ~0.15 ms a
+        # 320x240 frame)
+        return grey_share_holds(x, GREY_STEP, GREY_DN, GREY_SHARE)
+    x = x[::GREY_STEP, ::GREY_STEP].astype(np.int16)
     d = np.maximum(np.abs(x[..., 2] - x[..., 1]), np.abs(x[..., 2] - x[..., 0]))
     return bool(np.mean(d <= GREY_DN) >= GREY_SHARE)
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from slitcli.laser._c.geometry import covered_shift
 from slitcli.laser.geometry import triangulate_stripe
 from slitcli.rig import Rig
 
@@ -237,27 +238,11 @@ def covered_shift_px(range_m: np.ndarray, strength_dn: np.ndarray, noise_sigma_d
     ndarray, shape (W,)
         Signed shift, pixels, in ``[-0.5, 0.5]``; 0 inside segments.
     """
-    r = np.asarray(range_m, dtype=np.float64)
-    s = np.asarray(strength_dn, dtype=np.float64)
-    w = r.size
-    found = np.isfinite(r) & np.isfinite(s)
-    shift = np.zeros(w)
-    if w < 2:
+    r = np.ascontiguousarray(range_m, dtype=np.float64)
+    s = np.ascontiguousarray(strength_dn, dtype=np.float64)
+    shift = np.zeros(r.size)
+    if r.size < 2:
         return shift
-    pad_r = np.r_[np.full(3, np.nan), r, np.full(3, np.nan)]
-    pad_s = np.r_[np.full(3, np.nan), s, np.full(3, np.nan)]
-    idx = np.arange(w) + 3
-    with np.errstate(invalid="ignore"):
-        for d in (1, -1):  # inward direction: +1 for a left end, -1 for a right end
-            out_r = pad_r[idx - d]
-            end = found & ~(out_r <= r + params.jump_m)
-            ref = np.full(w, np.nan)
-            for k in (1, 2, 3):
-                rk, sk = pad_r[idx + d * k], pad_s[idx + d * k]
-                same = np.abs(rk - r) <= params.jump_m
-                ref = np.fmax(ref, np.where(same, sk, np.nan))
-            ok = end & (ref > 0)
-            f = s / ref - params.coverage_z * noise_sigma_dn / ref
-            f = np.clip(np.where(ok, f, 1.0), 0.0, 1.0)
-            shift += d * 0.5 * (1.0 - f)
+    # (compiled, column by column: numpy's padded arrays and masks cost ~0.3 ms a frame)
+    covered_shift(r, s, float(noise_sigma_dn), params.jump_m, params.coverage_z, shift)
     return shift

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from slitcli.laser._c.judge import colour_tests, shape_tests, surface_table
+from slitcli.laser._c.judge import colour_tests, one_crossing_table, shape_tests, surface_table
 from slitcli.laser._c.judge import laser_share as laser_share  # (re-exported)
 from slitcli.laser._c.light import own_light_table
-from slitcli.laser.profile import F_AMP, F_POS, F_WIDTH
 
 #: a Gaussian's equivalent width (sum over peak) in sigmas, rounded
 EQ_WIDTH = 2.5
@@ -94,12 +93,9 @@ def one_crossing(cand: np.ndarray, ok: np.ndarray) -> np.ndarray:
     choice along the stripe. Returns ``ok`` (W, K) with those candidates False (a new
     array).
     """
-    pos, amp, width = cand[..., F_POS], cand[..., F_AMP], cand[..., F_WIDTH]
-    # (W, K, K): candidate i of a column against candidate j of the same column
-    overlap = np.abs(pos[:, :, None] - pos[:, None, :]) < width[:, :, None] + width[:, None, :]
-    inside = overlap & ok[:, :, None] & (amp[:, :, None] > amp[:, None, :]) \
-        & (width[:, :, None] < width[:, None, :])
-    return ok & ~inside.any(axis=1)
+    # (compiled: numpy's (W, K, K) comparisons cost ~0.2 ms a frame)
+    return one_crossing_table(np.ascontiguousarray(cand, dtype=np.float64),
+                              np.ascontiguousarray(ok, dtype=np.bool_).view(np.uint8))
 
 
 def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,

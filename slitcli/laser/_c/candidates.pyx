@@ -188,6 +188,7 @@ cdef struct _Params:
     double seed_dn
     double strong_z
     double screen_z      # SEED_EFFICIENCY x weak_z
+    double eff           # SEED_EFFICIENCY
     double sat_dn        # (integer DN: the sums below are exact, as numba's int64 ones)
     double s_max
     double shape_error
@@ -202,13 +203,14 @@ cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char
                            double* ebuf, double* escr, double* sig, double* gsig,
                            bint* flat) noexcept nogil:
     """One seed fitted (``column_candidates``' notes) on the window's own evidence (``m``
-    rows of ``yi`` from ``j0``, the column's ``n``) and, where that is less than
-    ``strong_z`` significant, on the averaged ``ya``; a Gaussian that fails the shape
-    test is tried as a flat top. ``res`` gets the fit kept, ``sig`` and ``gsig`` the
+    rows of ``yi`` from ``j0``, the column's ``n``) or the averaged ``ya``, the one whose
+    screen is the larger first, the other where its screen's bound can beat that fit
+    (and the own one only where it cannot reach ``strong_z`` on the average's terms); a
+    Gaussian that fails the shape test is tried as a flat top. ``res`` gets the fit kept, ``sig`` and ``gsig`` the
     noise it is judged against and that of the evidence fitted, ``flat`` whether a flat
     top; returns whether a fit holds (a clipped core's flank fit: ``res`` is its own).
     ``ebuf``, ``escr`` (m,) are scratch."""
-    cdef double base, z
+    cdef double z_own, z_avg
     cdef double num[3]
     cdef Py_ssize_t jj
     cdef bint ok = False, screened
@@ -224,15 +226,40 @@ cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char
     # the local noise is at least the image's: a seed that fails the screen against the
     # image's noise fails it against the local one too (IEEE division and product are
     # monotonic), and needs no local noise
-    z = num[0] / (pr.sigma_y * num[2]) if screened else 0.0
-    if z >= pr.screen_z or not pr.screen_z > 0.0:
+    z_own = num[0] / (pr.sigma_y * num[2]) if screened else 0.0
+    if z_own >= pr.screen_z or not pr.screen_z > 0.0:
         sig[0] = pmax(pr.sigma_y, _local_sigma(yi, mi, n, centre, core,
                                                CLIP_SIGMAS * 1.2 * pr.sigma_y))
-        z = num[0] / (sig[0] * num[2]) if screened else 0.0
-        ok = z >= pr.screen_z and fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0],
-                                               pr.shape_error, pr.s_max, res, ebuf, escr)
-    z = num[1] / (noise * num[2]) if screened else 0.0
-    if (not ok or res[3] < pr.strong_z) and z >= pr.screen_z:
+        z_own = num[0] / (sig[0] * num[2]) if screened else 0.0
+    z_avg = num[1] / (noise * num[2]) if screened else 0.0
+    # the screens are the matched filter at the seed's row and width on each evidence; a
+    # fit's significance is at most that at its own row and width, which the seed, half
+    # a row off at most, shows at SEED_EFFICIENCY: a fit reaches at most its screen over
+    # SEED_EFFICIENCY. The evidence of the larger screen is fitted first, the other only
+    # where its bound beats the fit in hand (or that failed); the more significant fit
+    # is kept. (A fit on the column's own evidence that can reach strong_z is made
+    # first and, where it does, kept: the average blurs steps along the stripe.)
+    if z_avg >= pr.screen_z and z_avg > z_own and z_own < pr.strong_z * pr.eff:
+        if fit_gaussian(ya + j0, use, m, j0, centre, s0, noise, pr.shape_error, pr.s_max,
+                        res, ebuf, escr):
+            ok = True
+            gsig[0] = pr.sigma_avg
+        if z_own >= pr.screen_z and (not ok or z_own > pr.eff * res[3]) \
+                and fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error,
+                                 pr.s_max, res_avg, ebuf, escr) \
+                and (not ok or res_avg[3] >= res[3]):
+            for jj in range(6):
+                res[jj] = res_avg[jj]
+            gsig[0] = pr.sigma_y
+            ok = True
+        elif ok:
+            sig[0] = noise
+        return _flat_if_needed(yi, use, m, j0, centre, ok, pr, res, res_avg, sig, flat)
+    if z_own >= pr.screen_z:
+        ok = fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error,
+                          pr.s_max, res, ebuf, escr)
+    if (not ok or (res[3] < pr.strong_z and z_avg > pr.eff * res[3])) \
+            and z_avg >= pr.screen_z:
         if fit_gaussian(ya + j0, use, m, j0, centre, s0, noise, pr.shape_error, pr.s_max,
                         res_avg, ebuf, escr) and (not ok or res_avg[3] > res[3]):
             for jj in range(6):
@@ -240,14 +267,25 @@ cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char
             sig[0] = noise
             gsig[0] = pr.sigma_avg
             ok = True
+    return _flat_if_needed(yi, use, m, j0, centre, ok, pr, res, res_avg, sig, flat)
+
+
+cdef inline bint _flat_if_needed(const float* yi, const unsigned char* use, Py_ssize_t m,
+                                 Py_ssize_t j0, double centre, bint ok, const _Params* pr,
+                                 double* res, double* scratch, const double* sig,
+                                 bint* flat) noexcept nogil:
+    """A held fit ``res`` whose reduced chi-square exceeds ``max_chi2`` tried as a flat
+    top (``flat``, in place); returns ``ok``."""
+    cdef double base
+    cdef Py_ssize_t jj
     if ok and res[5] > pr.max_chi2:
         base = 1e300
         for jj in range(m):
             if use[jj]:
                 base = pmin(base, yi[j0 + jj])
-        if flat_top(yi + j0, use, m, j0, centre, base, sig[0], res_avg):
+        if flat_top(yi + j0, use, m, j0, centre, base, sig[0], scratch):
             for jj in range(6):
-                res[jj] = res_avg[jj]
+                res[jj] = scratch[jj]
             flat[0] = True
     return ok
 
@@ -375,9 +413,12 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     (weights 1, 4, 6, 4, 1), ``mask`` (W, H) bool the searched pixels, ``sigma_y`` and
     ``sigma_avg`` the image's noise of the two (DN), ``sat_dn`` the saturation level,
     ``s_max`` the widest stripe's sigma, px. Seeds come from the averaged evidence (at
-    least ``seed_dn``); each is fitted on the column's own evidence, and where that fit
-    is less than ``strong_z`` significant also on the averaged one (noise about half, at
-    the cost of resolution along the stripe), the more significant fit kept. Fields:
+    least ``seed_dn``); each is fitted on the column's own evidence and on the averaged
+    one (noise about half, at the cost of resolution along the stripe), the more
+    significant fit kept: the evidence whose screen (below) is the larger first, the
+    other only where that screen over ``SEED_EFFICIENCY`` (what a fit can reach at most)
+    beats the first fit's significance; a fit on the column's own evidence at least
+    ``strong_z`` significant is kept without a fit on the averaged one. Fields:
     :mod:`slitcli.laser.profile`'s ``F_*`` (``F_T*`` the mean contrast of the core rows,
     ``F_K*`` the surface colour there, RGB). Where the Gaussian's reduced chi-square
     exceeds ``max_chi2`` a flat top is tried (``F_FLAT`` 1).
@@ -412,6 +453,7 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     # a clipped core spans more than the stripe's width: 2 s sqrt(2 ln(peak / clip))
     pr.max_run = <Py_ssize_t>ceil(5.0 * s_max)
     pr.screen_z = SEED_EFFICIENCY * weak_z
+    pr.eff = SEED_EFFICIENCY
     pr.sigma_y = sigma_y
     pr.sigma_avg = sigma_avg
     pr.seed_dn = seed_dn

@@ -553,3 +553,31 @@ def spread_sigma(const floating[:, ::1] x, const uint8_t[:, ::1] mask,
     free(vals)
     free(sel)
     return out
+
+
+def grey_share_holds(const uint8_t[:, :, :] bgr, Py_ssize_t step, int grey_dn,
+                     double share) -> bool:
+    """Whether at least ``share`` of the pixels of every ``step``-th row and column of
+    ``bgr`` (H, W, 3) uint8 BGR (any strides) have red within ``grey_dn`` of green and
+    of blue (:func:`slitcli.laser.diagnose.is_grey`): the share as numpy's mean of the
+    pixels' test gives it (their count over their number); it stops once the pixels
+    that fail leave the share below ``share`` (the count can only fall)."""
+    if bgr.shape[2] != 3 or step < 1:
+        raise ValueError("grey_share_holds: bgr must be (H, W, 3) and step at least 1")
+    cdef Py_ssize_t h = (bgr.shape[0] + step - 1) // step, w = (bgr.shape[1] + step - 1) // step
+    cdef Py_ssize_t n = h * w, miss = 0, i, j
+    cdef int r
+    cdef bint fell = False
+    if n == 0:
+        return bool(np.mean(np.zeros(0, bool)) >= share)  # (numpy's NaN mean: False)
+    with nogil:
+        for i in range(h):
+            for j in range(w):
+                r = bgr[i * step, j * step, 2]
+                if abs(r - <int>bgr[i * step, j * step, 1]) > grey_dn \
+                        or abs(r - <int>bgr[i * step, j * step, 0]) > grey_dn:
+                    miss += 1
+            if not <double>(n - miss) / n >= share:
+                fell = True
+                break
+    return not fell and <double>(n - miss) / n >= share

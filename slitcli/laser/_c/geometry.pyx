@@ -80,3 +80,46 @@ def triangulate_columns(const double[::1] v_px, const double[::1] ray_x,
             out[2, u] = r
             out[3, u] = atan2(y, x) * _DEG_PER_RAD
             in_band[u] = min_range_m <= r <= max_range_m
+
+
+def covered_shift(const double[::1] r, const double[::1] s, double noise_sigma_dn,
+                  double jump_m, double coverage_z, double[::1] shift) -> None:
+    """:func:`slitcli.laser.edges.covered_shift_px` into ``shift`` (W,), from the ranges
+    ``r`` and strengths ``s`` (W,) float64 (NaN: no stripe), in its arithmetic (numpy's
+    expressions, element by element, the same IEEE operations in the same order)."""
+    cdef Py_ssize_t w = r.shape[0], i, k, j, d_i
+    cdef double d, ref, sk, rk, f, acc, cz_noise = coverage_z * noise_sigma_dn
+    cdef bint end, same
+    if s.shape[0] != w or shift.shape[0] != w:
+        raise ValueError("covered_shift: r, s and shift differ in length")
+    with nogil:
+        for i in range(w):
+            acc = 0.0
+            for d_i in range(2):
+                d = 1.0 if d_i == 0 else -1.0
+                j = i - (1 if d_i == 0 else -1)
+                # the outward neighbour: unlit (NaN, also beyond the image) or farther
+                end = isfinite(r[i]) and isfinite(s[i]) \
+                    and not (0 <= j < w and r[j] <= r[i] + jump_m)
+                ref = NAN
+                for k in range(1, 4):
+                    j = i + (k if d_i == 0 else -k)
+                    if not 0 <= j < w:
+                        continue
+                    rk = r[j]
+                    sk = s[j]
+                    same = fabs(rk - r[i]) <= jump_m
+                    # (np.fmax: a NaN loses to a number)
+                    if same and not sk != sk and (ref != ref or sk > ref):
+                        ref = sk
+                if end and ref > 0:
+                    f = s[i] / ref - cz_noise / ref
+                    # (np.clip: a NaN stays NaN)
+                    if f < 0.0:
+                        f = 0.0
+                    elif f > 1.0:
+                        f = 1.0
+                else:
+                    f = 1.0
+                acc += d * 0.5 * (1.0 - f)
+            shift[i] = acc

@@ -15,6 +15,7 @@ import numpy as np
 from libc.math cimport ceil, fabs, fma, isfinite, isnan, rint, sqrt
 
 from slitcli.laser._c.fields cimport (
+    F_AMP,
     F_CHI2,
     F_FLAT,
     F_KB,
@@ -503,4 +504,39 @@ def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] i
             # (an integer number of rows, as numba's math.ceil gave)
             off = <double><long long>ceil(EQ_WIDTH * (1.0 if isnan(wid) else wid) + 2.0)
             o[i] = not _breaks(im, n_cols, n_rows, i // k, pos, off, channel_sigma_dn)
+    return out_arr
+
+
+def one_crossing_table(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok):
+    """:func:`slitcli.laser.judge.one_crossing`: ``ok`` (W, K) with each candidate False
+    that a valid candidate of its column overlaps (centres closer than the sum of the
+    two widths) while brighter and narrower; a new (W, K) bool array. The comparisons
+    are numpy's (IEEE: a NaN field overlaps nothing)."""
+    if cand.shape[2] != N_FIELDS:
+        raise ValueError(f"cand has {cand.shape[2]} fields, not {N_FIELDS}")
+    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], col, a, b
+    if ok.shape[0] != w or ok.shape[1] != k:
+        raise ValueError("ok and cand differ in shape")
+    out_arr = np.empty((w, k), np.bool_)
+    if w * k == 0:
+        return out_arr
+    cdef unsigned char[:, ::1] out = out_arr
+    cdef const double* c
+    cdef const double* ca
+    cdef const double* cb
+    cdef bint keep
+    with nogil:
+        for col in range(w):
+            c = &cand[col, 0, 0]
+            for b in range(k):
+                cb = c + b * N_FIELDS
+                keep = ok[col, b] != 0
+                a = 0
+                while keep and a < k:
+                    ca = c + a * N_FIELDS
+                    if ok[col, a] and fabs(ca[F_POS] - cb[F_POS]) < ca[F_WIDTH] + cb[F_WIDTH] \
+                            and ca[F_AMP] > cb[F_AMP] and ca[F_WIDTH] < cb[F_WIDTH]:
+                        keep = False
+                    a += 1
+                out[col, b] = keep
     return out_arr
