@@ -82,7 +82,27 @@ JPEG_CHROMA_BLOCK_ROWS = 16
 MEDIAN_SE = 1.2533
 
 
-def stripe_added_light(img_bgr: np.ndarray, stripe: LaserFrame, half_band_px: int) -> np.ndarray:
+def _band_and_sides(img: np.ndarray, stripe: LaserFrame, half_band_px: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per found column (M of them): the band's rows (M, 2 half_band_px + 1, 3) and the
+    per-channel medians (M, 3) of the ``half_band_px + 1`` rows just above and just below
+    it, float64, channel slots as given; rows beyond the image repeat its border rows."""
+    h = img.shape[0]
+    u = np.flatnonzero(stripe.found)
+    v = np.rint(stripe.v_px[u]).astype(np.int64)
+    band = np.arange(-half_band_px, half_band_px + 1)
+    ring = np.arange(half_band_px + 1, 2 * half_band_px + 2)
+    rows_band = np.clip(v[:, None] + band[None, :], 0, h - 1)
+    band_mb3 = img[rows_band, u[:, None], :].astype(np.float64)
+    sides = []
+    for offsets in (-ring, ring):
+        rows = np.clip(v[:, None] + offsets[None, :], 0, h - 1)
+        sides.append(img[rows, u[:, None], :].astype(np.float64))
+    return band_mb3, sides[0], sides[1]
+
+
+def stripe_added_light(img_bgr: np.ndarray, stripe: LaserFrame, half_band_px: int
+                       ) -> np.ndarray:
     """Light a found stripe adds to each of its columns, per channel, in the order given.
 
     The band of ``2 half_band_px + 1`` rows centred on the stripe row is summed after
@@ -108,16 +128,9 @@ def stripe_added_light(img_bgr: np.ndarray, stripe: LaserFrame, half_band_px: in
         Added light per found column (M = ``stripe.found.sum()``), channel slots as
         given, DN summed over the band's rows.
     """
-    img = np.asarray(img_bgr)
-    h = img.shape[0]
-    u = np.flatnonzero(stripe.found)
-    v = np.rint(stripe.v_px[u]).astype(np.int64)
-    band = np.arange(-half_band_px, half_band_px + 1)
-    ring = np.arange(half_band_px + 1, 2 * half_band_px + 2)
-    rows_band = np.clip(v[:, None] + band[None, :], 0, h - 1)
-    rows_ring = np.clip(v[:, None] + np.r_[-ring, ring][None, :], 0, h - 1)
-    background_m3 = np.median(img[rows_ring, u[:, None], :].astype(np.float64), axis=1)
-    band_mb3 = img[rows_band, u[:, None], :].astype(np.float64)
+    band_mb3, above_mr3, below_mr3 = _band_and_sides(np.asarray(img_bgr), stripe,
+                                                      half_band_px)
+    background_m3 = np.median(np.concatenate([above_mr3, below_mr3], axis=1), axis=1)
     return (band_mb3 - background_m3[:, None, :]).sum(axis=1)
 
 
@@ -125,29 +138,41 @@ def blue_line_z(img_bgr: np.ndarray, stripe: LaserFrame, params: LaserParams | N
                 ) -> tuple[float, np.ndarray]:
     """How blue, in the order given, the light a found line adds is: a z score.
 
-    The added light (:func:`stripe_added_light`, over a band of the widest stripe's width
-    and at least half a JPEG chroma block either side) of each found column, first slot
-    minus last slot; its median over the columns divided by the median's standard error
-    (from the columns' own robust spread, floored by the image's noise). A red laser read
-    in the right order scores far below zero, read from an RGB image far above.
+    The added light of each found column over a band of the widest stripe's width and at
+    least half a JPEG chroma block either side (as :func:`stripe_added_light` sums it),
+    first slot minus last slot, read twice: against the surface just above the band and
+    against the surface just below it. A column counts what both readings agree on (the
+    smaller of the two where they have one sign, else nothing): where the band spans the
+    border of two surfaces (a blue object's foot on a brown floor), against either
+    surface alone the other one reads as added light of its own colour, with opposite
+    signs on the two sides; a line's own light reads the same against both. The median
+    over the columns divided by the median's standard error (from the columns' own
+    robust spread, floored by the image's noise). A red laser read in the right order
+    scores far below zero, read from an RGB image far above.
 
     Returns
     -------
     z : float
         The median first-minus-last added light over its standard error.
     added_m3 : np.ndarray, shape (M, 3), float
-        The added light per found column (DN summed over the band), slots as given.
+        The added light per found column (DN summed over the band, against both sides'
+        rows), slots as given.
     """
     img = np.asarray(img_bgr)
     laser = params if params is not None else LaserParams()
     half_band = max(math.ceil(laser.max_width_px(img.shape[0])), JPEG_CHROMA_BLOCK_ROWS // 2)
-    added_m3 = stripe_added_light(img, stripe, half_band)
-    blue_excess = added_m3[:, 0] - added_m3[:, 2]
+    band_mb3, above_mr3, below_mr3 = _band_and_sides(img, stripe, half_band)
+    band_m3 = band_mb3.sum(axis=1)
+    rows = band_mb3.shape[1]
+    readings = [band_m3 - rows * np.median(side, axis=1) for side in (above_mr3, below_mr3)]
+    a, b = (r[:, 0] - r[:, 2] for r in readings)
+    blue_excess = np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
     centre = float(np.median(blue_excess))
     # the columns' spread holds texture, speckle and compression; the floor is the
     # noise of a difference of two channels summed over the band's rows
     spread = max(1.4826 * float(np.median(np.abs(blue_excess - centre))),
-                 stripe.noise_sigma_dn * math.sqrt(2.0 * (2 * half_band + 1)))
+                 stripe.noise_sigma_dn * math.sqrt(2.0 * rows))
+    added_m3 = stripe_added_light(img, stripe, half_band)
     return centre / (MEDIAN_SE * spread / math.sqrt(len(blue_excess))), added_m3
 
 
