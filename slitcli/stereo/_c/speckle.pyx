@@ -59,21 +59,27 @@ cdef void _speckle_union(const float[:, ::1] disp, const uint8_t[:, ::1] reason,
             run = root
 
 
+cdef inline bint _small_root(int32_t* parent, int32_t* size, Py_ssize_t i,
+                             int64_t max_size) noexcept nogil:
+    """Whether pixel ``i``'s region holds at most ``max_size`` pixels; flattens
+    ``parent[i]`` to the region's root (``parent[i] < i`` is already flattened)."""
+    cdef int32_t r = parent[parent[i]]
+    parent[i] = r
+    return size[r] <= max_size
+
+
 cdef void _speckle_regions(float[:, ::1] disp, uint8_t[:, ::1] reason, int64_t max_size,
                            int64_t max_diff_16, int64_t speckle_code, int32_t* fixed,
                            int32_t* parent, int32_t* size) noexcept nogil:
     """The union-find pass and the marking pass of :func:`speckle_finish`."""
     cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
-    cdef int32_t r
     cdef float nan32 = NAN
     _speckle_union(disp, reason, max_diff_16, fixed, parent, size)
     for y in range(height):
         for x in range(width):
             i = y * width + x
             if reason[y, x] == 0:
-                r = parent[parent[i]]   # parent[i] < i is already flattened to its root
-                parent[i] = r
-                if size[r] <= max_size:
+                if _small_root(parent, size, i, max_size):
                     reason[y, x] = <uint8_t> speckle_code
                     disp[y, x] = nan32
             else:
@@ -136,7 +142,6 @@ def speckle_small(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int64_
     """
     cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], y, x, i
     cdef Py_ssize_t npx = height * width
-    cdef int32_t r
     if (reason.shape[0] != height or reason.shape[1] != width or small.shape[0] != height
             or small.shape[1] != width):
         raise ValueError("speckle_small: disp, reason and small (H, W)")
@@ -155,9 +160,7 @@ def speckle_small(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int64_
             for x in range(width):
                 i = y * width + x
                 if reason[y, x] == 0:
-                    r = parent[parent[i]]   # parent[i] < i is already flattened to its root
-                    parent[i] = r
-                    small[y, x] = size[r] <= max_size
+                    small[y, x] = _small_root(parent, size, i, max_size)
                 else:
                     small[y, x] = 0
     free(buf)
