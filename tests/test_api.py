@@ -111,7 +111,7 @@ def test_colour_check_once_stops_after_a_lit_frame(seed, monkeypatch):
     (a second extraction each) until a lit frame shows the stripe as given; after it a
     dark frame costs one extraction. An RGB source is still refused at its first lit
     frame, however many dark frames come before it; ``"every"`` keeps checking."""
-    from slitcli import detect
+    from slitcli import colour_order, detect
 
     calls = []
     real = detect.detect_laser
@@ -121,6 +121,7 @@ def test_colour_check_once_stops_after_a_lit_frame(seed, monkeypatch):
         return real(*a, **kw)
 
     monkeypatch.setattr(detect, "detect_laser", counting)
+    monkeypatch.setattr(colour_order, "detect_laser", counting)
     lit, _ = _synthetic(seed)
     dark, _ = _synthetic(seed, laser_dn=0.0)
     once = slitcli.Detector(RIG, colour_check="once")
