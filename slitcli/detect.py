@@ -370,7 +370,7 @@ def _open_batch(source: str | Path, out: str | Path, src: FrameSource, rig: Rig,
     ``save_images``."""
     manifest = {"command": "detect", "format": 4, "input": src.manifest(), "rig": rig.to_dict(),
                 "params": manifest_value(asdict(params)), "save_images": save_images}
-    subs = ("disparity", "distance", "mask") if save_images else ()
+    subs = IMAGE_FOLDERS if save_images else ()
     batch = FrameBatch(Path(out), "detect", manifest, overwrite=overwrite, subfolders=subs,
                        hold_lock=lock)
     # where the input lies, for `slitcli report`; not part of the identity, so a moved

@@ -94,13 +94,16 @@ def manifest_value(d: object) -> object:
 def sweep_output(out: Path, *subfolders: str | Path) -> list[Path]:
     """Remove slitcli's stale temporary names (:func:`slitcli.io.atomic.sweep_temp`:
     ``.slitcli-<pid>-<hex>.tmp`` of a process that is gone) in ``out``, its
-    ``.slitcli`` state folders and the given output ``subfolders``; nothing else."""
+    ``.slitcli`` state folder at any depth (a command may stage outputs in a folder of
+    its own there) and the given output ``subfolders``; nothing else."""
     out = Path(out)
     folders = [out, *(out / s for s in subfolders)]
     state = out / ".slitcli"
     if state.is_dir():
-        folders += [state, *(d for d in state.iterdir() if d.is_dir()),
-                    *(d / "parts" for d in state.iterdir() if (d / "parts").is_dir())]
+        # a temporary folder is swept whole, not walked into
+        folders += [state, *(d for d in state.rglob("*") if d.is_dir()
+                             and not any(x.startswith(".slitcli-")
+                                                 for x in d.relative_to(state).parts))]
     removed: list[Path] = []
     for f in folders:
         removed += sweep_temp(f)
