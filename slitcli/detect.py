@@ -13,6 +13,8 @@ import csv
 import json
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from operator import itemgetter
@@ -62,6 +64,7 @@ from slitcli.laser.frame import (
 from slitcli.laser.params import LaserParams
 from slitcli.ranges import LASER, RANGES, BearingBins, RangeTable, csv_rows
 from slitcli.rig import Rig
+from slitcli.stereo.bands import thread_setting
 from slitcli.stereo.geometry import StereoGeometry
 from slitcli.stereo.pipeline import (
     StereoFrameResult,
@@ -227,8 +230,13 @@ class Detector:
             self._colour_settled = settled and self.colour_check == "once"
         return las
 
-    def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> FrameDetection:
+    def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray, *,
+                 pool: ThreadPoolExecutor | None = None) -> FrameDetection:
         """Detect obstacles in one stereo pair (raw pairs are rectified with ``rig.raw``).
+
+        ``pool``: helper threads for the stereo kernels, held by the caller for a
+        sequence (:func:`slitcli.stereo.bands.frame_pool`); without one, a frame that
+        runs on several cores starts its own.
 
         A frame's result depends on this pair only (docs/api.md: the previous-frame
         rule), so frames may be processed in any order, resumed or in parallel.
@@ -236,7 +244,7 @@ class Detector:
         left, right = self.prepare(left_bgr, right_bgr)
         las = self.laser(left)
         st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
-                                 geometry=self._stereo_geometry)
+                                 geometry=self._stereo_geometry, pool=pool)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)
@@ -257,9 +265,10 @@ class _Task:
     right_bgr: np.ndarray
 
 
-def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task) -> int:
+def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task, *,
+          pool: ThreadPoolExecutor | None = None) -> int:
     """Detect one frame and write its parts (and images); returns the frame index."""
-    res = detector(task.left_bgr, task.right_bgr)
+    res = detector(task.left_bgr, task.right_bgr, pool=pool)
     i = task.info.index
     if save_images:
         name = f"{task.info.name}.png"
@@ -350,11 +359,16 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
             batch.clear_skipped(f.index)
             yield _Task(src.info[f.index], f.left_bgr, f.right_bgr)
 
-    for _ in run_pool(tasks(), partial(_work, detector, batch, save_images), jobs=jobs,
-                      initializer=single_thread_worker if jobs > 1 else None):
-        done += 1
-        if on_progress is not None:
-            on_progress(done, len(todo))
+    # in one process the stereo kernels' helper threads are one pool for the run (a pool
+    # per frame costs ~0.5 ms to start and join); process workers run on one thread
+    helpers = thread_setting() - 1 if jobs == 1 else 0
+    with ThreadPoolExecutor(max_workers=helpers) if helpers > 0 else nullcontext() as pool:
+        work = partial(_work, detector, batch, save_images, pool=pool)
+        for _ in run_pool(tasks(), work, jobs=jobs,
+                          initializer=single_thread_worker if jobs > 1 else None):
+            done += 1
+            if on_progress is not None:
+                on_progress(done, len(todo))
     if frames is not None:
         return RunSummary("detect", len(todo), len(finished), time.perf_counter() - t0, ())
     if on_progress is not None:
