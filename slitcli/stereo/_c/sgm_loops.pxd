@@ -294,15 +294,18 @@ cdef extern from *:
         }
         *ovf |= !_mm256_testz_si256(vo, vo);
         uint16_t m = sgm_hmin_u16(vmin);
+        /* the first index of m, without a branch on where it lies (which block holds
+           the minimum is random: a mispredicted jump per pixel); from the last block
+           down, each block holding m takes the index over */
         __m256i mv = _mm256_set1_epi16((short)m);
-        for (Py_ssize_t i = 0; i < n; i += 16) {
+        int32_t first = 0;
+        for (Py_ssize_t i = n - 16; i >= 0; i -= 16) {
             uint32_t hit = (uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi16(
                 _mm256_loadu_si256((const __m256i *)(s16 + i)), mv));
-            if (hit) {
-                *bi = (int32_t)(i + (__builtin_ctz(hit) >> 1));
-                break;
-            }
+            int32_t at = (int32_t)i + (int32_t)(__builtin_ctz(hit | 0x80000000u) >> 1);
+            first = hit ? at : first;
         }
+        *bi = first;
         return m;
     }
     /* The smallest sum outside indices bi-1..bi+1 (SGM_NO_SUM: none), as the smallest
