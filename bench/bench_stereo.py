@@ -8,6 +8,7 @@ Rows:
   1-minute load average before and after is in the note;
 - the same 320x240 comparison while a competing busy loop (a second Python process)
   holds a core, as on a machine shared with another job;
+- sgm against StereoSGBM on one core (thread CPU time, interleaved) at both sizes;
 - end to end: ``slitcli stereo`` (through click, in process) over a 60-frame sequence
   against a plain read -> StereoBM -> write-PNG loop over the same frames;
 - first call: import and first ``compute_disparity`` in a fresh interpreter (the
@@ -123,6 +124,46 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
         rows.append({"name": f"stereo {name} {tag}", **t[name], "ratio": ratio,
                      "note": f"{ratio:.2f}x bm; {note}"})
     return rows
+
+
+def _cpu_rows(size, num) -> list[dict]:
+    """sgm against StereoSGBM on one core: thread CPU time of each call (the matcher on
+    one thread, ``SLITCLI_THREADS=1``; OpenCV's SGBM mode runs on the calling thread),
+    medians of 21 interleaved calls. CPU time is what a busy machine leaves comparable:
+    other processes lengthen a call's wall time, not the CPU time it takes."""
+    import os
+
+    from slitcli.stereo.bands import THREADS_ENV
+    from slitcli.stereo.matcher import MatcherParams, compute_disparity
+
+    lg, rg, _, _ = _motorcycle(size)
+    tag = f"{size[0]}x{size[1]}/{num}d/9x9"
+    sgbm = cv2.StereoSGBM_create(0, num, 9, P1=8 * 81, P2=32 * 81,
+                                 mode=cv2.STEREO_SGBM_MODE_SGBM)
+    sgm = MatcherParams(num_disparities=num, aggregation="sgm")
+    fns = {"sgm": lambda: compute_disparity(lg, rg, sgm), "sgbm": lambda: sgbm.compute(lg, rg)}
+    saved = os.environ.get(THREADS_ENV)
+    os.environ[THREADS_ENV] = "1"
+    try:
+        for fn in fns.values():
+            fn()
+        cpu: dict = {k: [] for k in fns}
+        for _ in range(21):
+            for k, fn in fns.items():
+                t0 = time.thread_time()
+                fn()
+                cpu[k].append(time.thread_time() - t0)
+    finally:
+        if saved is None:
+            del os.environ[THREADS_ENV]
+        else:
+            os.environ[THREADS_ENV] = saved
+    med = {k: float(np.median(v)) for k, v in cpu.items()}
+    ratio = float(np.median(np.array(cpu["sgm"]) / np.array(cpu["sgbm"])))
+    return [{"name": f"stereo sgm one thread, CPU {tag}", "median_s": med["sgm"],
+             "min_s": float(np.min(cpu["sgm"])), "runs": 21, "ratio": ratio,
+             "note": f"{ratio:.2f}x StereoSGBM's thread CPU time ({med['sgbm'] * 1e3:.1f} "
+                     f"ms; median of the 21 per-round ratios); issue 23: <= 1 at 320x240"}]
 
 
 def _loaded_rows(timer) -> list[dict]:
@@ -456,8 +497,10 @@ def main() -> int:
 
 def bench(timer) -> list[dict]:
     rows = _speed_rows(timer, (320, 240), 64)
+    rows += _cpu_rows((320, 240), 64)
     rows += _loaded_rows(timer)
     rows += _speed_rows(timer, (640, 480), 128)
+    rows += _cpu_rows((640, 480), 128)
     rows += _e2e_rows(timer)
     rows += _first_call_rows()
     rows += _accuracy_rows()

@@ -12,6 +12,7 @@ from slitcli.rig import paper_rig
 from slitcli.sim.render import render_frame
 from slitcli.sim.scene import scene_from_dict
 from slitcli.stereo import _bracket
+from slitcli.stereo._c import bracket as _bracket_c
 from slitcli.stereo.matcher import MatcherParams, compute_disparity
 from slitcli.stereo.pipeline import StereoParams, process_stereo_pair
 from slitcli.stereo.sgm import edge_lines
@@ -298,3 +299,26 @@ def test_plain_pixels_are_the_noise_only_windows(seed):
     inside = plain[10:230, 153:171]
     assert inside.mean() >= 0.9
     assert not plain[:, 20:140].any() and not plain[:, 184:].any()
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_bracket_marked_equals_reference(seed):
+    # the second pass's pixel-wise form: the marked pixels (valid ones, as the small
+    # regions are) tested as weak pixels of a copy of the codes, the others unchanged
+    rng = np.random.default_rng(seed)
+    h, w = 17, 23
+    disp = (10.0 + rng.integers(0, 4, (h, w)) * 0.5).astype(np.float32)
+    reason = rng.choice(np.array([VALID, WEAK, OTHER], np.uint8), (h, w), p=[0.6, 0.2, 0.2])
+    mark = (reason == VALID) & (rng.random((h, w)) < 0.3)
+    copy = reason.copy()
+    copy[mark] = WEAK2
+    for reach, tol, span in ((4, 0.5, 0.5), (8, 1.0, 1.0), (30, 0.0, 2.0)):
+        for edge in (np.zeros((h, w), np.uint8), rng.integers(0, 8, (h, w)).astype(np.uint8)):
+            keep = reference_bracket(disp, np.where(copy == WEAK, OTHER, copy), reach, tol,
+                                     span, edge)
+            want = reason.copy()
+            want[mark & ~keep] = 99
+            got = reason.copy()
+            _bracket_c.bracket_marked(disp, got, VALID, mark.view(np.uint8), reach,
+                                      np.float32(tol), np.float32(span), edge, 99)
+            np.testing.assert_array_equal(got, want)

@@ -235,10 +235,15 @@ def _bracket(x: FilterInputs) -> None:
     x.invalid_reason[keep] = Reason.VALID
     if small is None or not small.any():
         return
-    reason = x.invalid_reason.copy()
-    reason[small] = Reason.SPECKLE
-    keep = _bracket_pass(x, reason, (int(Reason.SPECKLE),), edge)
-    x.invalid_reason[small & ~keep] = Reason.SPECKLE
+    # pass 2 tests the small regions' pixels only, searching from each (the scans of
+    # pass 1 over the whole image find the same bracketing pixels)
+    from slitcli.stereo._c.bracket import bracket_marked
+
+    bracket_marked(x.disparity_px, x.invalid_reason, int(Reason.VALID), small.view(np.uint8),
+                   int(p.sgm_bracket_px), np.float32(p.sgm_bracket_tol_px),
+                   np.float32(p.sgm_bracket_span_px),
+                   np.zeros(small.shape, np.uint8) if edge is None else edge,
+                   int(Reason.SPECKLE))
 
 
 def match_noise_dn(x: FilterInputs) -> float:

@@ -114,6 +114,73 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                     keep[y, x] = _between(d, a, rd, tol, span)
 
 
+cdef inline float _nearest(const float[:, ::1] disp, const uint8_t[:, ::1] reason,
+                           const uint8_t[:, ::1] mark, int code_valid, Py_ssize_t y,
+                           Py_ssize_t x, Py_ssize_t dy, Py_ssize_t dx,
+                           Py_ssize_t reach) noexcept nogil:
+    """The disparity of the nearest pixel of code ``code_valid`` and not marked from
+    (y, x) in steps (dy, dx), within ``reach`` steps; NaN where there is none."""
+    cdef Py_ssize_t k, yy = y, xx = x, height = disp.shape[0], width = disp.shape[1]
+    for k in range(reach):
+        yy += dy
+        xx += dx
+        if yy < 0 or yy >= height or xx < 0 or xx >= width:
+            break
+        if reason[yy, xx] == code_valid and not mark[yy, xx]:
+            return disp[yy, xx]
+    return NAN
+
+
+def bracket_marked(const float[:, ::1] disp, uint8_t[:, ::1] reason, int code_valid,
+                   const uint8_t[:, ::1] mark, Py_ssize_t reach, float tol, float span,
+                   const uint8_t[:, ::1] edge, int code):
+    """:func:`bracket_rows` for the few pixels ``mark`` (H, W) sets: each is tested
+    against the nearest pixels of code ``code_valid`` that are not marked, searched
+    from it along its row and its column (the scans of :func:`bracket_rows` over the
+    whole image find the same pixels), and gets ``code`` in ``reason`` where it is not
+    bracketed. The same rule and ``edge`` bits as :func:`bracket_rows`, whose result
+    for a copy of ``reason`` with the marked pixels as its only weak code this equals
+    (the marked pixels are never bracketing pixels, so writing their codes in place
+    changes no other pixel's test). The bracket test's second pass
+    (slitcli.stereo.sgm): the small regions are a few hundred pixels, and a scan of
+    the whole image for them took as long as the first pass."""
+    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y
+    cdef float d, a, b
+    cdef bint col, keep
+    cdef uint8_t e
+    if (reason.shape[0] != height or reason.shape[1] != width or mark.shape[0] != height
+            or mark.shape[1] != width or edge.shape[0] != height
+            or edge.shape[1] != width):
+        raise ValueError("bracket_marked: every array must have the shape of disp")
+    with nogil:
+        for y in range(height):
+            for x in range(width):
+                if not mark[y, x]:
+                    continue
+                d = disp[y, x]
+                e = edge[y, x]
+                col = False
+                if not (e & 2):
+                    a = _nearest(disp, reason, mark, code_valid, y, x, -1, 0, reach)
+                    if a == a:
+                        b = _nearest(disp, reason, mark, code_valid, y, x, 1, 0, reach)
+                        col = _between(d, a, b, tol, span)
+                keep = col
+                if (e & 4) or not (col or (e & 1)):
+                    if (e & 4) and not col:
+                        keep = False
+                    elif e & 1:
+                        keep = False
+                    else:
+                        a = _nearest(disp, reason, mark, code_valid, y, x, 0, -1, reach)
+                        keep = False
+                        if a == a:
+                            b = _nearest(disp, reason, mark, code_valid, y, x, 0, 1, reach)
+                            keep = _between(d, a, b, tol, span)
+                if not keep:
+                    reason[y, x] = code
+
+
 def plain_run_rows(const float[:, ::1] disp, const uint8_t[:, ::1] member,
                    const uint8_t[:, ::1] refuted, Py_ssize_t end_px, int code,
                    uint8_t[:, ::1] reason):

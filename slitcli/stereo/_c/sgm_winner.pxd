@@ -5,16 +5,15 @@ left-right consistency from the same sums) and the subpixel parabola.
 
 Two forms with the same results: int32 keys ``(s_a + s_b) << 9 | i`` (any D, any
 build) and, with AVX2 and D a multiple of 16, uint16 sums in 16 lanes
-(sgm_loops.pxd: winners16_row), whose minimum and first index are the smallest key's.
+(sgm_winner_loops.pxd: winners16_row), whose minimum and first index are the smallest key's.
 """
 
 from libc.stdint cimport int32_t, uint8_t, uint16_t
 from libc.stdlib cimport llabs
 
-from slitcli.stereo._c.sgm_loops cimport (
+from slitcli.stereo._c.sgm_loops cimport KEY_SHIFT, NO_KEY
+from slitcli.stereo._c.sgm_winner_loops cimport (
     HAVE_LANES16,
-    KEY_SHIFT,
-    NO_KEY,
     NO_SUM_KEY,
     lower_keys,
     lower_sums16,
@@ -118,7 +117,7 @@ cdef inline bint _winners16(const Tests *t, const uint16_t *sa, const uint16_t *
                      uint8_t *reason) noexcept nogil:
     """:func:`_winners32` in uint16 lanes (AVX2, D a multiple of 16): the sums, their
     minimum, its first index and the smallest sum outside it in 16 lanes
-    (sgm_loops.pxd: winners16_row), the right view's keys made from the sums. The same
+    (sgm_winner_loops.pxd: winners16_row), the right view's keys made from the sums. The same
     winners, parabolas and codes (the minimum sum and its first index are the smallest
     key's). False (nothing usable written) where a sum reaches NO_SUM, which the
     sweeps' sums never do (at most 8 (top + P2) for 8 paths)."""
