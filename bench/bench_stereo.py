@@ -355,14 +355,17 @@ def run_method(kw: dict | None, left: np.ndarray, right: np.ndarray, num: int) -
 
 
 def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
-                 ground: tuple[float, float, float | None] | None = None) -> None:
+                 ground: tuple[float, float, float | None] | str | None = None) -> None:
     """Score the local Eq. 10 matcher, SGM over Eq. 10 and StereoSGBM on every pair of
     ``folder`` (:func:`find_pairs`) and print bad2 over all GT pixels, bad2 on valid
     pixels, density and time per pair, then pooled over all pairs (KITTI apart).
 
-    ``ground``: (px per row, horizon row px, band px or None) of the pairs' rig at
-    their full size: SGM with its window sheared by that ground is scored too
-    (``sgm-ground``; horizon and band scaled with the pair)."""
+    ``sgm`` runs as ``compute_disparity`` does without a rig: its ground from the pair
+    (``sgm_ground`` 'auto'). ``ground``: (px per row, horizon row px, band px or None)
+    of the pairs' rig at their full size: SGM with its window sheared by that ground is
+    scored too (``sgm-ground``; horizon and band scaled with the pair); ``"auto"``:
+    SGM without a ground (``sgm-off``) is scored too, and each pair's ground estimate
+    (slitcli.stereo.ground.estimate_ground) is printed."""
     pairs = find_pairs(folder)
     if not pairs:
         raise SystemExit(f"{folder}: no pairs found (see find_pairs)")
@@ -378,7 +381,9 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
             left = cv2.resize(left, size, interpolation=cv2.INTER_AREA)
             right = cv2.resize(right, size, interpolation=cv2.INTER_AREA)
             gt = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST) * f
-        if ground is not None:
+        if ground == "auto":
+            methods["sgm-off"] = {"aggregation": "sgm", "sgm_ground": "off"}
+        elif ground is not None:
             # a gradient in px per row is the same at any scale; rows and bands scale
             methods["sgm-ground"] = {
                 "aggregation": "sgm", "sgm_ground_px_per_row": ground[0],
@@ -388,6 +393,8 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
         num = min(num, (left.shape[1] // 2) // 16 * 16)
         group = "kitti" if name.startswith("kitti/") else "all"
         line = [f"{name:28s} {left.shape[1]}x{left.shape[0]}/{num}d"]
+        if ground == "auto":
+            line.append(_ground_note(left, right, num))
         for m in methods:
             run_method(methods[m], left, right, num)   # warm-up: compile / load kernels
             t0 = time.perf_counter()
@@ -407,6 +414,20 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
               f"{(acc['bad'] + acc['gt'] - acc['valid']) / acc['gt']:.3f}, bad2 valid "
               f"{acc['bad'] / max(acc['valid'], 1):.3f}, density {acc['valid'] / acc['gt']:.3f}"
               f", time {acc['s']:.2f} s")
+
+
+def _ground_note(left: np.ndarray, right: np.ndarray, num: int) -> str:
+    """The pair's ground estimate (what ``sgm_ground`` 'auto' shears by), one line."""
+    from slitcli.stereo.ground import estimate_ground
+    from slitcli.stereo.matcher import MatcherParams
+
+    e = estimate_ground(left, right, MatcherParams(num_disparities=num, aggregation="sgm"))
+    if not e.found:
+        return (f"ground: none ({e.why}; share {e.share:.2f}, rows {e.row_share:.2f}, "
+                f"{e.px_per_row:.3f} px/row)")
+    return (f"ground: {e.px_per_row:.3f} px/row, horizon {e.horizon_row_px:.1f}, band "
+            f"{e.band_px:.2f} px (share {e.share:.2f}, rows {e.row_share:.2f}, residual "
+            f"{e.residual_px:.2f} px)")
 
 
 def export_motorcycle(folder: Path) -> None:
@@ -437,10 +458,12 @@ def main() -> int:
                     help="8-bit PNG ground truth: disparity = value / this")
     ap.add_argument("--export-motorcycle", action="store_true",
                     help="first write scikit-image's motorcycle pair into FOLDER")
-    ap.add_argument("--ground", type=float, nargs=2, metavar=("PX_PER_ROW", "HORIZON_ROW_PX"),
-                    help="also score sgm with its window sheared by this ground (the "
-                    "rig's disparity gradient and horizon row at full size; KITTI about "
-                    "0.33 and the principal point's row)")
+    ap.add_argument("--ground", nargs="+", metavar="auto | PX_PER_ROW HORIZON_ROW_PX",
+                    help="'auto': also score sgm without a ground (sgm-off) and print each "
+                    "pair's ground estimate (sgm itself takes its ground from the pair); "
+                    "two numbers: also score sgm with its window sheared by this ground "
+                    "(the rig's disparity gradient and horizon row at full size; KITTI "
+                    "about 0.33 and the principal point's row)")
     ap.add_argument("--ground-band-px", type=float, default=None,
                     help="--ground: disparities within this of the ground's take the "
                     "sheared window (px at full size; default every disparity; KITTI, "
@@ -448,7 +471,16 @@ def main() -> int:
     args = ap.parse_args()
     if args.export_motorcycle:
         export_motorcycle(args.folder)
-    ground = None if args.ground is None else (*args.ground, args.ground_band_px)
+    ground: tuple[float, float, float | None] | str | None = None
+    if args.ground == ["auto"]:
+        ground = "auto"
+    elif args.ground is not None:
+        try:
+            if len(args.ground) != 2:
+                raise ValueError
+            ground = (float(args.ground[0]), float(args.ground[1]), args.ground_band_px)
+        except ValueError:
+            ap.error("--ground takes 'auto' or two numbers: PX_PER_ROW HORIZON_ROW_PX")
     score_folder(args.folder, max_width=args.max_width, png_scale=args.png_scale,
                  ground=ground)
     return 0

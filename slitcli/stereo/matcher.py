@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import KW_ONLY, dataclass, replace
+from dataclasses import KW_ONLY, dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -82,6 +82,7 @@ from slitcli.stereo.bands import (
 )
 from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
 from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
@@ -147,6 +148,8 @@ class MatcherParams:
     sgm_ground_horizon_row_px: float | None = None
     sgm_ground_band_px: float | None = None
     sgm_ground_tilt_tol_deg: float = 1.0
+    sgm_ground: str = "auto"
+    sgm_ground_fit: GroundFitParams = field(default_factory=GroundFitParams)
     sgm_bracket_edge_dn: float = 0.0
     sgm_run_check_sigma: float = 0.0
     sgm_bracket_plain_sigma: float = 0.0
@@ -230,6 +233,12 @@ def _check_sgm(p: MatcherParams) -> None:
     if not 0 <= p.sgm_ground_tilt_tol_deg <= 10:
         raise SlitcliError(f"sgm_ground_tilt_tol_deg {p.sgm_ground_tilt_tol_deg} must lie in "
                            "0..10 deg", param="sgm_ground_tilt_tol_deg")
+    if p.sgm_ground not in GROUND_SOURCES:
+        raise SlitcliError(f"sgm_ground {p.sgm_ground!r} is unknown; use one of "
+                           f"{', '.join(GROUND_SOURCES)}", param="sgm_ground")
+    if not isinstance(p.sgm_ground_fit, GroundFitParams):
+        raise SlitcliError("sgm_ground_fit must be a slitcli.stereo.ground.GroundFitParams",
+                           param="sgm_ground_fit")
     v = p.sgm_ground_horizon_row_px
     if v is not None and not math.isfinite(v):
         raise SlitcliError(f"sgm_ground_horizon_row_px {v} must be a finite row (px) or None "
@@ -443,7 +452,7 @@ def with_rig_ground(params: MatcherParams, geometry: StereoGeometry) -> MatcherP
     """
     from slitcli.stereo.cost import ground_shear_from_floor
 
-    if params.aggregation != "sgm":
+    if params.aggregation != "sgm" or params.sgm_ground in ("pair", "off"):
         return params
     grad, horizon = ground_shear_from_floor(geometry.floor_disparity_px)
     rig = geometry.rig
@@ -495,7 +504,8 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 
-        return match_sgm(lg, rg, p, pool)
+        # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
+        return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
     if p.matcher == "nssd":
         return match_nssd(lg, rg, p, pool)
     return match_opencv(lg, rg, p)
