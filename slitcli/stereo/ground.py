@@ -12,7 +12,7 @@ surface is a vertical segment (one disparity over its rows).
 :func:`estimate_ground`:
 
 1. a cheap first pass: the local Eq. 10 matcher with its validity filters on the
-   pair reduced by a whole factor to at most ``GroundFitParams.width_px`` columns
+   pair reduced by a whole factor ``s`` to about ``GroundFitParams.area_px`` pixels
    (block means: a reduced pixel is the mean of ``s x s`` pixels, so a reduced
    disparity is the full one over ``s`` and the gradient in px per row is the same);
    its window is wide and short (``window_w_px x window_h_px``, 9 x 3) so that the
@@ -67,11 +67,11 @@ class GroundFitParams:
     """
 
     _: KW_ONLY
-    width_px: int = 200
+    area_px: int = 9600
     window_w_px: int = 9
     window_h_px: int = 3
     inlier_px: float = 1.5
-    hypotheses: int = 256
+    hypotheses: int = 128
     px_per_row_min: float = 0.05
     px_per_row_max: float = 2.0
     min_share: float = 0.4
@@ -88,9 +88,9 @@ class GroundFitParams:
 
 def check_ground_fit(p: GroundFitParams) -> None:
     """Raise :class:`SlitcliError` naming the parameter for impossible settings."""
-    if not isinstance(p.width_px, int) or p.width_px < 32:
-        raise SlitcliError(f"sgm_ground_fit.width_px {p.width_px} must be a whole number "
-                           ">= 32 px", param="sgm_ground_fit")
+    if not isinstance(p.area_px, int) or p.area_px < 1024:
+        raise SlitcliError(f"sgm_ground_fit.area_px {p.area_px} must be a whole number "
+                           ">= 1024 px", param="sgm_ground_fit")
     for name in ("window_w_px", "window_h_px"):
         w = getattr(p, name)
         if not isinstance(w, int) or w < 1 or w % 2 == 0:
@@ -164,7 +164,7 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
     from slitcli.stereo.matcher import MatcherParams, match_nssd
 
     h, w = left_grey.shape
-    s = max(1, math.ceil(w / fit.width_px))
+    s = max(1, round(math.sqrt(h * w / fit.area_px)))
     hs, ws = h // s, w // s
     dmin = math.floor(params.min_disparity_px / s)
     num = math.ceil((params.min_disparity_px + params.num_disparities) / s) - dmin
@@ -181,8 +181,12 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
         return cv2.resize(np.ascontiguousarray(img[:hs * s, :ws * s]), (ws, hs),
                           interpolation=cv2.INTER_AREA)
 
+    # the winner step's own tests only (texture, uniqueness, left-right): the line fit
+    # is robust to the few wrong pixels the support, depth-edge and speckle filters
+    # would remove, at a third of the time
     p = MatcherParams(num_disparities=int(num), min_disparity_px=int(dmin),
-                      window_w_px=int(ww), window_h_px=int(wh))
+                      window_w_px=int(ww), window_h_px=int(wh), support_min_zncc=0.0,
+                      boundary_ratio=0.0, speckle_window_px=0)
     res = match_nssd(reduce(left_grey), reduce(right_grey), p, pool)
     return res.disparity_px, s
 
@@ -218,19 +222,22 @@ def fit_ground_line(disparity_reduced_px: np.ndarray, s: int, dmin_px: float,
     if not math.isfinite(g):
         return GroundEstimate(False, why="no line with a plausible gradient")
     for _ in range(2):
+        # least squares on the line's inliers, selected again about the refitted line
         on = np.abs(d - (g * r + b)) <= tol
-        if on.sum() < 10 or np.ptp(r[on]) < 2:
+        ro, do = r[on], d[on]
+        r_mean = float(ro.mean()) if ro.size else 0.0
+        rc = ro - r_mean
+        sxx = float((rc * rc).sum())   # not BLAS: its threads would spin for 10k terms
+        if ro.size < 10 or sxx <= 0:
             return GroundEstimate(False, why="too few pixels on the line")
-        a_mat = np.stack([r[on], np.ones(on.sum())], axis=1)
-        (g, b), *_ = np.linalg.lstsq(a_mat, d[on], rcond=None)
+        g = float((rc * do).sum()) / sxx
+        b = float(do.mean()) - g * r_mean
     on = np.abs(d - (g * r + b)) <= tol
     resid = d[on] - (g * r[on] + b)
     sigma_red = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
     # standard error of the gradient and of the line at the bottom row
-    rr = r[on] - r[on].mean()
-    sxx = float((rr * rr).sum())
-    g_sigma = sigma_red / math.sqrt(sxx) if sxx > 0 else math.inf
-    bottom_sigma = sigma_red * math.sqrt(1.0 / on.sum() + (hr - 1 - r[on].mean()) ** 2 / sxx)
+    g_sigma = sigma_red / math.sqrt(sxx)
+    bottom_sigma = sigma_red * math.sqrt(1.0 / ro.size + (hr - 1 - r_mean) ** 2 / sxx)
     horizon_red = -b / g if g > 0 else math.nan
     est = {"px_per_row": float(g), "horizon_row_px": float(s * horizon_red + (s - 1) / 2),
            "residual_px": s * sigma_red, "px_per_row_sigma": float(g_sigma),
@@ -280,12 +287,15 @@ def _best_hypothesis(r: np.ndarray, d: np.ndarray, hr: int, tol: float,
     ri = r.astype(np.int64)
     hist = np.bincount(ri * nb + (np.floor(d / q).astype(np.int64) - lo),
                        minlength=hr * nb).reshape(hr, nb)
-    cum = np.concatenate([np.zeros((hr, 1), np.int64), np.cumsum(hist, axis=1)], axis=1)
-    centre = g[:, None] * np.arange(hr)[None, :] + b[:, None]      # (K, Hr)
-    a = np.clip(np.floor((centre - tol) / q).astype(np.int64) - lo, 0, nb)
-    z = np.clip(np.floor((centre + tol) / q).astype(np.int64) - lo + 1, 0, nb)
-    rows = np.arange(hr)[None, :]
-    mass = (cum[rows, z] - cum[rows, a]).sum(axis=1)
+    cum = np.concatenate([np.zeros((hr, 1), np.int64), np.cumsum(hist, axis=1)],
+                         axis=1).ravel()
+    # each hypothesis' bins [a, z) at every row, as flat indices into the cumulated rows
+    centre = (g[:, None] * np.arange(hr)[None, :] + b[:, None]) / q - lo   # (K, Hr), bins
+    half = tol / q
+    base = np.arange(hr) * (nb + 1)
+    a = np.minimum(np.maximum(np.floor(centre - half), 0), nb).astype(np.int64) + base
+    z = np.minimum(np.maximum(np.floor(centre + half) + 1, 0), nb).astype(np.int64) + base
+    mass = (np.take(cum, z) - np.take(cum, a)).sum(axis=1)
     best = int(np.argmax(mass))
     return float(g[best]), float(b[best])
 
