@@ -171,6 +171,27 @@ def test_rigless_weak_road_gains_as_with_the_rig(seed):
     assert (err > 2.0).mean() <= 0.005
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_check_replaces_a_rig_ground_that_is_off(seed):
+    """A floor seen with the camera tilted 3 deg more than the rig says: the rig's
+    ground is off by ``f W / h x 3 deg`` = 5 px at the horizon, beyond its 1 deg band
+    (1.68 px), so 'check' takes the pair's ground; with the true rig it keeps the
+    rig's values as given."""
+    true_rig = replace(ROAD_RIG, mount=replace(ROAD_RIG.mount, tilt_deg=23.0))
+    z = _render_floor(true_rig, seed, 0.08)
+    p = MatcherParams(num_disparities=NUM, aggregation="sgm", sgm_ground="check")
+    told = with_rig_ground(p, StereoGeometry.for_rig(ROAD_RIG))
+    right = with_rig_ground(p, StereoGeometry.for_rig(true_rig))
+    assert with_pair_ground(right, z["left"], z["right"]) == right
+    fixed = with_pair_ground(told, z["left"], z["right"])
+    est = estimate_ground(z["left"], z["right"], p)
+    assert est.found
+    assert fixed.sgm_ground_px_per_row == est.px_per_row
+    assert fixed.sgm_ground_horizon_row_px == est.horizon_row_px
+    grad, horizon = ground_shear_from_floor(StereoGeometry.for_rig(true_rig).floor_disparity_px)
+    assert abs(est.horizon_row_px - horizon) * grad <= est.band_px
+
+
 def test_ground_source_and_fit_are_checked():
     with pytest.raises(SlitcliError, match="sgm_ground"):
         MatcherParams(aggregation="sgm", sgm_ground="floor")

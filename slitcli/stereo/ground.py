@@ -55,8 +55,10 @@ if TYPE_CHECKING:
 
 #: Where SGM's ground comes from when ``sgm_ground_px_per_row`` is None:
 #: ``auto`` the rig where one is known, else the pair; ``rig`` the rig only (none
-#: without one); ``pair`` the pair even when a rig is known; ``off`` nowhere.
-GROUND_SOURCES = ("auto", "rig", "pair", "off")
+#: without one); ``pair`` the pair even when a rig is known; ``check`` the rig's,
+#: replaced by the pair's where the pair's ground leaves the rig's band (a rig whose
+#: tilt is off; the pair alone without a rig); ``off`` nowhere.
+GROUND_SOURCES = ("auto", "rig", "pair", "check", "off")
 
 
 @dataclass(frozen=True)
@@ -326,16 +328,29 @@ def estimate_ground(left_grey: np.ndarray, right_grey: np.ndarray, params: Match
 
 def with_pair_ground(params: MatcherParams, left_grey: np.ndarray, right_grey: np.ndarray,
                      pool: ThreadPoolExecutor | None = None) -> MatcherParams:
-    """``params`` with SGM's ground from the pair where it has none yet.
+    """``params`` with SGM's ground from the pair where it has none yet (or, with
+    ``sgm_ground`` 'check', where the pair's ground disagrees with the one given).
 
-    Only for ``aggregation`` 'sgm' with ``sgm_ground_px_per_row`` None and
-    ``sgm_ground`` 'auto' or 'pair'; a ground not found sets the gradient to 0 (no
-    shear). Explicit ``sgm_ground_horizon_row_px`` / ``sgm_ground_band_px`` stay.
+    For ``aggregation`` 'sgm' with ``sgm_ground_px_per_row`` None and ``sgm_ground``
+    'auto', 'pair' or 'check': the pair's ground, or a gradient of 0 (no shear) where
+    none is found; explicit ``sgm_ground_horizon_row_px`` / ``sgm_ground_band_px``
+    stay. With 'check' and a gradient given (the rig's, ``with_rig_ground``): the
+    pair's ground, horizon and band replace it where a ground is found whose line
+    leaves the given band of the given line in some row between its horizon and the
+    image bottom; otherwise ``params`` are returned as they are.
     """
-    if params.aggregation != "sgm" or params.sgm_ground_px_per_row is not None or \
-            params.sgm_ground not in ("auto", "pair"):
+    if params.aggregation != "sgm" or params.sgm_ground not in ("auto", "pair", "check"):
+        return params
+    given = params.sgm_ground_px_per_row is not None
+    if given and params.sgm_ground != "check":
         return params
     est = estimate_ground(left_grey, right_grey, params, pool)
+    if given:
+        if not (est.found and _leaves_band(params, est, left_grey.shape[0])):
+            return params
+        return replace(params, sgm_ground_px_per_row=est.px_per_row,
+                       sgm_ground_horizon_row_px=est.horizon_row_px,
+                       sgm_ground_band_px=est.band_px)
     if not est.found:
         return replace(params, sgm_ground_px_per_row=0.0)
     return replace(
@@ -343,6 +358,18 @@ def with_pair_ground(params: MatcherParams, left_grey: np.ndarray, right_grey: n
         sgm_ground_horizon_row_px=_given(params.sgm_ground_horizon_row_px,
                                          est.horizon_row_px),
         sgm_ground_band_px=_given(params.sgm_ground_band_px, est.band_px))
+
+
+def _leaves_band(params: MatcherParams, est: GroundEstimate, height_px: int) -> bool:
+    """Whether the estimated ground line leaves the given line's band in a row from
+    the estimate's horizon to the image's bottom (no band: never)."""
+    band = params.sgm_ground_band_px
+    if band is None:
+        return False
+    v = np.arange(max(0, math.ceil(est.horizon_row_px)), height_px, dtype=np.float64)
+    given = params.sgm_ground_px_per_row * (v - (params.sgm_ground_horizon_row_px or 0.0))
+    found = est.px_per_row * (v - est.horizon_row_px)
+    return bool(v.size) and float(np.abs(found - given).max()) > band
 
 
 def _given(value: float | None, default: float) -> float:
