@@ -11,7 +11,8 @@ surface is a vertical segment (one disparity over its rows).
 
 :func:`estimate_ground`:
 
-1. a cheap first pass: the local Eq. 10 matcher with its validity filters on the
+1. a cheap first pass: the local Eq. 10 matcher (its winner step's texture,
+   uniqueness and left-right tests; the line fit needs no more) on the
    pair reduced by a whole factor ``s`` to about ``GroundFitParams.area_px`` pixels
    (block means: a reduced pixel is the mean of ``s x s`` pixels, so a reduced
    disparity is the full one over ``s`` and the gradient in px per row is the same);
@@ -170,7 +171,7 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
     hs, ws = h // s, w // s
     dmin = math.floor(params.min_disparity_px / s)
     num = math.ceil((params.min_disparity_px + params.num_disparities) / s) - dmin
-    num = max(2, min(num, ws - 1 - max(dmin, 0)))
+    num = min(num, ws - 1 - max(dmin, 0))
     # the local matcher needs a window the reduced image holds
     ww = min(fit.window_w_px, ws - ws % 2 - 1)
     wh = min(fit.window_h_px, hs - hs % 2 - 1)
@@ -255,7 +256,8 @@ def fit_ground_line(disparity_reduced_px: np.ndarray, s: int, dmin_px: float,
     in_span = span[rows]
     share = float(on[in_span].sum() / max(in_span.sum(), 1))
     per_row = np.bincount(rows[on], minlength=hr)
-    row_share = float((per_row[span] >= fit.row_width_share * wr).mean())
+    row_share = float((per_row[span] >= fit.row_width_share * wr).mean()) if span.any() \
+        else 0.0
     est.update(share=share, row_share=row_share)
     if s * sigma_red > fit.max_residual_px:
         return GroundEstimate(False, **est, why="residual too large")

@@ -478,6 +478,9 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         Rectified images of the same size.
     params : MatcherParams, optional
         Defaults to ``MatcherParams()`` (the paper's Eq. 10 matcher with filters).
+        With ``aggregation`` 'sgm' and no ground given (``sgm_ground_px_per_row``
+        None, no rig here), ``sgm_ground`` 'auto' shears SGM's window by the ground
+        estimated from the pair (slitcli.stereo.ground.estimate_ground), if any.
     pool : ThreadPoolExecutor, optional
         Helper threads (at least one worker) for the Eq. 10 matchers, held by a caller
         that matches a sequence of frames and shuts it down after the last one: a frame
