@@ -164,7 +164,9 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
         The reduction factor; reduced row ``r`` is the mean of full rows
         ``s r .. s r + s - 1`` (centre ``s r + (s - 1) / 2``).
     """
-    from slitcli.stereo.matcher import MatcherParams, match_nssd
+    from slitcli.stereo import _nssd
+    from slitcli.stereo.bands import kernel_threads, run_row_bands
+    from slitcli.stereo.cost import _QUANT, prefilter_image
 
     h, w = left_grey.shape
     s = max(1, round(math.sqrt(h * w / fit.area_px)))
@@ -176,7 +178,7 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
     ww = min(fit.window_w_px, ws - ws % 2 - 1)
     wh = min(fit.window_h_px, hs - hs % 2 - 1)
     if ww < 1 or wh < 1 or num < 2:
-        return np.full((hs, ws), np.nan, np.float32), s
+        return np.full((max(hs, 0), max(ws, 0)), np.nan, np.float32), s
 
     def reduce(img: np.ndarray) -> np.ndarray:
         if s == 1:
@@ -184,14 +186,26 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
         return cv2.resize(np.ascontiguousarray(img[:hs * s, :ws * s]), (ws, hs),
                           interpolation=cv2.INTER_AREA)
 
-    # the winner step's own tests only (texture, uniqueness, left-right): the line fit
-    # is robust to the few wrong pixels the support, depth-edge and speckle filters
-    # would remove, at a third of the time
-    p = MatcherParams(num_disparities=int(num), min_disparity_px=int(dmin),
-                      window_w_px=int(ww), window_h_px=int(wh), support_min_zncc=0.0,
-                      boundary_ratio=0.0, speckle_window_px=0)
-    res = match_nssd(reduce(left_grey), reduce(right_grey), p, pool)
-    return res.disparity_px, s
+    # the local matcher's winner step alone (slitcli.stereo.matcher._winners: texture,
+    # uniqueness, left-right, subpixel), on the matcher's prefilter: the line fit is
+    # robust to the few wrong pixels the support, depth-edge and speckle filters would
+    # remove, at a third of the time
+    p = replace(params, aggregation="none", num_disparities=int(num),
+                min_disparity_px=int(dmin), window_w_px=int(ww), window_h_px=int(wh))
+    pl, pr = prefilter_image(reduce(left_grey), p), prefilter_image(reduce(right_grey), p)
+    prr = np.ascontiguousarray(pr[:, ::-1])
+    energy_min = (p.texture_min_dn * _QUANT) ** 2 if p.prefilter != "none" else 0.0
+    disp, cost, rdisp = np.empty((3, hs, ws), np.float32)
+    reason = np.empty((hs, ws), np.uint8)
+    args = (int(dmin), int(num), ww // 2, wh // 2, float(p.uniqueness_ratio),
+            float(p.lr_max_diff_px), p.subpixel == "parabola", np.float32(energy_min),
+            disp, cost, reason, rdisp)
+    # a second thread only on the caller's pool: a pool of its own costs about 0.5 ms,
+    # more than half this pass
+    threads = kernel_threads() if pool is not None else 1
+    run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), hs,
+                  pool if threads > 1 else None, threads, min_rows=wh)
+    return np.where(reason == 0, disp, np.float32(np.nan)), s
 
 
 def fit_ground_line(disparity_reduced_px: np.ndarray, s: int, dmin_px: float,
