@@ -442,7 +442,9 @@ def with_rig_ground(params: MatcherParams, geometry: StereoGeometry) -> MatcherP
     disparities (:func:`slitcli.stereo.cost.ground_shear_from_floor`), the band from
     how far a tilt error of ``sgm_ground_tilt_tol_deg`` moves the floor's disparity
     (``f W / h`` px per radian at the horizon: 0.6 px per degree for the paper rig,
-    4 px for KITTI's). Values set explicitly stay; so do the local matcher's.
+    4 px for KITTI's). Values set explicitly stay; so do the local matcher's, and
+    those with ``sgm_ground`` 'pair' (the pair's ground, found in
+    :func:`compute_disparity`) or 'off'.
 
     Parameters
     ----------
