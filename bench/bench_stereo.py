@@ -91,6 +91,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
                                  mode=cv2.STEREO_SGBM_MODE_SGBM)
     nssd = MatcherParams(num_disparities=num)
     sgm = MatcherParams(num_disparities=num, aggregation="sgm")
+    sgm_off = MatcherParams(num_disparities=num, aggregation="sgm", sgm_ground="off")
     plain = MatcherParams(num_disparities=num, prefilter="none", texture_min_dn=0.0,
                           uniqueness_ratio=0.0, lr_max_diff_px=-1, support_min_zncc=0.0,
                           boundary_ratio=0.0, speckle_window_px=0, subpixel="none")
@@ -106,6 +107,7 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
         "nssd default filters": nssd_default,
         "nssd plain WTA": lambda: compute_disparity(lg, rg, plain),
         "nssd sgm": lambda: compute_disparity(lg, rg, sgm),
+        "nssd sgm, ground off": lambda: compute_disparity(lg, rg, sgm_off),
         "sgbm": lambda: sgbm.compute(lg, rg),
     })
     load = f"{before} before, {_load()} after; matcher threads {min(threads)}-{max(threads)}"
@@ -115,7 +117,10 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
                                 "limit 3x at 320x240",
         "nssd plain WTA": "Eq. 10, no filters",
         "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters and "
-                    "the bracket test; issue 23: <= sgbm at 320x240",
+                    "the bracket test, its ground estimated from the pair (no rig: "
+                    "sgm_ground auto; none found on this pair); issue 23: <= sgbm at 320x240",
+        "nssd sgm, ground off": "the same without the ground estimate (as with a rig "
+                                "whose ground shifts no window row, e.g. the paper rig)",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",
     }
     rows = [{"name": f"stereo bm defaults {tag}", **t["bm"], "ratio": 1.0, "note": load}]
@@ -396,14 +401,17 @@ def run_method(kw: dict | None, left: np.ndarray, right: np.ndarray, num: int) -
 
 
 def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
-                 ground: tuple[float, float, float | None] | None = None) -> None:
+                 ground: tuple[float, float, float | None] | str | None = None) -> None:
     """Score the local Eq. 10 matcher, SGM over Eq. 10 and StereoSGBM on every pair of
     ``folder`` (:func:`find_pairs`) and print bad2 over all GT pixels, bad2 on valid
     pixels, density and time per pair, then pooled over all pairs (KITTI apart).
 
-    ``ground``: (px per row, horizon row px, band px or None) of the pairs' rig at
-    their full size: SGM with its window sheared by that ground is scored too
-    (``sgm-ground``; horizon and band scaled with the pair)."""
+    ``sgm`` runs as ``compute_disparity`` does without a rig: its ground from the pair
+    (``sgm_ground`` 'auto'). ``ground``: (px per row, horizon row px, band px or None)
+    of the pairs' rig at their full size: SGM with its window sheared by that ground is
+    scored too (``sgm-ground``; horizon and band scaled with the pair); ``"auto"``:
+    SGM without a ground (``sgm-off``) is scored too, and each pair's ground estimate
+    (slitcli.stereo.ground.estimate_ground) is printed."""
     pairs = find_pairs(folder)
     if not pairs:
         raise SystemExit(f"{folder}: no pairs found (see find_pairs)")
@@ -419,7 +427,9 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
             left = cv2.resize(left, size, interpolation=cv2.INTER_AREA)
             right = cv2.resize(right, size, interpolation=cv2.INTER_AREA)
             gt = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST) * f
-        if ground is not None:
+        if ground == "auto":
+            methods["sgm-off"] = {"aggregation": "sgm", "sgm_ground": "off"}
+        elif ground is not None:
             # a gradient in px per row is the same at any scale; rows and bands scale
             methods["sgm-ground"] = {
                 "aggregation": "sgm", "sgm_ground_px_per_row": ground[0],
@@ -429,6 +439,8 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
         num = min(num, (left.shape[1] // 2) // 16 * 16)
         group = "kitti" if name.startswith("kitti/") else "all"
         line = [f"{name:28s} {left.shape[1]}x{left.shape[0]}/{num}d"]
+        if ground == "auto":
+            line.append(_ground_note(left, right, num))
         for m in methods:
             run_method(methods[m], left, right, num)   # warm-up: compile / load kernels
             t0 = time.perf_counter()
@@ -448,6 +460,20 @@ def score_folder(folder: Path, *, max_width: int = 800, png_scale: float = 4.0,
               f"{(acc['bad'] + acc['gt'] - acc['valid']) / acc['gt']:.3f}, bad2 valid "
               f"{acc['bad'] / max(acc['valid'], 1):.3f}, density {acc['valid'] / acc['gt']:.3f}"
               f", time {acc['s']:.2f} s")
+
+
+def _ground_note(left: np.ndarray, right: np.ndarray, num: int) -> str:
+    """The pair's ground estimate (what ``sgm_ground`` 'auto' shears by), one line."""
+    from slitcli.stereo.ground import estimate_ground
+    from slitcli.stereo.matcher import MatcherParams
+
+    e = estimate_ground(left, right, MatcherParams(num_disparities=num, aggregation="sgm"))
+    if not e.found:
+        return (f"ground: none ({e.why}; share {e.share:.2f}, rows {e.row_share:.2f}, "
+                f"{e.px_per_row:.3f} px/row)")
+    return (f"ground: {e.px_per_row:.3f} px/row, horizon {e.horizon_row_px:.1f}, band "
+            f"{e.band_px:.2f} px (share {e.share:.2f}, rows {e.row_share:.2f}, residual "
+            f"{e.residual_px:.2f} px)")
 
 
 def export_motorcycle(folder: Path) -> None:
@@ -478,10 +504,12 @@ def main() -> int:
                     help="8-bit PNG ground truth: disparity = value / this")
     ap.add_argument("--export-motorcycle", action="store_true",
                     help="first write scikit-image's motorcycle pair into FOLDER")
-    ap.add_argument("--ground", type=float, nargs=2, metavar=("PX_PER_ROW", "HORIZON_ROW_PX"),
-                    help="also score sgm with its window sheared by this ground (the "
-                    "rig's disparity gradient and horizon row at full size; KITTI about "
-                    "0.33 and the principal point's row)")
+    ap.add_argument("--ground", nargs="+", metavar="auto | PX_PER_ROW HORIZON_ROW_PX",
+                    help="'auto': also score sgm without a ground (sgm-off) and print each "
+                    "pair's ground estimate (sgm itself takes its ground from the pair); "
+                    "two numbers: also score sgm with its window sheared by this ground "
+                    "(the rig's disparity gradient and horizon row at full size; KITTI "
+                    "about 0.33 and the principal point's row)")
     ap.add_argument("--ground-band-px", type=float, default=None,
                     help="--ground: disparities within this of the ground's take the "
                     "sheared window (px at full size; default every disparity; KITTI, "
@@ -489,7 +517,16 @@ def main() -> int:
     args = ap.parse_args()
     if args.export_motorcycle:
         export_motorcycle(args.folder)
-    ground = None if args.ground is None else (*args.ground, args.ground_band_px)
+    ground: tuple[float, float, float | None] | str | None = None
+    if args.ground == ["auto"]:
+        ground = "auto"
+    elif args.ground is not None:
+        try:
+            if len(args.ground) != 2:
+                raise ValueError
+            ground = (float(args.ground[0]), float(args.ground[1]), args.ground_band_px)
+        except ValueError:
+            ap.error("--ground takes 'auto' or two numbers: PX_PER_ROW HORIZON_ROW_PX")
     score_folder(args.folder, max_width=args.max_width, png_scale=args.png_scale,
                  ground=ground)
     return 0

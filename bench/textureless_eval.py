@@ -236,7 +236,9 @@ def slanted_floor(cache: Path, baseline_m: float, seeds: range,
     # the matcher as the stereo pipeline runs it for this rig (SGM's ground shear)
     geo = StereoGeometry.for_rig(rig)
     settings = {**SETTINGS, "sgm, fronto-parallel": {"aggregation": "sgm",
-                                                     "sgm_ground_px_per_row": 0.0}}
+                                                     "sgm_ground_px_per_row": 0.0},
+                # the ground from the pair, the rig unused (as for a folder of pairs)
+                "sgm, ground from pair": {"aggregation": "sgm", "sgm_ground": "pair"}}
     for name, kw in settings.items():
         n = valid = bad1 = bad2 = near = 0
         errs = []

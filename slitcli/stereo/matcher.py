@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import KW_ONLY, dataclass, replace
+from dataclasses import KW_ONLY, dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -82,6 +82,7 @@ from slitcli.stereo.bands import (
 )
 from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
+from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
 from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
@@ -147,6 +148,8 @@ class MatcherParams:
     sgm_ground_horizon_row_px: float | None = None
     sgm_ground_band_px: float | None = None
     sgm_ground_tilt_tol_deg: float = 1.0
+    sgm_ground: str = "auto"
+    sgm_ground_fit: GroundFitParams = field(default_factory=GroundFitParams)
     sgm_bracket_edge_dn: float = 0.0
     sgm_run_check_sigma: float = 0.0
     sgm_bracket_plain_sigma: float = 0.0
@@ -230,6 +233,12 @@ def _check_sgm(p: MatcherParams) -> None:
     if not 0 <= p.sgm_ground_tilt_tol_deg <= 10:
         raise SlitcliError(f"sgm_ground_tilt_tol_deg {p.sgm_ground_tilt_tol_deg} must lie in "
                            "0..10 deg", param="sgm_ground_tilt_tol_deg")
+    if p.sgm_ground not in GROUND_SOURCES:
+        raise SlitcliError(f"sgm_ground {p.sgm_ground!r} is unknown; use one of "
+                           f"{', '.join(GROUND_SOURCES)}", param="sgm_ground")
+    if not isinstance(p.sgm_ground_fit, GroundFitParams):
+        raise SlitcliError("sgm_ground_fit must be a slitcli.stereo.ground.GroundFitParams",
+                           param="sgm_ground_fit")
     v = p.sgm_ground_horizon_row_px
     if v is not None and not math.isfinite(v):
         raise SlitcliError(f"sgm_ground_horizon_row_px {v} must be a finite row (px) or None "
@@ -433,7 +442,9 @@ def with_rig_ground(params: MatcherParams, geometry: StereoGeometry) -> MatcherP
     disparities (:func:`slitcli.stereo.cost.ground_shear_from_floor`), the band from
     how far a tilt error of ``sgm_ground_tilt_tol_deg`` moves the floor's disparity
     (``f W / h`` px per radian at the horizon: 0.6 px per degree for the paper rig,
-    4 px for KITTI's). Values set explicitly stay; so do the local matcher's.
+    4 px for KITTI's). Values set explicitly stay; so do the local matcher's, and
+    those with ``sgm_ground`` 'pair' (the pair's ground, found in
+    :func:`compute_disparity`) or 'off'.
 
     Parameters
     ----------
@@ -443,7 +454,7 @@ def with_rig_ground(params: MatcherParams, geometry: StereoGeometry) -> MatcherP
     """
     from slitcli.stereo.cost import ground_shear_from_floor
 
-    if params.aggregation != "sgm":
+    if params.aggregation != "sgm" or params.sgm_ground in ("pair", "off"):
         return params
     grad, horizon = ground_shear_from_floor(geometry.floor_disparity_px)
     rig = geometry.rig
@@ -469,6 +480,9 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         Rectified images of the same size.
     params : MatcherParams, optional
         Defaults to ``MatcherParams()`` (the paper's Eq. 10 matcher with filters).
+        With ``aggregation`` 'sgm' and no ground given (``sgm_ground_px_per_row``
+        None, no rig here), ``sgm_ground`` 'auto' shears SGM's window by the ground
+        estimated from the pair (slitcli.stereo.ground.estimate_ground), if any.
     pool : ThreadPoolExecutor, optional
         Helper threads (at least one worker) for the Eq. 10 matchers, held by a caller
         that matches a sequence of frames and shuts it down after the last one: a frame
@@ -495,7 +509,8 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 
-        return match_sgm(lg, rg, p, pool)
+        # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
+        return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
     if p.matcher == "nssd":
         return match_nssd(lg, rg, p, pool)
     return match_opencv(lg, rg, p)

@@ -128,6 +128,7 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     # grey once per frame: the matcher and the mask filters read the same grey pair
     left_grey, right_grey = to_grey(left), to_grey(right)
     # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
+    # (or the pair's ground, with sgm_ground 'pair' / 'check': compute_disparity)
     disp = compute_disparity(left_grey, right_grey,
                              with_rig_ground(p.matcher, geometry), pool=pool)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
