@@ -98,10 +98,27 @@ def _support(x: FilterInputs) -> None:
             float(p.support_cross_min_zncc), float(p.support_strong_zncc),
             int(p.support_radius_px), int(p.window_h_px // 2), tol, float(p.boundary_ratio),
             float(p.boundary_step_px), int(p.boundary_radius_px),
-            float(p.boundary_noise_dn) ** 2)
+            float(p.boundary_noise_dn) ** 2, *_support_noise(x))
     d, rd, r = x.disparity_px, x.right_disparity_px, x.invalid_reason
     run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, d, rd, *args, y0, y1, r),
                   gl.shape[0], x.pool, x.threads)
+
+
+def _support_noise(x: FilterInputs) -> tuple[float, float]:
+    """The support correlations' noise model (``support_noise``): the pair's noise
+    variance per pixel (DN^2) and that times the variance factor of a support block,
+    estimated from the winner step's valid matches (slitcli.stereo.noise); (0, 0) =
+    plain correlations."""
+    from slitcli.stereo.noise import estimate_match_noise
+
+    p = x.params
+    if not p.support_noise or p.aggregation != "none":
+        return 0.0, 0.0
+    noise = estimate_match_noise(x.left_grey, x.right_grey, x.disparity_px,
+                                 x.invalid_reason == Reason.VALID)
+    k = 2 * int(p.support_radius_px) + 1
+    nv = noise.sigma_dn ** 2
+    return nv, nv * noise.variance_factor(k, k)
 
 
 def _speckle(x: FilterInputs) -> None:

@@ -126,6 +126,7 @@ class MatcherParams:
     support_side_min_zncc: float = 0.45
     support_cross_min_zncc: float = 0.4
     support_strong_zncc: float = 0.95
+    support_noise: bool = True
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5

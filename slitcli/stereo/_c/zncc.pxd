@@ -27,14 +27,24 @@ cdef float FLAT_ZNCC = (<float>1e-3 if <double><float>1e-3 <= 1e-3
 
 
 cdef inline float finish(float sa, float sb, float saa, float sbb, float sab,
-                         Py_ssize_t cnt) noexcept nogil:
-    """The correlation from a block's sums (``cnt`` samples); 0 for a flat block."""
+                         Py_ssize_t cnt, float nv, float nvf) noexcept nogil:
+    """The correlation from a block's sums (``cnt`` samples); 0 for a flat block.
+
+    With a noise model (``nv`` > 0: the images' noise variance per sample, DN^2, and
+    ``nvf``: nv times the variance factor of a block sum, so that a block's zero-mean
+    energy holds ``ne = nv cnt - nvf`` of noise), each energy is that of the signal,
+    ``max(v - ne, ne)``: the correlation of the two signals, never boosted more than
+    twofold, nor where a block holds no more than noise. ``nv`` = 0: plain ZNCC."""
     cdef float n = <float>cnt
     # three divisions by n: numba (arcp) took one reciprocal and fused each product
     cdef float rn = 1.0 / n
     cdef float va = fmaf(-(sa * sa), rn, saa)
     cdef float vb = fmaf(-(sb * sb), rn, sbb)
     cdef float cov = fmaf(-(sa * sb), rn, sab)
+    cdef float ne = nv * n - nvf
+    if ne > 0:
+        va = fmax_nb(va - ne, ne)
+        vb = fmax_nb(vb - ne, ne)
     cdef float den = sqrtf(fmax_nb(va, 0.0) * fmax_nb(vb, 0.0))
     return cov / den if den > 1e-3 else 0.0
 
@@ -51,7 +61,8 @@ cdef inline float fmin_nb(float a, float b) noexcept nogil:
 
 cdef inline float zncc_block(const float* gl, const float* gr, Py_ssize_t height,
                              Py_ssize_t width, Py_ssize_t y, Py_ssize_t xc, float d,
-                             Py_ssize_t rx, Py_ssize_t ry) noexcept nogil:
+                             Py_ssize_t rx, Py_ssize_t ry, float nv,
+                             float nvf) noexcept nogil:
     """Zero-mean normalised correlation of the left block centred at (xc, y), (2rx+1)
     x (2ry+1) clipped to the image, with the right image at xc - d (linear in x); 0
     where a block is flat or too small. ``gl``, ``gr``: (height, width) C order."""
@@ -83,7 +94,7 @@ cdef inline float zncc_block(const float* gl, const float* gr, Py_ssize_t height
             saa = fmaf(a, a, saa)
             sbb = fmaf(b, b, sbb)
             sab = fmaf(a, b, sab)
-    return finish(sa, sb, saa, sbb, sab, cnt)
+    return finish(sa, sb, saa, sbb, sab, cnt, nv, nvf)
 
 
 cdef extern from *:
@@ -139,7 +150,7 @@ cdef extern from *:
        finish() takes it, and `den > 1e-3` (a double comparison) as `den > flat`,
        flat the largest float at or below 1e-3. */
     static inline void slitcli_zncc_finish8(const float *sums, float rn, float flat,
-                                            float *res) {
+                                            float ne, float *res) {
         __m256 sa = _mm256_loadu_ps(sums), sb = _mm256_loadu_ps(sums + 8),
                saa = _mm256_loadu_ps(sums + 16), sbb = _mm256_loadu_ps(sums + 24),
                sab = _mm256_loadu_ps(sums + 32);
@@ -148,6 +159,11 @@ cdef extern from *:
         __m256 va = _mm256_fmadd_ps(_mm256_xor_ps(_mm256_mul_ps(sa, sa), sign), vrn, saa);
         __m256 vb = _mm256_fmadd_ps(_mm256_xor_ps(_mm256_mul_ps(sb, sb), sign), vrn, sbb);
         __m256 cov = _mm256_fmadd_ps(_mm256_xor_ps(_mm256_mul_ps(sa, sb), sign), vrn, sab);
+        if (ne > 0.0f) {  /* the signals' energies, as finish() takes them */
+            __m256 vne = _mm256_set1_ps(ne);
+            va = _mm256_max_ps(vne, _mm256_sub_ps(va, vne));
+            vb = _mm256_max_ps(vne, _mm256_sub_ps(vb, vne));
+        }
         __m256 den = _mm256_sqrt_ps(_mm256_mul_ps(_mm256_max_ps(zero, va),
                                                   _mm256_max_ps(zero, vb)));
         __m256 q = _mm256_div_ps(cov, den);
@@ -161,7 +177,7 @@ cdef extern from *:
             const Py_ssize_t *base_r, const float *u8, const float *t8, Py_ssize_t rx,
             Py_ssize_t ry, Py_ssize_t width, float *sums) {}
     static inline void slitcli_zncc_finish8(const float *sums, float rn, float flat,
-                                            float *res) {}
+                                            float ne, float *res) {}
     #endif
     """
     bint ZNCC_LANES "SLITCLI_ZNCC_LANES"
@@ -170,13 +186,13 @@ cdef extern from *:
         const Py_ssize_t* base_r, const float* u8, const float* t8, Py_ssize_t rx,
         Py_ssize_t ry, Py_ssize_t width, float* sums) noexcept nogil
     void zncc_finish8 "slitcli_zncc_finish8"(const float* sums, float rn, float flat,
-                                             float* res) noexcept nogil
+                                             float ne, float* res) noexcept nogil
 
 
 cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* base_l,
                          const Py_ssize_t* base_r, const float* u8, const float* t8,
                          Py_ssize_t rx, Py_ssize_t ry, Py_ssize_t width,
-                         float* res) noexcept nogil:
+                         float* res, float nv, float nvf) noexcept nogil:
     """Eight unclipped blocks side by side: lane j's left block starts at flat index
     ``base_l[j]`` of ``gl``, its right samples at ``base_r[j]`` of ``gr`` (weights
     ``u8[j]``, ``t8[j]``); the eight correlations into ``res``."""
@@ -189,7 +205,7 @@ cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* bas
         # divisions and roots were a third of the cross-support test's time)
         n = <float>((2 * rx + 1) * (2 * ry + 1))
         rn = 1.0 / n
-        zncc_finish8(sums, rn, FLAT_ZNCC, res)
+        zncc_finish8(sums, rn, FLAT_ZNCC, nv * n - nvf, res)
         return
     else:
         for k in range(40):
@@ -207,13 +223,14 @@ cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* bas
                     sums[32 + k] = fmaf(a, b, sums[32 + k])
     k0 = (2 * rx + 1) * (2 * ry + 1)
     for k in range(8):
-        res[k] = finish(sums[k], sums[8 + k], sums[16 + k], sums[24 + k], sums[32 + k], k0)
+        res[k] = finish(sums[k], sums[8 + k], sums[16 + k], sums[24 + k], sums[32 + k], k0,
+                        nv, nvf)
 
 
 cdef inline void _flush(const float* gl, const float* gr, Py_ssize_t* base_l,
                         Py_ssize_t* base_r, float* u8, float* t8, const Py_ssize_t* idx,
                         Py_ssize_t lanes, Py_ssize_t rx, Py_ssize_t ry, Py_ssize_t width,
-                        float* out) noexcept nogil:
+                        float* out, float nv, float nvf) noexcept nogil:
     cdef float res[8]
     cdef Py_ssize_t j
     for j in range(lanes, 8):   # unused lanes repeat lane 0 (valid addresses)
@@ -221,7 +238,7 @@ cdef inline void _flush(const float* gl, const float* gr, Py_ssize_t* base_l,
         base_r[j] = base_r[0]
         u8[j] = u8[0]
         t8[j] = t8[0]
-    _lanes8(gl, gr, base_l, base_r, u8, t8, rx, ry, width, res)
+    _lanes8(gl, gr, base_l, base_r, u8, t8, rx, ry, width, res, nv, nvf)
     for j in range(lanes):
         out[idx[j]] = res[j]
 
@@ -229,7 +246,7 @@ cdef inline void _flush(const float* gl, const float* gr, Py_ssize_t* base_l,
 cdef inline void zncc_blocks(const float* gl, const float* gr, Py_ssize_t height,
                              Py_ssize_t width, const Py_ssize_t* yc, const Py_ssize_t* xc,
                              const float* d, Py_ssize_t n, Py_ssize_t rx, Py_ssize_t ry,
-                             float* out) noexcept nogil:
+                             float* out, float nv, float nvf) noexcept nogil:
     """``out[i] = zncc_block(gl, gr, height, width, yc[i], xc[i], d[i], rx, ry)`` for
     i < n, bit for bit; blocks inside the image eight at a time."""
     cdef Py_ssize_t base_l[8]
@@ -246,7 +263,7 @@ cdef inline void zncc_blocks(const float* gl, const float* gr, Py_ssize_t height
         y0 = yc[i] - ry
         if not (y0 >= 0 and yc[i] + ry < height and x0 >= 0 and x0 + off >= 0
                 and xc[i] + rx <= width - 2 - off and xc[i] + rx <= width - 1):
-            out[i] = zncc_block(gl, gr, height, width, yc[i], xc[i], di, rx, ry)
+            out[i] = zncc_block(gl, gr, height, width, yc[i], xc[i], di, rx, ry, nv, nvf)
             continue
         t = -di - <float>off
         base_l[lanes] = y0 * width + x0
@@ -256,7 +273,7 @@ cdef inline void zncc_blocks(const float* gl, const float* gr, Py_ssize_t height
         idx[lanes] = i
         lanes += 1
         if lanes == 8:
-            _flush(gl, gr, base_l, base_r, u8, t8, idx, lanes, rx, ry, width, out)
+            _flush(gl, gr, base_l, base_r, u8, t8, idx, lanes, rx, ry, width, out, nv, nvf)
             lanes = 0
     if lanes:
-        _flush(gl, gr, base_l, base_r, u8, t8, idx, lanes, rx, ry, width, out)
+        _flush(gl, gr, base_l, base_r, u8, t8, idx, lanes, rx, ry, width, out, nv, nvf)
