@@ -37,6 +37,8 @@ MIN_SAMPLES = 200
 _MAX_FRACTION_PX = 0.2
 # differences beyond this many robust sigmas are wrong matches or depth edges
 _TRIM_SIGMAS = 3.5
+# a slope (DN/px) within this many noise sigmas: the pixel's difference is mostly noise
+_FLAT_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -115,11 +117,15 @@ def estimate_match_noise(left_grey: np.ndarray, right_grey: np.ndarray,
     q1, q3 = np.percentile(sample, [25.0, 75.0])
     robust = (q3 - q1) / 1.349
     keep = ok & (np.abs(diff - centre) <= _TRIM_SIGMAS * max(robust, 0.5))
-    n = int(keep.sum())
+    # where the texture is steep the two views' sampling differs by more than the slope
+    # removes (blur, pixel phase): the level is taken where the slope is within the
+    # noise (the correlations from all matches: that choice would bias them along x)
+    flat = keep & (np.abs(slope) <= _FLAT_SIGMAS * max(robust, 0.5) / np.sqrt(2.0))
+    n = int(flat.sum())
     if n < MIN_SAMPLES:
         return MatchNoise()
     res = np.where(keep, diff - centre, 0.0)
-    var2 = float((res[keep] ** 2).mean())
+    var2 = float((res[flat] ** 2).mean())
 
     def corr(dy: int, dx: int) -> float:
         a = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))

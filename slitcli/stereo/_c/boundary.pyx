@@ -282,8 +282,10 @@ cdef extern from *:
             float cov = fmaf(-(sa * sb), rc, h4[x]);
             float ne = nv * cnt - nvf;  /* the window's noise energy (zncc.pxd, finish) */
             if (ne > 0.0f) {
-                va = va - ne > ne ? va - ne : ne;
-                vb = vb - ne > ne ? vb - ne : ne;
+                /* zncc.pxd, noise_bound: the 95 % bound of noise alone */
+                float sig = ne * (1.0f + 1.645f * sqrtf(2.0f * nvf / ne));
+                va = va >= sig ? va - ne : va;
+                vb = vb >= sig ? vb - ne : vb;
             }
             float den = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
             float q = cov / den;

@@ -33,8 +33,10 @@ cdef inline float finish(float sa, float sb, float saa, float sbb, float sab,
     With a noise model (``nv`` > 0: the images' noise variance per sample, DN^2, and
     ``nvf``: nv times the variance factor of a block sum, so that a block's zero-mean
     energy holds ``ne = nv cnt - nvf`` of noise), each energy is that of the signal,
-    ``max(v - ne, ne)``: the correlation of the two signals, never boosted more than
-    twofold, nor where a block holds no more than noise. ``nv`` = 0: plain ZNCC."""
+    ``v - ne``, where the block's energy ``v`` is above what noise alone reaches in 95 %
+    of blocks (:func:`noise_bound`): the correlation of the two signals; elsewhere ``v``
+    (plain ZNCC: a block of noise is not made to correlate better). ``nv`` = 0: plain
+    ZNCC."""
     cdef float n = <float>cnt
     # three divisions by n: numba (arcp) took one reciprocal and fused each product
     cdef float rn = 1.0 / n
@@ -42,11 +44,21 @@ cdef inline float finish(float sa, float sb, float saa, float sbb, float sab,
     cdef float vb = fmaf(-(sb * sb), rn, sbb)
     cdef float cov = fmaf(-(sa * sb), rn, sab)
     cdef float ne = nv * n - nvf
+    cdef float sig
     if ne > 0:
-        va = fmax_nb(va - ne, ne)
-        vb = fmax_nb(vb - ne, ne)
+        sig = ne * noise_bound(ne, nvf)
+        va = va - ne if va >= sig else va
+        vb = vb - ne if vb >= sig else vb
     cdef float den = sqrtf(fmax_nb(va, 0.0) * fmax_nb(vb, 0.0))
     return cov / den if den > 1e-3 else 0.0
+
+
+cdef inline float noise_bound(float ne, float nvf) noexcept nogil:
+    """The 95 % bound of a noise-only block's zero-mean energy over its mean ``ne``:
+    the energy has ``dof = ne / nvf`` degrees of freedom (samples over the variance
+    factor, one taken by the mean), so ``1 + 1.645 sqrt(2 / dof)`` (normal approximation
+    of the chi-square)."""
+    return 1.0 + 1.645 * sqrtf(2.0 * nvf / ne)
 
 
 cdef inline float fmax_nb(float a, float b) noexcept nogil:
@@ -150,7 +162,7 @@ cdef extern from *:
        finish() takes it, and `den > 1e-3` (a double comparison) as `den > flat`,
        flat the largest float at or below 1e-3. */
     static inline void slitcli_zncc_finish8(const float *sums, float rn, float flat,
-                                            float ne, float *res) {
+                                            float ne, float sig, float *res) {
         __m256 sa = _mm256_loadu_ps(sums), sb = _mm256_loadu_ps(sums + 8),
                saa = _mm256_loadu_ps(sums + 16), sbb = _mm256_loadu_ps(sums + 24),
                sab = _mm256_loadu_ps(sums + 32);
@@ -160,9 +172,11 @@ cdef extern from *:
         __m256 vb = _mm256_fmadd_ps(_mm256_xor_ps(_mm256_mul_ps(sb, sb), sign), vrn, sbb);
         __m256 cov = _mm256_fmadd_ps(_mm256_xor_ps(_mm256_mul_ps(sa, sb), sign), vrn, sab);
         if (ne > 0.0f) {  /* the signals' energies, as finish() takes them */
-            __m256 vne = _mm256_set1_ps(ne);
-            va = _mm256_max_ps(vne, _mm256_sub_ps(va, vne));
-            vb = _mm256_max_ps(vne, _mm256_sub_ps(vb, vne));
+            __m256 vne = _mm256_set1_ps(ne), vsig = _mm256_set1_ps(sig);
+            va = _mm256_blendv_ps(va, _mm256_sub_ps(va, vne),
+                                  _mm256_cmp_ps(va, vsig, _CMP_GE_OQ));
+            vb = _mm256_blendv_ps(vb, _mm256_sub_ps(vb, vne),
+                                  _mm256_cmp_ps(vb, vsig, _CMP_GE_OQ));
         }
         __m256 den = _mm256_sqrt_ps(_mm256_mul_ps(_mm256_max_ps(zero, va),
                                                   _mm256_max_ps(zero, vb)));
@@ -177,7 +191,7 @@ cdef extern from *:
             const Py_ssize_t *base_r, const float *u8, const float *t8, Py_ssize_t rx,
             Py_ssize_t ry, Py_ssize_t width, float *sums) {}
     static inline void slitcli_zncc_finish8(const float *sums, float rn, float flat,
-                                            float ne, float *res) {}
+                                            float ne, float sig, float *res) {}
     #endif
     """
     bint ZNCC_LANES "SLITCLI_ZNCC_LANES"
@@ -186,7 +200,8 @@ cdef extern from *:
         const Py_ssize_t* base_r, const float* u8, const float* t8, Py_ssize_t rx,
         Py_ssize_t ry, Py_ssize_t width, float* sums) noexcept nogil
     void zncc_finish8 "slitcli_zncc_finish8"(const float* sums, float rn, float flat,
-                                             float ne, float* res) noexcept nogil
+                                             float ne, float sig,
+                                             float* res) noexcept nogil
 
 
 cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* base_l,
@@ -197,7 +212,7 @@ cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* bas
     ``base_l[j]`` of ``gl``, its right samples at ``base_r[j]`` of ``gr`` (weights
     ``u8[j]``, ``t8[j]``); the eight correlations into ``res``."""
     cdef float sums[40]
-    cdef float a, b, n, rn
+    cdef float a, b, n, rn, ne
     cdef Py_ssize_t j, i, k, k0
     if ZNCC_LANES:
         zncc_lanes8_sums(gl, gr, base_l, base_r, u8, t8, rx, ry, width, sums)
@@ -205,7 +220,9 @@ cdef inline void _lanes8(const float* gl, const float* gr, const Py_ssize_t* bas
         # divisions and roots were a third of the cross-support test's time)
         n = <float>((2 * rx + 1) * (2 * ry + 1))
         rn = 1.0 / n
-        zncc_finish8(sums, rn, FLAT_ZNCC, nv * n - nvf, res)
+        ne = nv * n - nvf
+        zncc_finish8(sums, rn, FLAT_ZNCC, ne, ne * noise_bound(ne, nvf) if ne > 0 else 0.0,
+                     res)
         return
     else:
         for k in range(40):
