@@ -267,7 +267,8 @@ cdef extern from *:
     static inline void slitcli_zncc_finish(const float *restrict h, Py_ssize_t n,
                                            Py_ssize_t r, float rows, float flat,
                                            float nv, float nvf,
-                                           float *restrict out) {
+                                           float *restrict out,
+                                           float *restrict plain) {
         const float *h0 = h, *h1 = h + n, *h2 = h + 2 * n, *h3 = h + 3 * n,
                     *h4 = h + 4 * n;
         int w = (int)n, ri = (int)r;
@@ -280,6 +281,9 @@ cdef extern from *:
             float va = fmaf(-(sa * sa), rc, h2[x]);
             float vb = fmaf(-(sb * sb), rc, h3[x]);
             float cov = fmaf(-(sa * sb), rc, h4[x]);
+            float den0 = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
+            float q0 = cov / den0;
+            plain[x] = den0 > flat ? q0 : 0.0f;
             float ne = nv * cnt - nvf;  /* the window's noise energy (zncc.pxd, finish) */
             if (ne > 0.0f) {
                 /* zncc.pxd, noise_bound: the 95 % bound of noise alone */
@@ -299,16 +303,17 @@ cdef extern from *:
     void _acc "slitcli_acc"(float* s, const float* a, Py_ssize_t n) noexcept nogil
     void _zncc_finish "slitcli_zncc_finish"(const float* h, Py_ssize_t width, Py_ssize_t r,
                                              float rows, float flat, float nv, float nvf,
-                                             float* out) noexcept nogil
+                                             float* out, float* plain) noexcept nogil
 
 
 cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
                     const float* ring, Py_ssize_t y, Py_ssize_t r, float* s, float* h,
-                    float* out, float nv, float nvf) noexcept nogil:
+                    float* out, float nv, float nvf, float* plain) noexcept nogil:
     """Zero-mean normalised correlation of the (2r+1)^2 windows (clipped to the image)
     of ``gl`` and the warped right image around row y (``ring`` row yy % (2r+1) holds
     warped row yy): ``out`` in [-1, 1], 0 where a window is flat. ``s``: (5, width +
-    2r) and ``h``: (5, width) work arrays."""
+    2r) and ``h``: (5, width) work arrays. ``plain``: the same without the noise
+    model (``nv``, ``nvf``; zncc.pxd, finish)."""
     cdef Py_ssize_t k2 = 2 * r + 1, sw = width + 2 * r
     cdef Py_ssize_t y0 = max(0, y - r), y1 = min(height, y + r + 1)
     cdef Py_ssize_t yy, q, k, i
@@ -327,7 +332,7 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     for q in range(5):
         for k in range(k2):
             _acc(h + q * width, s + q * sw + k, width)
-    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, nv, nvf, out)
+    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, nv, nvf, out, plain)
 
 
 cdef void _support_codes(const unsigned char* reason, const float* zncc, double smin,
@@ -392,8 +397,9 @@ cdef void _cross_row(Img im, const float* disp, const float* zrow, Py_ssize_t y,
                      double cross_min, double strong, Py_ssize_t r, unsigned char* codes,
                      Req req, Py_ssize_t* cand, Py_ssize_t* cur,
                      unsigned char* held) noexcept nogil:
-    """Cross support of row y (module notes; ``zrow``: its centred correlations):
-    valid pixels of ``codes`` below ``strong`` and supported on neither axis get
+    """Cross support of row y (module notes; ``zrow``: its centred correlations,
+    without the noise model: the gate asks how well the window carries its match over
+    its noise, not how well its signals agree): valid pixels of ``codes`` below ``strong`` and supported on neither axis get
     SUPPORT. The row's blocks are correlated together, one side at a time: the
     blocks below for the pixels whose block above passed, and so on, as the scalar
     test would have asked for them. ``cand``, ``cur`` (width,) and ``held`` (width,)
@@ -485,6 +491,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
     cdef float[::1] s = np.empty(5 * (width + 2 * r), np.float32)
     cdef float[::1] h = np.empty(5 * width, np.float32)
     cdef float[::1] zncc = np.zeros(width, np.float32)
+    cdef float[::1] zplain = np.zeros(width, np.float32)
     cdef unsigned char[::1] codes = np.empty(width, np.uint8)
     cdef float[:, ::1] cand = np.empty((2, width), np.float32)
     cdef float[:, ::1] wmin = np.empty((2, width), np.float32)
@@ -506,13 +513,13 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
                 if y + r < height:
                     _warp_row(im.gr, &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
                 _zncc_row(im.gl, height, width, &ring[0, 0], y, r, &s[0], &h[0], &zncc[0],
-                          im.nv, im.nvf)
+                          im.nv, im.nvf, &zplain[0])
             _support_codes(&reason[y, 0], &zncc[0], smin, support, &codes[0], width)
             if support and side_min != 0:
                 _one_sided_row(im, &disp[0, 0], &zncc[0], y, side_min, r, ry, &codes[0],
                                req)
             if support and cross_min != 0:
-                _cross_row(im, &disp[0, 0], &zncc[0], y, cross_min, strong, r, &codes[0],
+                _cross_row(im, &disp[0, 0], &zplain[0], y, cross_min, strong, r, &codes[0],
                            req, &lists[0, 0], &lists[1, 0], &held[0])
             if ratio > 0:
                 _candidates(&codes[0], &disp[y, 0], &rdisp[y, 0], tol, &cand[0, 0],
@@ -561,6 +568,7 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
     cdef float[:, ::1] ring = np.empty((k2, width), np.float32)
     cdef float[::1] s = np.empty(5 * (width + 2 * r), np.float32)
     cdef float[::1] h = np.empty(5 * width, np.float32)
+    cdef float[::1] plain = np.empty(width, np.float32)
     if height == 0:
         return out_arr
     with nogil:
@@ -570,7 +578,7 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
             if y + r < height:
                 _warp_row(&gr[0, 0], &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
             _zncc_row(&gl[0, 0], height, width, &ring[0, 0], y, r, &s[0], &h[0], &out[y, 0],
-                      nv, nvf)
+                      nv, nvf, &plain[0])
     return out_arr
 
 
