@@ -287,7 +287,7 @@ cdef extern from *:
             float ne = nv * cnt - nvf;  /* the window's noise energy (zncc.pxd, finish) */
             if (ne > 0.0f) {
                 /* zncc.pxd, noise_bound: the 95 % bound of noise alone */
-                float sig = ne * (1.0f + 1.645f * sqrtf(2.0f * nvf / ne));
+                float sig = ne * (1.0f + 2.326f * sqrtf(2.0f * nvf / ne));
                 va = va >= sig ? va - ne : va;
                 vb = vb >= sig ? vb - ne : vb;
             }

@@ -58,7 +58,7 @@ cdef inline float noise_bound(float ne, float nvf) noexcept nogil:
     the energy has ``dof = ne / nvf`` degrees of freedom (samples over the variance
     factor, one taken by the mean), so ``1 + 1.645 sqrt(2 / dof)`` (normal approximation
     of the chi-square)."""
-    return 1.0 + 1.645 * sqrtf(2.0 * nvf / ne)
+    return 1.0 + 2.326 * sqrtf(2.0 * nvf / ne)
 
 
 cdef inline float fmax_nb(float a, float b) noexcept nogil:
