@@ -48,6 +48,11 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   pixel, or just left and right of it, must both correlate at the pixel's own
   disparity: a textureless pixel within half a window of an edge or of the laser
   stripe sees that texture on one side only;
+- noise model of the support tests (``support_noise``, local matcher only): the pair's
+  noise level and lag-1 correlation are estimated from the winner step's matches
+  (slitcli.stereo.noise); a block whose energy exceeds noise alone's 99 % bound has
+  its noise energy taken off, so the correlations above are those of the signals and
+  the thresholds hold through a camera's demosaiced, compressed, signal-dependent noise;
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,

@@ -33,8 +33,8 @@ import numpy as np
 #: fewer usable match differences than this: no estimate (the model stays off)
 MIN_SAMPLES = 200
 #: matches beyond this many are thinned to pairs of rows (the estimate's time; its
-#: sampling error at this size is about 1 % of sigma and 0.01 of a correlation)
-MAX_SAMPLES = 16000
+#: sampling error at this size is about 1 % of sigma and 0.015 of a correlation)
+MAX_SAMPLES = 8000
 # a match whose subpixel part is larger leaves too much of the texture in the
 # whole-pixel difference for the slope to remove
 _MAX_FRACTION_PX = 0.2
