@@ -104,21 +104,24 @@ def _support(x: FilterInputs) -> None:
                   gl.shape[0], x.pool, x.threads)
 
 
-def _support_noise(x: FilterInputs) -> tuple[float, float]:
+def _support_noise(x: FilterInputs) -> tuple[float, float, float]:
     """The support correlations' noise model (``support_noise``): the pair's noise
-    variance per pixel (DN^2) and that times the variance factor of a support block,
-    estimated from the winner step's valid matches (slitcli.stereo.noise); (0, 0) =
-    plain correlations."""
+    variance per pixel (DN^2), that times the variance factor of a support block
+    (both estimated from the winner step's valid matches, slitcli.stereo.noise), and
+    the share of the noise energy beyond ``support_noise_ref_dn`` (the thresholds hold
+    at that noise); (0, 0, 0) = plain correlations."""
     from slitcli.stereo.noise import estimate_match_noise
 
     p = x.params
     if not p.support_noise or p.aggregation != "none":
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     noise = estimate_match_noise(x.left_grey, x.right_grey, x.disparity_px,
                                  x.invalid_reason == Reason.VALID)
     k = 2 * int(p.support_radius_px) + 1
     nv = noise.sigma_dn ** 2
-    return nv, nv * noise.variance_factor(k, k)
+    if nv <= p.support_noise_ref_dn ** 2:
+        return 0.0, 0.0, 0.0
+    return nv, nv * noise.variance_factor(k, k), 1.0 - p.support_noise_ref_dn ** 2 / nv
 
 
 def _speckle(x: FilterInputs) -> None:

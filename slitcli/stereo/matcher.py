@@ -132,6 +132,7 @@ class MatcherParams:
     support_cross_min_zncc: float = 0.4
     support_strong_zncc: float = 0.95
     support_noise: bool = True
+    support_noise_ref_dn: float = 1.5
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -286,6 +287,9 @@ def _check_filters(p: MatcherParams) -> None:
                            param=("support_radius_px", "support_min_zncc",
                                   "support_side_min_zncc", "support_cross_min_zncc",
                                   "support_strong_zncc"))
+    if not (math.isfinite(p.support_noise_ref_dn) and p.support_noise_ref_dn >= 0):
+        raise SlitcliError(f"support_noise_ref_dn {p.support_noise_ref_dn} must be >= 0 DN",
+                           param="support_noise_ref_dn")
     if not 0 <= p.boundary_ratio < 1:
         raise SlitcliError(f"`boundary_ratio` {p.boundary_ratio} must be in [0, 1) (0 = off)",
                            param="boundary_ratio")

@@ -44,9 +44,11 @@ cdef struct Img:
     Py_ssize_t height
     Py_ssize_t width
     # the noise model of the support correlations (zncc.pxd, finish): noise variance
-    # per sample (DN^2) and nv times the variance factor of a block sum; 0 = plain ZNCC
+    # per sample (DN^2), nv times the variance factor of a block sum, and the share of
+    # the noise energy taken off; 0 = plain ZNCC
     float nv
     float nvf
+    float nfr
 
 
 cdef struct Req:
@@ -266,7 +268,7 @@ cdef extern from *:
        `flat`), int column counts: gcc vectorises it. */
     static inline void slitcli_zncc_finish(const float *restrict h, Py_ssize_t n,
                                            Py_ssize_t r, float rows, float flat,
-                                           float nv, float nvf,
+                                           float nv, float nvf, float nfr,
                                            float *restrict out,
                                            float *restrict plain) {
         const float *h0 = h, *h1 = h + n, *h2 = h + 2 * n, *h3 = h + 3 * n,
@@ -288,8 +290,8 @@ cdef extern from *:
             if (ne > 0.0f) {
                 /* zncc.pxd, noise_bound: the 95 % bound of noise alone */
                 float sig = ne * (1.0f + 2.326f * sqrtf(2.0f * nvf / ne));
-                va = va >= sig ? va - ne : va;
-                vb = vb >= sig ? vb - ne : vb;
+                va = va >= sig ? va - nfr * ne : va;
+                vb = vb >= sig ? vb - nfr * ne : vb;
             }
             float den = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
             float q = cov / den;
@@ -303,12 +305,14 @@ cdef extern from *:
     void _acc "slitcli_acc"(float* s, const float* a, Py_ssize_t n) noexcept nogil
     void _zncc_finish "slitcli_zncc_finish"(const float* h, Py_ssize_t width, Py_ssize_t r,
                                              float rows, float flat, float nv, float nvf,
-                                             float* out, float* plain) noexcept nogil
+                                             float nfr, float* out,
+                                             float* plain) noexcept nogil
 
 
 cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
                     const float* ring, Py_ssize_t y, Py_ssize_t r, float* s, float* h,
-                    float* out, float nv, float nvf, float* plain) noexcept nogil:
+                    float* out, float nv, float nvf, float nfr,
+                    float* plain) noexcept nogil:
     """Zero-mean normalised correlation of the (2r+1)^2 windows (clipped to the image)
     of ``gl`` and the warped right image around row y (``ring`` row yy % (2r+1) holds
     warped row yy): ``out`` in [-1, 1], 0 where a window is flat. ``s``: (5, width +
@@ -332,7 +336,7 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     for q in range(5):
         for k in range(k2):
             _acc(h + q * width, s + q * sw + k, width)
-    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, nv, nvf, out, plain)
+    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, nv, nvf, nfr, out, plain)
 
 
 cdef void _support_codes(const unsigned char* reason, const float* zncc, double smin,
@@ -366,7 +370,7 @@ cdef void _one_sided_row(Img im, const float* disp, const float* zrow, Py_ssize_
             req.dd[n] = disp[y * width + x]
             n += 1
     zncc_blocks(im.gl, im.gr, im.height, width, req.yc, req.xc, req.dd, n, rx, ry, req.res,
-                im.nv, im.nvf)
+                im.nv, im.nvf, im.nfr)
     for i in range(n):
         if req.res[i] < side_min:
             codes[req.who[i]] = _SUPPORT
@@ -385,7 +389,7 @@ cdef Py_ssize_t _cross_stage(Img im, const float* disp, Py_ssize_t y, Py_ssize_t
         req.xc[i] = x + dx
         req.dd[i] = disp[y * im.width + x]
     zncc_blocks(im.gl, im.gr, im.height, im.width, req.yc, req.xc, req.dd, m, r, r,
-                req.res, im.nv, im.nvf)
+                req.res, im.nv, im.nvf, im.nfr)
     for i in range(m):
         if req.res[i] >= cross_min:
             lst[j] = lst[i]
@@ -434,7 +438,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
               const float[:, ::1] rdisp, double smin, double side_min, double cross_min,
               double strong, Py_ssize_t r, Py_ssize_t ry, double tol, double ratio,
               double step, Py_ssize_t radius, double floor2, double nv, double nvf,
-              Py_ssize_t y0, Py_ssize_t y1, unsigned char[:, ::1] reason):
+              double nfr, Py_ssize_t y0, Py_ssize_t y1, unsigned char[:, ::1] reason):
     """Local support (centred, one-sided, cross) and the depth-edge test, rows y0 ..
     y1 - 1, in place on ``reason``, in one pass (slitcli.stereo._boundary, module
     notes).
@@ -469,6 +473,8 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
         The noise model of the support correlations (zncc.pxd, ``finish``): the grey
         images' noise variance per pixel (DN^2) and ``nv`` times the variance factor of
         a block sum (correlated noise); 0, 0: plain zero-mean normalised correlations.
+    nfr : float
+        Share of a block's noise energy taken off (0-1; zncc.pxd, ``finish``).
     y0, y1 : int
         The rows to test, 0 <= y0 <= y1 <= H.
     reason : (H, W) uint8
@@ -500,7 +506,8 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
     cdef float[:, ::1] freq = np.empty((2, 2 * width), np.float32)
     cdef Py_ssize_t[:, ::1] lists = np.empty((2, width), np.intp)
     cdef unsigned char[::1] held = np.zeros(width, np.uint8)
-    cdef Img im = Img(&gl[0, 0], &gr[0, 0], height, width, <float>nv, <float>nvf)
+    cdef Img im = Img(&gl[0, 0], &gr[0, 0], height, width, <float>nv, <float>nvf,
+                      <float>nfr)
     cdef Req req = Req(&ireq[0, 0], &ireq[1, 0], &ireq[2, 0], &freq[0, 0], &freq[1, 0])
     cdef bint support = smin != 0
     cdef Py_ssize_t y, yy, x
@@ -513,7 +520,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
                 if y + r < height:
                     _warp_row(im.gr, &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
                 _zncc_row(im.gl, height, width, &ring[0, 0], y, r, &s[0], &h[0], &zncc[0],
-                          im.nv, im.nvf, &zplain[0])
+                          im.nv, im.nvf, im.nfr, &zplain[0])
             _support_codes(&reason[y, 0], &zncc[0], smin, support, &codes[0], width)
             if support and side_min != 0:
                 _one_sided_row(im, &disp[0, 0], &zncc[0], y, side_min, r, ry, &codes[0],
@@ -536,7 +543,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
 
 
 def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1] disp,
-                 Py_ssize_t r, float nv=0.0, float nvf=0.0):
+                 Py_ssize_t r, float nv=0.0, float nvf=0.0, float nfr=1.0):
     """The centred correlations the local support test compares with
     ``support_min_zncc`` (as :func:`post_rows` computes them).
 
@@ -578,7 +585,7 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
             if y + r < height:
                 _warp_row(&gr[0, 0], &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
             _zncc_row(&gl[0, 0], height, width, &ring[0, 0], y, r, &s[0], &h[0], &out[y, 0],
-                      nv, nvf, &plain[0])
+                      nv, nvf, nfr, &plain[0])
     return out_arr
 
 
