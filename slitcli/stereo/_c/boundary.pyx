@@ -13,7 +13,7 @@ threads.
 
 import numpy as np
 
-from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf
+from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf, sqrt
 
 from slitcli.stereo._c.zncc cimport fmax_nb, fmin_nb, zncc_blocks
 
@@ -147,6 +147,14 @@ cdef void _depth_edge_row(Img im, const float* disp, Py_ssize_t y, double step,
     cdef float d, own
     cdef double lim
     cdef bint left_step, right_step, kill
+    # under the noise model (im.nv > 0) a column's residual holds 2 nv of the two views'
+    # noise; the share beyond the reference noise (nfr) is taken off both hypotheses,
+    # and the own residual must exceed it by what the noise of a column mean reaches
+    # in 99 % of columns (zncc.pxd, noise_bound), or by floor2, whichever is larger
+    cdef double nx = 2.0 * im.nv * im.nfr
+    cdef double n_rows = 2.0 * hh + 1.0
+    cdef double vf = im.nvf / im.nv if im.nv > 0 else 1.0
+    cdef double floor_eff = floor2 - nx
     for x in range(width):
         if codes[x] != 0:
             continue
@@ -159,13 +167,15 @@ cdef void _depth_edge_row(Img im, const float* disp, Py_ssize_t y, double step,
             continue
         kill = False
         if left_step:
-            own = _column_residual_left(im, y, x, d, hh)
-            if own > floor2:
-                kill = _explained(im, left_cand, y, x, lim, radius, hh, ratio * own, False)
+            own = _column_residual_left(im, y, x, d, hh) - nx
+            if own > floor_eff:
+                kill = _explained(im, left_cand, y, x, lim, radius, hh, ratio * own + nx,
+                                  False)
         if not kill and right_step:
-            own = _column_residual_right(im, y, xr, d, hh)
-            if own > floor2:
-                kill = _explained(im, right_cand, y, xr, lim, radius, hh, ratio * own, True)
+            own = _column_residual_right(im, y, xr, d, hh) - nx
+            if own > floor_eff:
+                kill = _explained(im, right_cand, y, xr, lim, radius, hh, ratio * own + nx,
+                                  True)
         if kill:
             codes[x] = _BOUNDARY
 
