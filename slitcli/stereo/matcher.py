@@ -53,6 +53,8 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   (slitcli.stereo.noise); a block whose energy exceeds noise alone's 99 % bound has
   its noise energy taken off, so the correlations above are those of the signals and
   the thresholds hold through a camera's demosaiced, compressed, signal-dependent noise;
+  the depth-edge test compares its two residuals less that noise. Only the noise beyond
+  ``support_noise_ref_dn`` is taken off (the thresholds were set at that noise);
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,

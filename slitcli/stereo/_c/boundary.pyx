@@ -484,7 +484,9 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
         images' noise variance per pixel (DN^2) and ``nv`` times the variance factor of
         a block sum (correlated noise); 0, 0: plain zero-mean normalised correlations.
     nfr : float
-        Share of a block's noise energy taken off (0-1; zncc.pxd, ``finish``).
+        Share of the noise taken off (0-1; zncc.pxd, ``finish``): of a block's noise
+        energy in the support correlations, and of a column residual's ``2 nv`` in the
+        depth-edge test (both hypotheses' residuals, before their ratio is formed).
     y0, y1 : int
         The rows to test, 0 <= y0 <= y1 <= H.
     reason : (H, W) uint8
