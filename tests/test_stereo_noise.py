@@ -1,7 +1,8 @@
 """The pair's noise model (slitcli.stereo.noise) and the support correlations under it
 (slitcli.stereo._c.zncc, ``nv``/``nvf``): the estimate against the noise the camera
 model really put into the images, the signal correlation against its hand-derived
-value, and the local matcher on a textured plane seen through the ``robot`` camera."""
+value, and the local matcher on a textured plane and a depth step seen through the
+``robot`` camera."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from slitcli.sim.camera import apply_camera, camera_preset
 from slitcli.stereo._c import zncc
 from slitcli.stereo.matcher import MatcherParams, compute_disparity
 from slitcli.stereo.noise import MIN_SAMPLES, MatchNoise, estimate_match_noise
+from slitcli.stereo.reasons import Reason
 
 SEEDS = [0, 1, 2, 3, 4]
 DISPARITY_PX = 6
@@ -162,3 +164,46 @@ def test_noiseless_pair_is_matched_as_before(seed):
     assert est.sigma_dn < 0.1
     np.testing.assert_array_equal(on.invalid_reason, off.invalid_reason)
     np.testing.assert_array_equal(on.disparity_px, off.disparity_px)
+
+
+def _step_pair(seed: int):
+    """A textured foreground (columns < 100 of the left view, disparity 12) before a
+    textured background (disparity 6) through the ``robot`` camera, and the left view's
+    true disparities."""
+    rng = np.random.default_rng(seed)
+    fg, bg = _texture(rng, W + 20), _texture(rng, W + 20)
+    x = np.arange(W)
+    edge, d_fg, d_bg = 100, 12, 6
+    left = np.where(x < edge, fg[:, x], bg[:, x])
+    xr_fg = x + d_fg   # the right view sees the foreground where it reaches
+    right = np.where(xr_fg < edge, fg[:, np.minimum(xr_fg, W + 19)],
+                     bg[:, np.minimum(x + d_bg, W + 19)])
+    model = camera_preset("robot")
+    views = []
+    for k, v in enumerate((left, right)):
+        light = np.repeat(v[..., None], 3, axis=2)
+        views.append(cv2.cvtColor(apply_camera(light, model, np.random.default_rng([seed, k])),
+                                  cv2.COLOR_BGR2GRAY))
+    truth = np.where(x < edge, float(d_fg), float(d_bg))[None, :].repeat(H, axis=0)
+    return views[0], views[1], truth
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_depth_edge_under_noise(seed):
+    """A depth step through the robot camera: with both residuals less the views' noise
+    the depth-edge test can tell the surfaces apart again (it fires more), more of the
+    background is right, and its wrong pixels (the window's fattening, 9-75 of them
+    without the model) do not grow beyond their counting noise (2 sqrt(n) + 1)."""
+    left, right, truth = _step_pair(seed)
+    got = {}
+    for on in (False, True):
+        r = compute_disparity(left, right, MatcherParams(support_noise=on))
+        d = r.disparity_px
+        bg = truth == 6.0
+        wrong = bg & np.isfinite(d) & (np.abs(d - 6.0) > 1.0)
+        good = bg & (np.abs(d - 6.0) <= 1.0)
+        got[on] = (int(good.sum()), int(wrong.sum()),
+                   int((r.invalid_reason == Reason.BOUNDARY).sum()))
+    assert got[True][2] > got[False][2]
+    assert got[True][0] > got[False][0]
+    assert got[True][1] <= got[False][1] + 2.0 * np.sqrt(got[False][1]) + 1.0
