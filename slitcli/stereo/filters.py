@@ -9,7 +9,9 @@ it is one chain, :data:`DISPARITY_FILTERS`, the same whatever the aggregation:
 1. ``texture``: without a prefilter, the window's standard deviation must reach
    ``texture_min_dn`` (with a prefilter the matcher tests the window energy itself);
 2. ``support_and_depth_edges``: the local, one-sided and cross support and the
-   depth-edge two-hypothesis test (slitcli.stereo._boundary, one compiled pass);
+   depth-edge two-hypothesis test (slitcli.stereo._boundary, one compiled pass), with
+   the local matcher under the pair's noise model (``support_noise``: the noise level
+   and correlation estimated from the winner step's matches, slitcli.stereo.noise);
 3. ``speckle``: small disconnected regions (cv2.filterSpeckles' regions), then every
    rejected pixel becomes NaN (always runs).
 
