@@ -9,7 +9,9 @@ it is one chain, :data:`DISPARITY_FILTERS`, the same whatever the aggregation:
 1. ``texture``: without a prefilter, the window's standard deviation must reach
    ``texture_min_dn`` (with a prefilter the matcher tests the window energy itself);
 2. ``support_and_depth_edges``: the local, one-sided and cross support and the
-   depth-edge two-hypothesis test (slitcli.stereo._boundary, one compiled pass);
+   depth-edge two-hypothesis test (slitcli.stereo._boundary, one compiled pass), with
+   the local matcher under the pair's noise model (``support_noise``: the noise level
+   and correlation estimated from the winner step's matches, slitcli.stereo.noise);
 3. ``speckle``: small disconnected regions (cv2.filterSpeckles' regions), then every
    rejected pixel becomes NaN (always runs).
 
@@ -98,10 +100,30 @@ def _support(x: FilterInputs) -> None:
             float(p.support_cross_min_zncc), float(p.support_strong_zncc),
             int(p.support_radius_px), int(p.window_h_px // 2), tol, float(p.boundary_ratio),
             float(p.boundary_step_px), int(p.boundary_radius_px),
-            float(p.boundary_noise_dn) ** 2)
+            float(p.boundary_noise_dn) ** 2, *_support_noise(x))
     d, rd, r = x.disparity_px, x.right_disparity_px, x.invalid_reason
     run_row_bands(lambda y0, y1: _boundary.post_rows(gl, gr, d, rd, *args, y0, y1, r),
                   gl.shape[0], x.pool, x.threads)
+
+
+def _support_noise(x: FilterInputs) -> tuple[float, float, float]:
+    """The support correlations' noise model (``support_noise``): the pair's noise
+    variance per pixel (DN^2), that times the variance factor of a support block
+    (both estimated from the winner step's valid matches, slitcli.stereo.noise), and
+    the share of the noise energy beyond ``support_noise_ref_dn`` (the thresholds hold
+    at that noise); (0, 0, 0) = plain correlations."""
+    from slitcli.stereo.noise import estimate_match_noise
+
+    p = x.params
+    if not p.support_noise or p.aggregation != "none":
+        return 0.0, 0.0, 0.0
+    noise = estimate_match_noise(x.left_grey, x.right_grey, x.disparity_px,
+                                 x.invalid_reason == Reason.VALID)
+    k = 2 * int(p.support_radius_px) + 1
+    nv = noise.sigma_dn ** 2
+    if nv <= p.support_noise_ref_dn ** 2:
+        return 0.0, 0.0, 0.0
+    return nv, nv * noise.variance_factor(k, k), 1.0 - p.support_noise_ref_dn ** 2 / nv
 
 
 def _speckle(x: FilterInputs) -> None:

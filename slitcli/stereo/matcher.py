@@ -48,6 +48,13 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   pixel, or just left and right of it, must both correlate at the pixel's own
   disparity: a textureless pixel within half a window of an edge or of the laser
   stripe sees that texture on one side only;
+- noise model of the support tests (``support_noise``, local matcher only): the pair's
+  noise level and lag-1 correlation are estimated from the winner step's matches
+  (slitcli.stereo.noise); a block whose energy exceeds noise alone's 99 % bound has
+  its noise energy taken off, so the correlations above are those of the signals and
+  the thresholds hold through a camera's demosaiced, compressed, signal-dependent noise;
+  the depth-edge test compares its two residuals less that noise. Only the noise beyond
+  ``support_noise_ref_dn`` is taken off (the thresholds were set at that noise);
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
@@ -127,6 +134,8 @@ class MatcherParams:
     support_side_min_zncc: float = 0.45
     support_cross_min_zncc: float = 0.4
     support_strong_zncc: float = 0.95
+    support_noise: bool = True
+    support_noise_ref_dn: float = 1.5
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -289,6 +298,9 @@ def _check_filters(p: MatcherParams) -> None:
                            param=("support_radius_px", "support_min_zncc",
                                   "support_side_min_zncc", "support_cross_min_zncc",
                                   "support_strong_zncc"))
+    if not (math.isfinite(p.support_noise_ref_dn) and p.support_noise_ref_dn >= 0):
+        raise SlitcliError(f"support_noise_ref_dn {p.support_noise_ref_dn} must be >= 0 DN",
+                           param="support_noise_ref_dn")
     if not 0 <= p.boundary_ratio < 1:
         raise SlitcliError(f"`boundary_ratio` {p.boundary_ratio} must be in [0, 1) (0 = off)",
                            param="boundary_ratio")

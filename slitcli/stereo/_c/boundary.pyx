@@ -13,7 +13,7 @@ threads.
 
 import numpy as np
 
-from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf
+from libc.math cimport INFINITY, fabsf, fmaf, nextafterf, rintf, sqrt
 
 from slitcli.stereo._c.zncc cimport fmax_nb, fmin_nb, zncc_blocks
 
@@ -43,6 +43,12 @@ cdef struct Img:
     const float* gr
     Py_ssize_t height
     Py_ssize_t width
+    # the noise model of the support correlations (zncc.pxd, finish): noise variance
+    # per sample (DN^2), nv times the variance factor of a block sum, and the share of
+    # the noise energy taken off; 0 = plain ZNCC
+    float nv
+    float nvf
+    float nfr
 
 
 cdef struct Req:
@@ -141,6 +147,14 @@ cdef void _depth_edge_row(Img im, const float* disp, Py_ssize_t y, double step,
     cdef float d, own
     cdef double lim
     cdef bint left_step, right_step, kill
+    # under the noise model (im.nv > 0) a column's residual holds 2 nv of the two views'
+    # noise; the share beyond the reference noise (nfr) is taken off both hypotheses,
+    # and the own residual must exceed it by what the noise of a column mean reaches
+    # in 99 % of columns (zncc.pxd, noise_bound), or by floor2, whichever is larger
+    cdef double nx = 2.0 * im.nv * im.nfr
+    cdef double n_rows = 2.0 * hh + 1.0
+    cdef double vf = im.nvf / im.nv if im.nv > 0 else 1.0
+    cdef double floor_eff = floor2 - nx
     for x in range(width):
         if codes[x] != 0:
             continue
@@ -153,13 +167,15 @@ cdef void _depth_edge_row(Img im, const float* disp, Py_ssize_t y, double step,
             continue
         kill = False
         if left_step:
-            own = _column_residual_left(im, y, x, d, hh)
-            if own > floor2:
-                kill = _explained(im, left_cand, y, x, lim, radius, hh, ratio * own, False)
+            own = _column_residual_left(im, y, x, d, hh) - nx
+            if own > floor_eff:
+                kill = _explained(im, left_cand, y, x, lim, radius, hh, ratio * own + nx,
+                                  False)
         if not kill and right_step:
-            own = _column_residual_right(im, y, xr, d, hh)
-            if own > floor2:
-                kill = _explained(im, right_cand, y, xr, lim, radius, hh, ratio * own, True)
+            own = _column_residual_right(im, y, xr, d, hh) - nx
+            if own > floor_eff:
+                kill = _explained(im, right_cand, y, xr, lim, radius, hh, ratio * own + nx,
+                                  True)
         if kill:
             codes[x] = _BOUNDARY
 
@@ -262,7 +278,9 @@ cdef extern from *:
        `flat`), int column counts: gcc vectorises it. */
     static inline void slitcli_zncc_finish(const float *restrict h, Py_ssize_t n,
                                            Py_ssize_t r, float rows, float flat,
-                                           float *restrict out) {
+                                           float nv, float nvf, float nfr,
+                                           float *restrict out,
+                                           float *restrict plain) {
         const float *h0 = h, *h1 = h + n, *h2 = h + 2 * n, *h3 = h + 3 * n,
                     *h4 = h + 4 * n;
         int w = (int)n, ri = (int)r;
@@ -275,6 +293,16 @@ cdef extern from *:
             float va = fmaf(-(sa * sa), rc, h2[x]);
             float vb = fmaf(-(sb * sb), rc, h3[x]);
             float cov = fmaf(-(sa * sb), rc, h4[x]);
+            float den0 = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
+            float q0 = cov / den0;
+            plain[x] = den0 > flat ? q0 : 0.0f;
+            float ne = nv * cnt - nvf;  /* the window's noise energy (zncc.pxd, finish) */
+            if (ne > 0.0f) {
+                /* zncc.pxd, noise_bound: the 95 % bound of noise alone */
+                float sig = ne * (1.0f + 2.326f * sqrtf(2.0f * nvf / ne));
+                va = va >= sig ? va - nfr * ne : va;
+                vb = vb >= sig ? vb - nfr * ne : vb;
+            }
             float den = sqrtf((0.0f > va ? 0.0f : va) * (0.0f > vb ? 0.0f : vb));
             float q = cov / den;
             out[x] = den > flat ? q : 0.0f;
@@ -286,17 +314,20 @@ cdef extern from *:
                                        Py_ssize_t n) noexcept nogil
     void _acc "slitcli_acc"(float* s, const float* a, Py_ssize_t n) noexcept nogil
     void _zncc_finish "slitcli_zncc_finish"(const float* h, Py_ssize_t width, Py_ssize_t r,
-                                             float rows, float flat,
-                                             float* out) noexcept nogil
+                                             float rows, float flat, float nv, float nvf,
+                                             float nfr, float* out,
+                                             float* plain) noexcept nogil
 
 
 cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
                     const float* ring, Py_ssize_t y, Py_ssize_t r, float* s, float* h,
-                    float* out) noexcept nogil:
+                    float* out, float nv, float nvf, float nfr,
+                    float* plain) noexcept nogil:
     """Zero-mean normalised correlation of the (2r+1)^2 windows (clipped to the image)
     of ``gl`` and the warped right image around row y (``ring`` row yy % (2r+1) holds
     warped row yy): ``out`` in [-1, 1], 0 where a window is flat. ``s``: (5, width +
-    2r) and ``h``: (5, width) work arrays."""
+    2r) and ``h``: (5, width) work arrays. ``plain``: the same without the noise
+    model (``nv``, ``nvf``; zncc.pxd, finish)."""
     cdef Py_ssize_t k2 = 2 * r + 1, sw = width + 2 * r
     cdef Py_ssize_t y0 = max(0, y - r), y1 = min(height, y + r + 1)
     cdef Py_ssize_t yy, q, k, i
@@ -315,7 +346,7 @@ cdef void _zncc_row(const float* gl, Py_ssize_t height, Py_ssize_t width,
     for q in range(5):
         for k in range(k2):
             _acc(h + q * width, s + q * sw + k, width)
-    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, out)
+    _zncc_finish(h, width, r, <float>(y1 - y0), FLAT, nv, nvf, nfr, out, plain)
 
 
 cdef void _support_codes(const unsigned char* reason, const float* zncc, double smin,
@@ -348,7 +379,8 @@ cdef void _one_sided_row(Img im, const float* disp, const float* zrow, Py_ssize_
             req.xc[n] = xx
             req.dd[n] = disp[y * width + x]
             n += 1
-    zncc_blocks(im.gl, im.gr, im.height, width, req.yc, req.xc, req.dd, n, rx, ry, req.res)
+    zncc_blocks(im.gl, im.gr, im.height, width, req.yc, req.xc, req.dd, n, rx, ry, req.res,
+                im.nv, im.nvf, im.nfr)
     for i in range(n):
         if req.res[i] < side_min:
             codes[req.who[i]] = _SUPPORT
@@ -367,7 +399,7 @@ cdef Py_ssize_t _cross_stage(Img im, const float* disp, Py_ssize_t y, Py_ssize_t
         req.xc[i] = x + dx
         req.dd[i] = disp[y * im.width + x]
     zncc_blocks(im.gl, im.gr, im.height, im.width, req.yc, req.xc, req.dd, m, r, r,
-                req.res)
+                req.res, im.nv, im.nvf, im.nfr)
     for i in range(m):
         if req.res[i] >= cross_min:
             lst[j] = lst[i]
@@ -379,8 +411,9 @@ cdef void _cross_row(Img im, const float* disp, const float* zrow, Py_ssize_t y,
                      double cross_min, double strong, Py_ssize_t r, unsigned char* codes,
                      Req req, Py_ssize_t* cand, Py_ssize_t* cur,
                      unsigned char* held) noexcept nogil:
-    """Cross support of row y (module notes; ``zrow``: its centred correlations):
-    valid pixels of ``codes`` below ``strong`` and supported on neither axis get
+    """Cross support of row y (module notes; ``zrow``: its centred correlations,
+    without the noise model: the gate asks how well the window carries its match over
+    its noise, not how well its signals agree): valid pixels of ``codes`` below ``strong`` and supported on neither axis get
     SUPPORT. The row's blocks are correlated together, one side at a time: the
     blocks below for the pixels whose block above passed, and so on, as the scalar
     test would have asked for them. ``cand``, ``cur`` (width,) and ``held`` (width,)
@@ -414,8 +447,8 @@ cdef void _cross_row(Img im, const float* disp, const float* zrow, Py_ssize_t y,
 def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1] disp,
               const float[:, ::1] rdisp, double smin, double side_min, double cross_min,
               double strong, Py_ssize_t r, Py_ssize_t ry, double tol, double ratio,
-              double step, Py_ssize_t radius, double floor2, Py_ssize_t y0, Py_ssize_t y1,
-              unsigned char[:, ::1] reason):
+              double step, Py_ssize_t radius, double floor2, double nv, double nvf,
+              double nfr, Py_ssize_t y0, Py_ssize_t y1, unsigned char[:, ::1] reason):
     """Local support (centred, one-sided, cross) and the depth-edge test, rows y0 ..
     y1 - 1, in place on ``reason``, in one pass (slitcli.stereo._boundary, module
     notes).
@@ -446,6 +479,14 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
         disparity is below d - ``step``; ``radius`` columns are searched on each side;
         own residuals at or below ``floor2`` (DN^2, the noise of a correct match) carry
         no evidence.
+    nv, nvf : float
+        The noise model of the support correlations (zncc.pxd, ``finish``): the grey
+        images' noise variance per pixel (DN^2) and ``nv`` times the variance factor of
+        a block sum (correlated noise); 0, 0: plain zero-mean normalised correlations.
+    nfr : float
+        Share of the noise taken off (0-1; zncc.pxd, ``finish``): of a block's noise
+        energy in the support correlations, and of a column residual's ``2 nv`` in the
+        depth-edge test (both hypotheses' residuals, before their ratio is formed).
     y0, y1 : int
         The rows to test, 0 <= y0 <= y1 <= H.
     reason : (H, W) uint8
@@ -468,6 +509,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
     cdef float[::1] s = np.empty(5 * (width + 2 * r), np.float32)
     cdef float[::1] h = np.empty(5 * width, np.float32)
     cdef float[::1] zncc = np.zeros(width, np.float32)
+    cdef float[::1] zplain = np.zeros(width, np.float32)
     cdef unsigned char[::1] codes = np.empty(width, np.uint8)
     cdef float[:, ::1] cand = np.empty((2, width), np.float32)
     cdef float[:, ::1] wmin = np.empty((2, width), np.float32)
@@ -476,7 +518,8 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
     cdef float[:, ::1] freq = np.empty((2, 2 * width), np.float32)
     cdef Py_ssize_t[:, ::1] lists = np.empty((2, width), np.intp)
     cdef unsigned char[::1] held = np.zeros(width, np.uint8)
-    cdef Img im = Img(&gl[0, 0], &gr[0, 0], height, width)
+    cdef Img im = Img(&gl[0, 0], &gr[0, 0], height, width, <float>nv, <float>nvf,
+                      <float>nfr)
     cdef Req req = Req(&ireq[0, 0], &ireq[1, 0], &ireq[2, 0], &freq[0, 0], &freq[1, 0])
     cdef bint support = smin != 0
     cdef Py_ssize_t y, yy, x
@@ -488,13 +531,14 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
             if support:
                 if y + r < height:
                     _warp_row(im.gr, &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
-                _zncc_row(im.gl, height, width, &ring[0, 0], y, r, &s[0], &h[0], &zncc[0])
+                _zncc_row(im.gl, height, width, &ring[0, 0], y, r, &s[0], &h[0], &zncc[0],
+                          im.nv, im.nvf, im.nfr, &zplain[0])
             _support_codes(&reason[y, 0], &zncc[0], smin, support, &codes[0], width)
             if support and side_min != 0:
                 _one_sided_row(im, &disp[0, 0], &zncc[0], y, side_min, r, ry, &codes[0],
                                req)
             if support and cross_min != 0:
-                _cross_row(im, &disp[0, 0], &zncc[0], y, cross_min, strong, r, &codes[0],
+                _cross_row(im, &disp[0, 0], &zplain[0], y, cross_min, strong, r, &codes[0],
                            req, &lists[0, 0], &lists[1, 0], &held[0])
             if ratio > 0:
                 _candidates(&codes[0], &disp[y, 0], &rdisp[y, 0], tol, &cand[0, 0],
@@ -511,7 +555,7 @@ def post_rows(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1
 
 
 def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, ::1] disp,
-                 Py_ssize_t r):
+                 Py_ssize_t r, float nv=0.0, float nvf=0.0, float nfr=1.0):
     """The centred correlations the local support test compares with
     ``support_min_zncc`` (as :func:`post_rows` computes them).
 
@@ -523,6 +567,8 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
         Left disparities (px; NaN: no shift).
     r : int
         Half size of the (2r+1)^2 window (clipped to the image).
+    nv, nvf : float
+        Noise model, as for :func:`post_rows` (0, 0: plain correlations).
 
     Returns
     -------
@@ -541,6 +587,7 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
     cdef float[:, ::1] ring = np.empty((k2, width), np.float32)
     cdef float[::1] s = np.empty(5 * (width + 2 * r), np.float32)
     cdef float[::1] h = np.empty(5 * width, np.float32)
+    cdef float[::1] plain = np.empty(width, np.float32)
     if height == 0:
         return out_arr
     with nogil:
@@ -549,7 +596,8 @@ def support_zncc(const float[:, ::1] gl, const float[:, ::1] gr, const float[:, 
         for y in range(height):
             if y + r < height:
                 _warp_row(&gr[0, 0], &disp[0, 0], y + r, width, &ring[(y + r) % k2, 0])
-            _zncc_row(&gl[0, 0], height, width, &ring[0, 0], y, r, &s[0], &h[0], &out[y, 0])
+            _zncc_row(&gl[0, 0], height, width, &ring[0, 0], y, r, &s[0], &h[0], &out[y, 0],
+                      nv, nvf, nfr, &plain[0])
     return out_arr
 
 
