@@ -135,28 +135,27 @@ def estimate_match_noise(left_grey: np.ndarray, right_grey: np.ndarray,
         return MatchNoise()
     res = (diff - centre)
     var2 = float(np.mean(np.square(res[flat], dtype=np.float64)))
-    # the kept differences as an image for the neighbour pairs; a pair counts only on
-    # one whole disparity (one pair of noises)
-    img = np.zeros((h, w), np.float32)
-    img[ys[keep], xs[keep]] = res[keep]
-    none = np.iinfo(np.int32).min
-    shift = np.full((h, w), none, np.int32)
-    shift[ys[keep], xs[keep]] = di[keep].astype(np.int32)
+    # neighbour pairs among the kept matches (one pair of noises: both on one whole
+    # disparity), looked up through an index image: the work stays on the matches
+    ys, xs, res, di = ys[keep], xs[keep], res[keep].astype(np.float64), di[keep]
+    index = np.full(h * w, -1, np.int32)
+    index[ys * w + xs] = np.arange(ys.size, dtype=np.int32)
 
-    def corr(dy: int, dx: int) -> float:
-        a = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))
-        b = (slice(dy, h), slice(max(0, dx), w - max(0, -dx)))
-        pair = (shift[a] == shift[b]) & (shift[a] != none)
-        if pair.sum() < MIN_SAMPLES:
-            return 0.0
-        # element-wise sums, not np.dot: BLAS would start its own threads
-        ra = img[a][pair].astype(np.float64)
-        rb = img[b][pair].astype(np.float64)
-        den = np.sqrt(float(np.sum(ra * ra)) * float(np.sum(rb * rb)))
-        return float(np.sum(ra * rb) / den) if den > 0 else 0.0
-
-    return MatchNoise(sigma_dn=float(np.sqrt(var2 / 2.0)), rho_x=corr(0, 1), rho_y=corr(1, 0),
-                      rho_diag=0.5 * (corr(1, 1) + corr(1, -1)), samples=n)
+    # the four neighbours right, below, below-right, below-left at once
+    dy = np.array([0, 1, 1, 1])[:, None]
+    dx = np.array([1, 0, 1, -1])[:, None]
+    ny, nx = ys[None, :] + dy, xs[None, :] + dx
+    inside = (ny < h) & (nx >= 0) & (nx < w)
+    nb = np.where(inside, index[np.where(inside, ny * w + nx, 0)], -1)
+    pair = (nb >= 0) & (di[nb] == di[None, :])
+    # element-wise sums, not np.dot: BLAS would start its own threads
+    ra = np.where(pair, res[None, :], 0.0)
+    rb = np.where(pair, res[nb], 0.0)
+    den = np.sqrt(np.sum(ra * ra, axis=1) * np.sum(rb * rb, axis=1))
+    enough = (pair.sum(axis=1) >= MIN_SAMPLES) & (den > 0)
+    rho = np.where(enough, np.sum(ra * rb, axis=1) / np.where(enough, den, 1.0), 0.0)
+    return MatchNoise(sigma_dn=float(np.sqrt(var2 / 2.0)), rho_x=float(rho[0]),
+                      rho_y=float(rho[1]), rho_diag=float(0.5 * (rho[2] + rho[3])), samples=n)
 
 
 def _quantiles(x: np.ndarray) -> tuple[float, float, float]:
