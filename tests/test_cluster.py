@@ -59,6 +59,7 @@ def test_local_cluster_gives_the_serial_tables_and_leaves_no_worker(four, tmp_pa
         pids = list(client.run(os.getpid).values())
         assert len(pids) == 2 and os.getpid() not in pids
         s = run_detect_many(seqs, out, chunk_frames=2, make_runner=dask_runner(client))
+    assert s.failed == (), s.failed
     for q in seqs:
         assert (out / q.name / "ranges.csv").read_bytes() == \
             (ref / q.name / "ranges.csv").read_bytes()
