@@ -92,6 +92,16 @@ class LaserParams:
         thinner is not the laser. 0 turns the test off.
     sheet_tolerance : float
         Factor of that test (> 1).
+    chroma_smoothness_max : float
+        An image whose red-difference chroma is smoother down the columns than its luma
+        by this ratio or more (:func:`slitcli.laser.luma.chroma_smoothness`: short-lag
+        over long-lag differences, chroma's over luma's; 1 as rough, near 0 subsampled)
+        is taken for JPEG 4:2:0 (subsampled chroma): the sheet test adds the chain's
+        blur to the stripe's width, and the stripe's rows are fitted again on the luma,
+        which keeps full resolution. 0 turns both off. Default 0.8: renders without a
+        camera model measure 1.6-2.0, with the camera model's 4:4:4 and 4:2:2 JPEG
+        0.9, its 4:2:0 0-0.74, the development set's robot photographs (4:2:0) 0.57-0.62
+        (docs/laser.md).
     """
 
     method: str = "model"
@@ -119,6 +129,7 @@ class LaserParams:
     max_search_range_m: float = 3.0
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
+    chroma_smoothness_max: float = 0.8
 
     def __post_init__(self) -> None:
         checks = {
@@ -148,6 +159,7 @@ class LaserParams:
             "max_search_range_m": self.max_search_range_m > 0.0,
             "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
             "sheet_tolerance": self.sheet_tolerance > 1.0,
+            "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -200,4 +212,5 @@ _RANGES = {
     "max_search_range_m": "give a range > 0 m",
     "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
     "sheet_tolerance": "give a factor > 1",
+    "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
 }

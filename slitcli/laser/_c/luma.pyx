@@ -1,0 +1,212 @@
+"""The stripe's row on the luma, compiled (:func:`slitcli.laser.luma.luma_rows` calls
+:func:`luma_rows`; the fit is ``profile.pxd``'s :func:`fit_gaussian`)."""
+
+import numpy as np
+
+from libc.math cimport NAN, ceil, exp, fabs, isfinite, rint, sqrt
+
+from slitcli.laser._c.fields cimport F_AMP, F_POS, F_SE_POS, F_WIDTH, N_FIELDS
+from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, pmax, pmin
+
+# the luma's weights of (b, g, r), ITU-R BT.601 as JPEG's YCbCr (JFIF)
+cdef double W_B = 0.114
+cdef double W_G = 0.587
+cdef double W_R = 0.299
+
+
+cdef inline double _linear_shortfall(const float* yl, const unsigned char* use,
+                                     Py_ssize_t m, Py_ssize_t j0, double v0, double s,
+                                     double sigma_dn, double expected) noexcept nogil:
+    """How far the luma's peak at ``v0`` with sigma ``s`` (least squares of ``c + b (v -
+    v0) + A g(v)`` over the ``m`` rows from image row ``j0`` where ``use``) falls short of
+    ``expected``, in standard errors of ``A`` (noise ``sigma_dn``); 0 where it cannot be
+    told."""
+    cdef double s00 = 0.0, s01 = 0.0, s02 = 0.0, s11 = 0.0, s12 = 0.0, s22 = 0.0
+    cdef double r0 = 0.0, r1 = 0.0, r2 = 0.0, x, gg, c00, c01, c02, det, a_hat, var_a
+    cdef Py_ssize_t jj
+    for jj in range(m):
+        if not use[jj]:
+            continue
+        x = j0 + jj - v0
+        gg = exp(-0.5 * x * x / (s * s))
+        s00 += 1.0
+        s01 += x
+        s02 += gg
+        s11 += x * x
+        s12 += x * gg
+        s22 += gg * gg
+        r0 += yl[jj]
+        r1 += x * yl[jj]
+        r2 += gg * yl[jj]
+    # the third row of the inverse of the symmetric 3 x 3 normal matrix (cofactors)
+    c00 = s01 * s12 - s11 * s02
+    c01 = -(s00 * s12 - s01 * s02)
+    c02 = s00 * s11 - s01 * s01
+    det = s02 * c00 + s12 * c01 + s22 * c02
+    if not (det > 1e-12 and c02 > 0.0):
+        return 0.0
+    a_hat = (c00 * r0 + c01 * r1 + c02 * r2) / det
+    var_a = sigma_dn * sigma_dn * c02 / det
+    return (expected - a_hat) / sqrt(var_a)
+
+
+cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
+                           const unsigned char[:, ::1] bg, Py_ssize_t i, double v,
+                           double s_ev, Py_ssize_t row0, double sigma_dn, double blur_var_px2,
+                           double shape_error, double max_chi2, double s_max, double min_z,
+                           int sat_dn, float* yl, unsigned char* use, double* ebuf,
+                           double* out, double expected, double* shortfall) noexcept nogil:
+    """The luma's fit of column ``i`` near row ``v`` (image rows) from the evidence's
+    width ``s_ev`` (module function :func:`luma_rows`); ``out`` (6,) as
+    :func:`fit_gaussian`'s; False where none is kept. With ``shortfall`` (not NULL):
+    how far the luma's peak at ``v`` falls short of ``expected`` DN, in its standard
+    errors (:func:`_linear_shortfall`)."""
+    cdef Py_ssize_t h = img.shape[1], j, jj, a, b, m
+    cdef const unsigned char* px
+    cdef double s0
+    s_ev = pmin(s_ev if isfinite(s_ev) else 1.0, s_max)
+    s0 = sqrt(pmax(s_ev * s_ev - blur_var_px2, 0.36))
+    j = <Py_ssize_t>rint(v) - row0
+    a = imax(j - <Py_ssize_t>ceil(3.0 * s_ev) - 3, 0)
+    b = imin(j + <Py_ssize_t>ceil(3.0 * s_ev) + 4, h)
+    m = b - a
+    if m < 7:
+        return False
+    for jj in range(m):
+        px = &img[i, a + jj, 0]
+        yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
+                         W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
+                         W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
+        use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
+    if shortfall != NULL:
+        shortfall[0] = _linear_shortfall(yl, use, m, row0 + a, v, s0, sigma_dn, expected)
+    if not fit_gaussian(yl, use, m, row0 + a, v, s0, sigma_dn, shape_error, s_max, out,
+                        ebuf, NULL):
+        return False
+    return out[3] >= min_z and out[5] <= max_chi2 and out[2] <= s_max and \
+        fabs(out[0] - v) <= pmax(1.0, s_ev)
+
+
+def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+              const double[::1] v, const unsigned char[::1] sat,
+              const double[:, :, ::1] cand, Py_ssize_t row0, double sigma_dn,
+              double blur_var_px2, double shape_error, double max_chi2, double s_max,
+              double min_z, int sat_dn, double[::1] v_out, double[::1] se_out,
+              double[::1] w_out, double[::1] se_ev_out) -> Py_ssize_t:
+    """Each found column's row fitted again on the luma's contrast; returns how many.
+
+    Parameters
+    ----------
+    img : ndarray, shape (W, H', 3), uint8
+        The searched rows, transposed (one image column per array row), BGR.
+    bg : ndarray, shape (3 W, H'), uint8
+        The vertical opening per channel (row ``3 i + c``: channel ``c`` (b, g, r) of
+        column ``i``).
+    v : ndarray, shape (W,), float64
+        The stripe's row per column found on the evidence, image rows (NaN none).
+    sat : ndarray, shape (W,), bool as uint8
+        The column's core is clipped (not fitted again).
+    cand : ndarray, shape (W, K, N_FIELDS), float64
+        The candidate table; the fit nearest ``v`` gives the evidence's width.
+    row0 : int
+        Image row of ``img``'s first row.
+    sigma_dn : float
+        Noise sigma of the luma, DN.
+    blur_var_px2 : float
+        Variance the chroma's processing added to the evidence's profile, px^2: the
+        luma fit starts from the evidence's width with it taken off.
+    shape_error, max_chi2, s_max : float
+        The profile's model error, its largest reduced chi-square, the widest sigma, px.
+    min_z : float
+        Least significance of the luma's peak.
+    sat_dn : int
+        Rows with any channel at or above this are left out.
+    v_out, se_out, w_out : ndarray, shape (W,), float64
+        Out: the luma's row, its standard error and its sigma, px (NaN where no fit is
+        kept: not significant, not a Gaussian within the model error, or more than the
+        evidence's sigma (at least a pixel) away from ``v``).
+    se_ev_out : ndarray, shape (W,), float64
+        Out: the standard error of the evidence's fit nearest ``v``, px (NaN none).
+    """
+    cdef Py_ssize_t w = img.shape[0], h = img.shape[1], k = cand.shape[1]
+    cdef Py_ssize_t i, q, best, n_kept = 0
+    cdef double s_ev, d, dmin
+    cdef double out[6]
+    if bg.shape[0] != 3 * w or bg.shape[1] != h or v.shape[0] != w or sat.shape[0] != w \
+            or cand.shape[0] != w or v_out.shape[0] != w or se_out.shape[0] != w \
+            or w_out.shape[0] != w or se_ev_out.shape[0] != w:
+        raise ValueError("luma_rows: img (W, H, 3), bg (3 W, H), v, sat, cand (W, ...) "
+                         "and the outputs (W,) disagree in shape")
+    cdef Py_ssize_t max_m = 2 * (<Py_ssize_t>ceil(3.0 * s_max) + 4) + 1
+    cdef float[::1] yl = np.empty(max_m, np.float32)
+    cdef unsigned char[::1] use = np.empty(max_m, np.uint8)
+    cdef double[::1] ebuf = np.empty(max_m)
+    with nogil:
+        for i in range(w):
+            v_out[i] = NAN
+            se_out[i] = NAN
+            w_out[i] = NAN
+            se_ev_out[i] = NAN
+            if not isfinite(v[i]) or sat[i]:
+                continue
+            # the evidence's width: the fit of this column nearest the row
+            best = -1
+            dmin = 1e300
+            for q in range(k):
+                d = fabs(cand[i, q, F_POS] - v[i])
+                if isfinite(d) and d < dmin:
+                    dmin = d
+                    best = q
+            s_ev = cand[i, best, F_WIDTH] if best >= 0 else 1.0
+            if best >= 0:
+                se_ev_out[i] = cand[i, best, F_SE_POS]
+            if not _luma_fit(img, bg, i, v[i], s_ev, row0, sigma_dn, blur_var_px2,
+                             shape_error, max_chi2, s_max, min_z, sat_dn, &yl[0], &use[0],
+                             &ebuf[0], out, 0.0, NULL):
+                continue
+            v_out[i] = out[0]
+            se_out[i] = out[4]
+            w_out[i] = out[2]
+            n_kept += 1
+    return n_kept
+
+
+
+def luma_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+                    const double[:, :, ::1] cand, need, Py_ssize_t row0, double sigma_dn,
+                    double blur_var_px2, double shape_error, double max_chi2, double s_max,
+                    double min_z, int sat_dn, double luma_share, double[:, ::1] w_out,
+                    double[:, ::1] se_out, double[:, ::1] short_out) -> None:
+    """The luma's fit (:func:`luma_rows`' test) at every candidate of ``cand`` (W, K,
+    N_FIELDS) where ``need`` (W, K) bool: its sigma and the standard error of its centre
+    into ``w_out``, ``se_out`` (W, K) float64, px (NaN where none is kept or not
+    needed); into ``short_out`` (W, K) how far the luma's peak at the candidate's row and
+    width falls short of ``luma_share`` times the candidate's peak, in its standard
+    errors (NaN where not needed). Other arguments as :func:`luma_rows`'."""
+    cdef Py_ssize_t w = img.shape[0], k = cand.shape[1], i, q
+    cdef const unsigned char[:, ::1] nd = np.ascontiguousarray(need).view(np.uint8)
+    if bg.shape[0] != 3 * w or bg.shape[1] != img.shape[1] or cand.shape[0] != w or \
+            nd.shape[0] != w or nd.shape[1] != k or w_out.shape[0] != w or \
+            w_out.shape[1] != k or se_out.shape[0] != w or se_out.shape[1] != k or \
+            short_out.shape[0] != w or short_out.shape[1] != k:
+        raise ValueError("luma_candidates: img (W, H, 3), bg (3 W, H), cand, need and the "
+                         "outputs (W, K) disagree in shape")
+    cdef Py_ssize_t max_m = 2 * (<Py_ssize_t>ceil(3.0 * s_max) + 4) + 1
+    cdef float[::1] yl = np.empty(max_m, np.float32)
+    cdef unsigned char[::1] use = np.empty(max_m, np.uint8)
+    cdef double[::1] ebuf = np.empty(max_m)
+    cdef double out[6]
+    with nogil:
+        for i in range(w):
+            for q in range(k):
+                w_out[i, q] = NAN
+                se_out[i, q] = NAN
+                short_out[i, q] = NAN
+                if not nd[i, q] or not isfinite(cand[i, q, F_POS]):
+                    continue
+                if _luma_fit(img, bg, i, cand[i, q, F_POS], cand[i, q, F_WIDTH], row0,
+                             sigma_dn, blur_var_px2, shape_error, max_chi2, s_max, min_z,
+                             sat_dn, &yl[0], &use[0], &ebuf[0], out,
+                             luma_share * cand[i, q, F_AMP], &short_out[i, q]):
+                    w_out[i, q] = out[2]
+                    se_out[i, q] = out[4]
