@@ -30,8 +30,7 @@ import numpy as np
 
 from slitcli.laser import candidates, choose, evidence, judge, luma, paper
 from slitcli.laser.params import LaserParams
-from slitcli.laser.profile import F_POS, F_SAT, F_SE_POS, F_WIDTH, F_Z, N_FIELDS
-LUMA_ONLY = False
+from slitcli.laser.profile import F_POS, F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
@@ -224,7 +223,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
                          GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
-    if ev.blur_var > 0.0 and np.isfinite(v).any():
+    if params.luma_rows and ev.blur_var > 0.0 and np.isfinite(v).any():
         v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
 
@@ -288,17 +287,12 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
         # (column-major, as LaserGeometry holds it)
         candidates.sheet_width_px(cand, np.asfortranarray(px_per_m, dtype=np.float64),
                                   params.sheet_sigma_mm, sheet_px)
-    # subsampled chroma: the stripe's width is the luma's (full resolution), where the
-    # luma shows it; the sheet's thickness is tested on it after the other tests
-    luma_sheet = sheet_px is not None and ev.blur_var > 0.0
     ok, laser = judge.valid_candidates(
         cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
         min_th=params.min_th, min_delta_th=params.min_delta_th,
         colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
-        sheet_px=None if luma_sheet else sheet_px, sheet_tolerance=params.sheet_tolerance,
+        sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var)
-    if luma_sheet:
-        ok = _luma_sheet_test(cand, ok, sheet_px, img_t, r0, ev, s_max, laser, params)
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)
@@ -308,31 +302,3 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     return cand, judge.one_crossing(cand, ok), laser
 
 
-
-def _luma_sheet_test(cand: np.ndarray, ok: np.ndarray, sheet_px: np.ndarray,
-                     img_t: np.ndarray, r0: int, ev: _Evidence, s_max: float,
-                     laser: np.ndarray | None, params: LaserParams) -> np.ndarray:
-    """The sheet's thickness test of an image with subsampled chroma (W, K bool): on the
-    width of the luma's fit at each candidate (:func:`slitcli.laser.luma.luma_candidates`)
-    where it shows one, else on the evidence's width with the chain's blur added."""
-    w = cand.shape[0]
-    sigma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
-    need = ok & ~(cand[..., F_SAT] > 0)
-    lw, lse, short = luma.luma_candidates(
-        img_t, ev.bg_t, cand, need, r0, sigma_dn=sigma, blur_var_px2=ev.blur_var,
-        shape_error=params.shape_error, max_chi2=params.max_chi2, s_max=s_max,
-        min_z=params.weak_z, saturation_dn=params.saturation_dn,
-        luma_share=luma.luma_share(laser))
-    has = np.isfinite(lw)
-    # laser light adds luma: a candidate whose luma falls short of it is not the laser
-    ok = ok & ~(need & (short > judge.OWN_Z))
-    cand_l = cand.copy()
-    cand_l[..., F_WIDTH] = np.where(has, lw, cand[..., F_WIDTH])
-    cand_l[..., F_SE_POS] = np.where(has, lse, cand[..., F_SE_POS])
-    args = (judge.COLOUR_Z * params.min_z, params.sheet_tolerance,
-            round(params.min_stripe_share * w))
-    ok_l = judge.sheet_tests(cand_l, sheet_px, ok & has, *args, 0.0)
-    if LUMA_ONLY:
-        return ok_l | (ok & (cand[..., F_SAT] > 0))
-    ok_c = judge.sheet_tests(cand, sheet_px, ok & ~has, *args, ev.blur_var)
-    return ok_l | ok_c

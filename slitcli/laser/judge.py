@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from slitcli.laser._c.judge import colour_tests, one_crossing_table, shape_tests, surface_table
-from slitcli.laser._c.judge import sheet_tests as sheet_tests  # (re-exported)
 from slitcli.laser._c.judge import laser_share as laser_share  # (re-exported)
 from slitcli.laser._c.light import own_light_table
 

@@ -26,7 +26,6 @@ import math
 
 import numpy as np
 
-from slitcli.laser._c.luma import luma_candidates as _luma_candidates
 from slitcli.laser._c.luma import luma_rows as _luma_rows
 
 #: variance the 4:2:0 chain adds to a profile across rows: the two-row mean (1/4 px^2)
@@ -149,40 +148,3 @@ def combined_rows(v_ev: np.ndarray, se_ev: np.ndarray, v_luma: np.ndarray,
     out[both] = (w_ev * v_ev[both] + w_l * v_luma[both]) / (w_ev + w_l)
     return out
 
-
-def luma_candidates(img_t: np.ndarray, bg_t: np.ndarray, cand: np.ndarray, need: np.ndarray,
-                    row0: int, *, sigma_dn: float, blur_var_px2: float, shape_error: float,
-                    max_chi2: float, s_max: float, min_z: float, saturation_dn: int,
-                    luma_share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The luma's fit (as :func:`luma_rows`') at every candidate of ``cand`` (W, K,
-    N_FIELDS) where ``need`` (W, K) bool, from its row and width, and the luma's peak
-    there against the one the laser's light would give, ``luma_share`` times the
-    candidate's peak of evidence.
-
-    Returns
-    -------
-    width_px, se_px : ndarray, shape (W, K), float64
-        The luma's sigma and the standard error of its centre, px; NaN where no fit is
-        kept or none was needed.
-    shortfall : ndarray, shape (W, K), float64
-        How far the luma's peak at the candidate's row and width (least squares, on a
-        straight background) falls short of ``luma_share`` times its peak, in standard
-        errors; NaN where not needed.
-    """
-    wo = np.empty(cand.shape[:2])
-    so = np.empty(cand.shape[:2])
-    sh = np.empty(cand.shape[:2])
-    _luma_candidates(img_t, bg_t, np.ascontiguousarray(cand, dtype=np.float64),
-                     np.ascontiguousarray(need, dtype=np.bool_), row0, max(sigma_dn, 1e-3),
-                     blur_var_px2, shape_error, max_chi2, s_max, min_z, saturation_dn,
-                     luma_share, wo, so, sh)
-    return wo, so, sh
-
-
-def luma_share(laser_rgb: np.ndarray | None) -> float:
-    """The luma the laser's light adds per DN of red: ``0.299 + 0.587 l_g + 0.114 l_b``
-    of the laser's colour ``laser_rgb`` (red 1) as the frame shows it, or of pure red
-    (0.299) where it does not (the least the laser's light can add)."""
-    if laser_rgb is None:
-        return float(_Y_BGR[2])
-    return float(_Y_BGR[2] + _Y_BGR[1] * laser_rgb[1] + _Y_BGR[0] * laser_rgb[2])

@@ -95,13 +95,17 @@ class LaserParams:
     chroma_smoothness_max : float
         An image whose red-difference chroma is smoother down the columns than its luma
         by this ratio or more (:func:`slitcli.laser.luma.chroma_smoothness`: short-lag
-        over long-lag differences, chroma's over luma's; 1 as rough, near 0 subsampled)
-        is taken for JPEG 4:2:0 (subsampled chroma): the sheet test adds the chain's
-        blur to the stripe's width, and the stripe's rows are fitted again on the luma,
-        which keeps full resolution. 0 turns both off. Default 0.8: renders without a
-        camera model measure 1.6-2.0, with the camera model's 4:4:4 and 4:2:2 JPEG
-        0.9, its 4:2:0 0-0.74, the development set's robot photographs (4:2:0) 0.57-0.62
-        (docs/laser.md).
+        over long-lag differences, chroma's over luma's; about 1 or more when as rough,
+        near 0 subsampled) is taken for JPEG 4:2:0 (subsampled chroma): the sheet test
+        adds the 4:2:0 chain's blur (``slitcli.laser.luma.CHAIN_VAR_PX2``, 0.92 px^2) to
+        the stripe's width. 0 turns it off. Default 0.8: renders without a camera model
+        measure 1.5-2.0, the camera model's 4:4:4 and 4:2:2 JPEG 0.9, its 4:2:0 0-0.74,
+        the development set's robot photographs (4:2:0) 0.57-0.62 (docs/laser.md).
+    luma_rows : bool
+        Under subsampled chroma (above), fit each found column's row again on the luma
+        (full resolution) and combine it with the evidence's row by their variances
+        (:func:`slitcli.laser.luma.combined_rows`). Off by default: it helps where the
+        surface under the stripe is plain and hurts on fine texture (docs/laser.md).
     """
 
     method: str = "model"
@@ -130,6 +134,7 @@ class LaserParams:
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
     chroma_smoothness_max: float = 0.8
+    luma_rows: bool = False
 
     def __post_init__(self) -> None:
         checks = {
@@ -160,6 +165,7 @@ class LaserParams:
             "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
             "sheet_tolerance": self.sheet_tolerance > 1.0,
             "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
+            "luma_rows": isinstance(self.luma_rows, bool),
         }
         for name, ok in checks.items():
             if not ok:
@@ -213,4 +219,5 @@ _RANGES = {
     "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
     "sheet_tolerance": "give a factor > 1",
     "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
+    "luma_rows": "give true or false",
 }

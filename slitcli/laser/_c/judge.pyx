@@ -550,25 +550,3 @@ def one_crossing_table(const double[:, :, ::1] cand, const unsigned char[:, ::1]
                 out[col, b] = keep
     return out_arr
 
-
-def sheet_tests(const double[:, :, ::1] cand, sheet_px, ok_in, double strong_z,
-                double sheet_tolerance, Py_ssize_t sheet_support, double blur_var_px2):
-    """The sheet's thickness test alone (:func:`shape_tests`' ``_sheet_tests``) of the
-    candidates ``ok_in`` (W, K) bool passes, widths and their errors from ``cand`` (W, K,
-    N_FIELDS), the sheet's sigma ``sheet_px`` (W, K) px; ``strong_z`` the significance of
-    the strong columns that show the frame's own sheet; returns the new (W, K) bool."""
-    cdef Py_ssize_t w = cand.shape[0], k = cand.shape[1], n = w * k
-    cdef const double[:, ::1] sheet = np.ascontiguousarray(sheet_px, np.float64)
-    ok_arr = np.array(ok_in, dtype=np.bool_, order="C", copy=True)
-    if sheet.shape[0] != w or sheet.shape[1] != k or ok_arr.shape != (w, k) \
-            or cand.shape[2] != N_FIELDS:
-        raise ValueError("sheet_tests: cand (W, K, N_FIELDS), sheet_px and ok_in (W, K) "
-                         "disagree in shape")
-    if n == 0:
-        return ok_arr
-    cdef unsigned char[:, ::1] ok = ok_arr.view(np.uint8)
-    cdef double[::1] work = np.empty(n)
-    with nogil:
-        _sheet_tests(&cand[0, 0, 0], n, &sheet[0, 0], strong_z, sheet_tolerance,
-                     sheet_support, blur_var_px2, &ok[0, 0], &work[0])
-    return ok_arr

@@ -3,10 +3,17 @@
 
 import numpy as np
 
-from libc.math cimport NAN, ceil, exp, fabs, isfinite, rint, sqrt
+from libc.math cimport NAN, ceil, fabs, isfinite, rint, sqrt
 
-from slitcli.laser._c.fields cimport F_AMP, F_POS, F_SE_POS, F_WIDTH, N_FIELDS
+from slitcli.laser._c.fields cimport F_POS, F_SE_POS, F_WIDTH
 from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, pmax, pmin
+
+#: rows either side whose luma gives a fit's local noise; residuals beyond CLIP_SIGMAS
+#: global sigmas count as that many (an edge); the mean absolute lag-2 residual over
+#: sigma: sqrt(2 / pi) sqrt(1.5) (as the candidates', slitcli.laser.candidates)
+cdef Py_ssize_t NOISE_HALF = 24
+cdef double CLIP_SIGMAS = 5.0
+cdef double MEAN_TO_SIGMA = sqrt(3.141592653589793 / 2.0) / sqrt(1.5)
 
 # the luma's weights of (b, g, r), ITU-R BT.601 as JPEG's YCbCr (JFIF)
 cdef double W_B = 0.114
@@ -14,40 +21,31 @@ cdef double W_G = 0.587
 cdef double W_R = 0.299
 
 
-cdef inline double _linear_shortfall(const float* yl, const unsigned char* use,
-                                     Py_ssize_t m, Py_ssize_t j0, double v0, double s,
-                                     double sigma_dn, double expected) noexcept nogil:
-    """How far the luma's peak at ``v0`` with sigma ``s`` (least squares of ``c + b (v -
-    v0) + A g(v)`` over the ``m`` rows from image row ``j0`` where ``use``) falls short of
-    ``expected``, in standard errors of ``A`` (noise ``sigma_dn``); 0 where it cannot be
-    told."""
-    cdef double s00 = 0.0, s01 = 0.0, s02 = 0.0, s11 = 0.0, s12 = 0.0, s22 = 0.0
-    cdef double r0 = 0.0, r1 = 0.0, r2 = 0.0, x, gg, c00, c01, c02, det, a_hat, var_a
-    cdef Py_ssize_t jj
-    for jj in range(m):
-        if not use[jj]:
+cdef inline double _local_sigma(const unsigned char[:, :, ::1] img, Py_ssize_t i,
+                               Py_ssize_t j, Py_ssize_t core, double sigma_dn) noexcept nogil:
+    """The luma's noise near row ``j`` of column ``i``: the larger of ``sigma_dn`` and
+    the mean absolute lag-2 residual of the luma within ``NOISE_HALF`` rows, the
+    ``core`` rows either side of ``j`` left out, each residual clipped at ``CLIP_SIGMAS``
+    of ``sigma_dn`` (texture the opening leaves is noise to the luma's fit, as to the
+    evidence's candidates)."""
+    cdef Py_ssize_t h = img.shape[1], jj, n = 0
+    cdef double acc = 0.0, r, clip = CLIP_SIGMAS * sigma_dn
+    cdef const unsigned char* a
+    cdef const unsigned char* b
+    cdef const unsigned char* c
+    for jj in range(imax(j - NOISE_HALF, 2), imin(j + NOISE_HALF + 1, h - 2)):
+        if jj >= j - core and jj <= j + core:
             continue
-        x = j0 + jj - v0
-        gg = exp(-0.5 * x * x / (s * s))
-        s00 += 1.0
-        s01 += x
-        s02 += gg
-        s11 += x * x
-        s12 += x * gg
-        s22 += gg * gg
-        r0 += yl[jj]
-        r1 += x * yl[jj]
-        r2 += gg * yl[jj]
-    # the third row of the inverse of the symmetric 3 x 3 normal matrix (cofactors)
-    c00 = s01 * s12 - s11 * s02
-    c01 = -(s00 * s12 - s01 * s02)
-    c02 = s00 * s11 - s01 * s01
-    det = s02 * c00 + s12 * c01 + s22 * c02
-    if not (det > 1e-12 and c02 > 0.0):
-        return 0.0
-    a_hat = (c00 * r0 + c01 * r1 + c02 * r2) / det
-    var_a = sigma_dn * sigma_dn * c02 / det
-    return (expected - a_hat) / sqrt(var_a)
+        a = &img[i, jj - 2, 0]
+        b = &img[i, jj, 0]
+        c = &img[i, jj + 2, 0]
+        r = W_B * (b[0] - 0.5 * (a[0] + c[0])) + W_G * (b[1] - 0.5 * (a[1] + c[1])) + \
+            W_R * (b[2] - 0.5 * (a[2] + c[2]))
+        acc += pmin(fabs(r), clip)
+        n += 1
+    if n < 8:
+        return sigma_dn
+    return pmax(sigma_dn, MEAN_TO_SIGMA * acc / n)
 
 
 cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
@@ -55,12 +53,10 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
                            double s_ev, Py_ssize_t row0, double sigma_dn, double blur_var_px2,
                            double shape_error, double max_chi2, double s_max, double min_z,
                            int sat_dn, float* yl, unsigned char* use, double* ebuf,
-                           double* out, double expected, double* shortfall) noexcept nogil:
+                           double* out) noexcept nogil:
     """The luma's fit of column ``i`` near row ``v`` (image rows) from the evidence's
     width ``s_ev`` (module function :func:`luma_rows`); ``out`` (6,) as
-    :func:`fit_gaussian`'s; False where none is kept. With ``shortfall`` (not NULL):
-    how far the luma's peak at ``v`` falls short of ``expected`` DN, in its standard
-    errors (:func:`_linear_shortfall`)."""
+    :func:`fit_gaussian`'s; False where none is kept."""
     cdef Py_ssize_t h = img.shape[1], j, jj, a, b, m
     cdef const unsigned char* px
     cdef double s0
@@ -72,14 +68,13 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
     m = b - a
     if m < 7:
         return False
+    sigma_dn = _local_sigma(img, i, j, j - a, sigma_dn)
     for jj in range(m):
         px = &img[i, a + jj, 0]
         yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
                          W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
                          W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
         use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
-    if shortfall != NULL:
-        shortfall[0] = _linear_shortfall(yl, use, m, row0 + a, v, s0, sigma_dn, expected)
     if not fit_gaussian(yl, use, m, row0 + a, v, s0, sigma_dn, shape_error, s_max, out,
                         ebuf, NULL):
         return False
@@ -162,7 +157,7 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
                 se_ev_out[i] = cand[i, best, F_SE_POS]
             if not _luma_fit(img, bg, i, v[i], s_ev, row0, sigma_dn, blur_var_px2,
                              shape_error, max_chi2, s_max, min_z, sat_dn, &yl[0], &use[0],
-                             &ebuf[0], out, 0.0, NULL):
+                             &ebuf[0], out):
                 continue
             v_out[i] = out[0]
             se_out[i] = out[4]
@@ -171,42 +166,3 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
     return n_kept
 
 
-
-def luma_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
-                    const double[:, :, ::1] cand, need, Py_ssize_t row0, double sigma_dn,
-                    double blur_var_px2, double shape_error, double max_chi2, double s_max,
-                    double min_z, int sat_dn, double luma_share, double[:, ::1] w_out,
-                    double[:, ::1] se_out, double[:, ::1] short_out) -> None:
-    """The luma's fit (:func:`luma_rows`' test) at every candidate of ``cand`` (W, K,
-    N_FIELDS) where ``need`` (W, K) bool: its sigma and the standard error of its centre
-    into ``w_out``, ``se_out`` (W, K) float64, px (NaN where none is kept or not
-    needed); into ``short_out`` (W, K) how far the luma's peak at the candidate's row and
-    width falls short of ``luma_share`` times the candidate's peak, in its standard
-    errors (NaN where not needed). Other arguments as :func:`luma_rows`'."""
-    cdef Py_ssize_t w = img.shape[0], k = cand.shape[1], i, q
-    cdef const unsigned char[:, ::1] nd = np.ascontiguousarray(need).view(np.uint8)
-    if bg.shape[0] != 3 * w or bg.shape[1] != img.shape[1] or cand.shape[0] != w or \
-            nd.shape[0] != w or nd.shape[1] != k or w_out.shape[0] != w or \
-            w_out.shape[1] != k or se_out.shape[0] != w or se_out.shape[1] != k or \
-            short_out.shape[0] != w or short_out.shape[1] != k:
-        raise ValueError("luma_candidates: img (W, H, 3), bg (3 W, H), cand, need and the "
-                         "outputs (W, K) disagree in shape")
-    cdef Py_ssize_t max_m = 2 * (<Py_ssize_t>ceil(3.0 * s_max) + 4) + 1
-    cdef float[::1] yl = np.empty(max_m, np.float32)
-    cdef unsigned char[::1] use = np.empty(max_m, np.uint8)
-    cdef double[::1] ebuf = np.empty(max_m)
-    cdef double out[6]
-    with nogil:
-        for i in range(w):
-            for q in range(k):
-                w_out[i, q] = NAN
-                se_out[i, q] = NAN
-                short_out[i, q] = NAN
-                if not nd[i, q] or not isfinite(cand[i, q, F_POS]):
-                    continue
-                if _luma_fit(img, bg, i, cand[i, q, F_POS], cand[i, q, F_WIDTH], row0,
-                             sigma_dn, blur_var_px2, shape_error, max_chi2, s_max, min_z,
-                             sat_dn, &yl[0], &use[0], &ebuf[0], out,
-                             luma_share * cand[i, q, F_AMP], &short_out[i, q]):
-                    w_out[i, q] = out[2]
-                    se_out[i, q] = out[4]
