@@ -103,10 +103,13 @@ cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, d
 
 
 cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
-                      double tolerance, double extra_var) noexcept nogil:
+                      double tolerance, double blur_var) noexcept nogil:
     """A fitted width ``s`` that a sheet of sigma ``r x sheet_px`` (``r`` 1 or ``ref``)
-    gives, up to ``tolerance`` times either way, the pixel's extent and the image
-    processing's blur (``extra_var``, px^2) added, widened by two
+    gives, up to ``tolerance`` times either way, the pixel's extent added (and, to the
+    widest, the image processing's blur ``blur_var``, px^2: subsampled chroma blurs the
+    evidence by up to it, fully on a grey surface, where the evidence is all chroma,
+    less on a red one, where the red channel's luma keeps full resolution), widened by
+    two
     standard errors of the width (about the centre's ``se_pos``); True where the
     sheet's width is unknown (:func:`slitcli.laser.judge.valid_candidates`)."""
     cdef double se, a, b, r
@@ -119,7 +122,8 @@ cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
         r = 1.0 if i == 0 else ref
         a = r * sheet_px / tolerance
         b = r * sheet_px * tolerance
-        if sqrt(a * a + extra_var) - se <= s and s <= sqrt(b * b + extra_var) + se:
+        if sqrt(a * a + PIXEL_VAR) - se <= s and \
+                s <= sqrt(b * b + PIXEL_VAR + blur_var) + se:
             return True
     return False
 
@@ -155,14 +159,14 @@ cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
     (``vals`` scratch of n entries)."""
     cdef Py_ssize_t i, m = 0
     cdef const double* c
-    cdef double s, ratio, ref, extra_var = PIXEL_VAR + blur_var
+    cdef double s, ratio, ref
     # the sheet's thickness relative to the parameter's; where the frame shows its own
     # clearly (a stripe's worth of strong unclipped columns: a few strong columns beside
     # a clipped core are widened by it), that is a second reference
     for i in range(n):
         c = cand + i * N_FIELDS
         s = c[F_WIDTH]
-        ratio = sqrt(pmax(s * s - extra_var, 0.01)) / sheet_px[i]
+        ratio = sqrt(pmax(s * s - PIXEL_VAR - blur_var, 0.01)) / sheet_px[i]
         if ok[i] and not c[F_SAT] > 0 and c[F_Z] >= strong_z and isfinite(ratio):
             vals[m] = ratio
             m += 1
@@ -172,7 +176,7 @@ cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
         c = cand + i * N_FIELDS
         if ok[i] and not c[F_SAT] > 0:
             ok[i] = _fits_sheet(c[F_WIDTH], c[F_SE_POS], sheet_px[i], ref, sheet_tolerance,
-                                extra_var)
+                                blur_var)
 
 
 cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
