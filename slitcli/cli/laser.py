@@ -118,7 +118,7 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      " (> 1).",
      None),
     ("chroma_smoothness_max",
-     "Images whose chroma is this much smoother than their luma (ratio; 1: as rough) are "
+     "Images whose chroma is this much smoother than their luma (ratio; ~1: as rough) are "
      "taken for JPEG 4:2:0: the sheet test adds its blur; 0 = off (unitless).",
      None),
     ("luma_rows",

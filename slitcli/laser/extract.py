@@ -118,7 +118,7 @@ class _Evidence(NamedTuple):
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
-              win: int, params: LaserParams) -> _Evidence:
+              win: int, params: LaserParams, sheet_test: bool) -> _Evidence:
     """Background (vertical opening of ``win`` rows), laser evidence and its noise for
     the searched rows ``sub`` (h, W, 3) BGR; ``img_t``, ``mask_t`` their transposes,
     ``chan`` the per-channel noise (module notes of :mod:`~slitcli.laser.evidence`)."""
@@ -153,9 +153,10 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
                   evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
-    # subsampled chroma (JPEG 4:2:0) blurs the evidence, which is chroma, across rows
-    subsampled = luma.chroma_smoothness(img_t, evidence.NOISE_STEP) < \
-        params.chroma_smoothness_max
+    # subsampled chroma (JPEG 4:2:0) blurs the evidence, which is chroma, across rows;
+    # told from the image where it matters (the sheet test, the luma's rows)
+    subsampled = (sheet_test or params.luma_rows) and params.chroma_smoothness_max > 0 and \
+        luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
                      float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0)
 
@@ -205,7 +206,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         paper.paper_columns(img_t, mask_t, params.min_th, params.min_delta_th, params.alpha,
                             params.beta, params.gamma, params.continuity_px, max_w, v, amp)
         return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
-    ev = _evidence(sub, img_t, mask_t, chan, win, params)
+    ev = _evidence(sub, img_t, mask_t, chan, win, params,
+                   px_per_m is not None and params.sheet_sigma_mm > 0)
     y, y_avg, clipped = ev.y, ev.y_avg, ev.clipped
     sigma_y, sigma_avg = ev.sigma_y, ev.sigma_avg
     seed = params.seed_z * ev.noise_avg

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from slitcli.laser._c.luma import lag_medians as _lag_medians
 from slitcli.laser._c.luma import luma_rows as _luma_rows
 
 #: variance the 4:2:0 chain adds to a profile across rows: the two-row mean (1/4 px^2)
@@ -34,39 +35,38 @@ from slitcli.laser._c.luma import luma_rows as _luma_rows
 CHAIN_VAR_PX2 = 0.25 + 4.0 / 6.0
 #: the long lag of the smoothness ratio, rows (beyond the 4:2:0 chain's reach)
 LONG_LAG = 4
+#: every SMOOTHNESS_STEP-th column enters the smoothness ratio (~9,000 pairs a lag at
+#: 320x240)
+SMOOTHNESS_STEP = 8
 #: median absolute deviation of a Gaussian over its sigma, and the lag-2 residual's
 #: sigma over the pixel's (``x(v) - (x(v - 2) + x(v + 2)) / 2``: sqrt(1.5))
 MAD_TO_SIGMA = 1.0 / (0.6745 * math.sqrt(1.5))
 # JFIF's YCbCr: the luma and red-difference chroma of (b, g, r)
 _Y_BGR = np.array([0.114, 0.587, 0.299], np.float32)
-_CR_BGR = np.array([-0.0813, -0.4187, 0.5], np.float32)
-
-
-def _lag_mad(x: np.ndarray, lag: int) -> float:
-    """Median absolute difference of ``x`` (columns, rows) at ``lag`` rows."""
-    return float(np.median(np.abs(x[:, lag:] - x[:, :-lag])))
+#: the lag medians' bin (slitcli/laser/_c/luma.pyx), DN
+_BIN_DN = 0.25
 
 
 def chroma_smoothness(img_t: np.ndarray, step: int) -> float:
     """How much smoother the image's red-difference chroma is than its luma down the
-    columns (1: as rough; near 0: subsampled or heavily quantised chroma).
+    columns (about 1 or more: as rough; near 0: subsampled or heavily quantised chroma).
 
     ``(D_C(1) / D_C(L)) / (D_Y(1) / D_Y(L))`` with ``D(k)`` the median absolute difference
-    at a lag of ``k`` rows over every ``step``-th column of ``img_t`` (W, H, 3) BGR
-    (transposed: one image column per array row), ``L`` = :data:`LONG_LAG`, ``C``
-    = ``Cr``, ``Y`` the luma (JFIF). Infinite where either plane shows no differences
-    (a grey or flat image: nothing to tell).
+    at a lag of ``k`` rows (to a quarter DN, the median's bin centre) over every
+    ``step``-th column of ``img_t`` (W, H, 3) uint8 BGR (transposed: one image column per
+    array row), ``L`` = :data:`LONG_LAG`, ``C`` = ``Cr``, ``Y`` the luma (JFIF). Infinite
+    where a plane shows no differences at the long lag, or the luma none at lag 1 (a
+    grey or flat image: nothing to tell).
     """
-    sub = np.asarray(img_t[::step], dtype=np.float32)
-    if sub.shape[0] == 0 or sub.shape[1] <= LONG_LAG:
+    if img_t.shape[0] == 0 or img_t.shape[1] <= LONG_LAG:
         return math.inf
-    luma = sub @ _Y_BGR
-    chroma = sub @ _CR_BGR
-    d_y1, d_yl = _lag_mad(luma, 1), _lag_mad(luma, LONG_LAG)
-    d_cl = _lag_mad(chroma, LONG_LAG)
-    if d_y1 <= 0.0 or d_yl <= 0.0 or d_cl <= 0.0:
+    d_y1, d_yl, d_c1, d_cl = _lag_medians(np.ascontiguousarray(img_t, dtype=np.uint8),
+                                          step, LONG_LAG)
+    # (a median in the first bin is "no difference")
+    floor = 0.5 * _BIN_DN
+    if d_y1 <= floor or d_yl <= floor or d_cl <= floor:
         return math.inf
-    return (_lag_mad(chroma, 1) / d_cl) / (d_y1 / d_yl)
+    return (d_c1 / d_cl) / (d_y1 / d_yl)
 
 
 def luma_sigma(img_t: np.ndarray, step: int) -> float:

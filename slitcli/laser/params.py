@@ -98,9 +98,10 @@ class LaserParams:
         over long-lag differences, chroma's over luma's; about 1 or more when as rough,
         near 0 subsampled) is taken for JPEG 4:2:0 (subsampled chroma): the sheet test
         adds the 4:2:0 chain's blur (``slitcli.laser.luma.CHAIN_VAR_PX2``, 0.92 px^2) to
-        the stripe's width. 0 turns it off. Default 0.8: renders without a camera model
-        measure 1.5-2.0, the camera model's 4:4:4 and 4:2:2 JPEG 0.9, its 4:2:0 0-0.74,
-        the development set's robot photographs (4:2:0) 0.57-0.62 (docs/laser.md).
+        the stripe's width. 0 turns it off. Default 0.85: renders without a camera model
+        measure 1.4-2.4, through the camera model's presets with JPEG 4:4:4 0.93-1.4,
+        its 4:2:0 presets 0.26-0.37 (``webcam``) and 0.72-0.80 (``robot``), the
+        development set's robot photographs (4:2:0) 0.54-0.60 (docs/laser.md).
     luma_rows : bool
         Under subsampled chroma (above), fit each found column's row again on the luma
         (full resolution) and combine it with the evidence's row by their variances
@@ -133,7 +134,7 @@ class LaserParams:
     max_search_range_m: float = 3.0
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
-    chroma_smoothness_max: float = 0.8
+    chroma_smoothness_max: float = 0.85
     luma_rows: bool = False
 
     def __post_init__(self) -> None:
