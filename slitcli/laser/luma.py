@@ -55,8 +55,9 @@ def chroma_smoothness(img_t: np.ndarray, step: int) -> float:
     at a lag of ``k`` rows (to a quarter DN, the median's bin centre) over every
     ``step``-th column of ``img_t`` (W, H, 3) uint8 BGR (transposed: one image column per
     array row), ``L`` = :data:`LONG_LAG`, ``C`` = ``Cr``, ``Y`` the luma (JFIF). Infinite
-    where a plane shows no differences at the long lag, or the luma none at lag 1 (a
-    grey or flat image: nothing to tell).
+    where the luma shows no differences (a flat image: nothing to tell); 0 where the
+    luma does and the chroma shows none at the long lag (a plain surface through a
+    codec that flattens chroma, or a grey image, which carries no red stripe anyway).
     """
     if img_t.shape[0] == 0 or img_t.shape[1] <= LONG_LAG:
         return math.inf
@@ -64,8 +65,10 @@ def chroma_smoothness(img_t: np.ndarray, step: int) -> float:
                                           step, LONG_LAG)
     # (a median in the first bin is "no difference")
     floor = 0.5 * _BIN_DN
-    if d_y1 <= floor or d_yl <= floor or d_cl <= floor:
+    if d_y1 <= floor or d_yl <= floor:
         return math.inf
+    if d_cl <= floor:
+        return 0.0
     return (d_c1 / d_cl) / (d_y1 / d_yl)
 
 
