@@ -1,5 +1,7 @@
-"""The stripe's row on the luma, compiled (:func:`slitcli.laser.luma.luma_rows` calls
-:func:`luma_rows`; the fit is ``profile.pxd``'s :func:`fit_gaussian`)."""
+"""Subsampled chroma, compiled: the lag medians that tell it
+(:func:`slitcli.laser.luma.chroma_smoothness` calls :func:`lag_medians`) and the stripe's
+row on the luma (:func:`slitcli.laser.luma.luma_rows` calls :func:`luma_rows`; the fit
+is ``profile.pxd``'s :func:`fit_gaussian`)."""
 
 import numpy as np
 
