@@ -234,6 +234,7 @@ ABLATIONS = {
     "overlapping fits both kept (no judge.one_crossing)":
         {"judge.one_crossing": lambda cand, ok: ok},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
+    "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
     "paper method": {"method": "paper"},
 }
 

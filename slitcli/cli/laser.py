@@ -117,6 +117,14 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "A candidate whose width implies a sheet this many times thicker or thinner is rejected"
      " (> 1).",
      None),
+    ("chroma_smoothness_max",
+     "Images whose chroma is this much smoother than their luma (ratio; ~1: as rough) are "
+     "taken for JPEG 4:2:0: the sheet test adds its blur; 0 = off (unitless).",
+     None),
+    ("luma_rows",
+     "Under JPEG 4:2:0 chroma, refit the rows on the luma and combine (helps on plain "
+     "surfaces, hurts on fine texture).",
+     None),
 )
 
 

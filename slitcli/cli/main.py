@@ -85,6 +85,7 @@ PARAM_FLAGS: dict[str, str] = {
     "continuity_px": "--continuity-px", "max_jump_px": "--max-jump-px",
     "min_segment_share": "--min-segment-share", "min_stripe_share": "--min-stripe-share",
     "sheet_sigma_mm": "--sheet-sigma-mm", "sheet_tolerance": "--sheet-tolerance",
+    "chroma_smoothness_max": "--chroma-smoothness-max", "luma_rows": "--luma-rows",
 }
 
 

@@ -28,7 +28,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from slitcli.laser import candidates, choose, evidence, judge, paper
+from slitcli.laser import candidates, choose, evidence, judge, luma, paper
 from slitcli.laser.params import LaserParams
 from slitcli.laser.profile import F_POS, F_Z, N_FIELDS
 
@@ -114,10 +114,11 @@ class _Evidence(NamedTuple):
     sigma_avg: float       # the same of y_avg
     noise_avg: float       # pixel noise of y_avg (seeds candidates), DN
     chan: np.ndarray       # noise per channel (b, g, r), floored, DN
+    blur_var: float        # variance the chroma's processing adds to a profile, px^2
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
-              win: int, params: LaserParams) -> _Evidence:
+              win: int, params: LaserParams, sheet_test: bool) -> _Evidence:
     """Background (vertical opening of ``win`` rows), laser evidence and its noise for
     the searched rows ``sub`` (h, W, 3) BGR; ``img_t``, ``mask_t`` their transposes,
     ``chan`` the per-channel noise (module notes of :mod:`~slitcli.laser.evidence`)."""
@@ -152,8 +153,12 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
                   evidence.spread_sigma(y, live, evidence.NOISE_STEP), params.noise_floor_dn)
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
+    # subsampled chroma (JPEG 4:2:0) blurs the evidence, which is chroma, across rows;
+    # told from the image where it matters (the sheet test, the luma's rows)
+    subsampled = (sheet_test or params.luma_rows) and params.chroma_smoothness_max > 0 and \
+        luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
-                     float(noise_avg), chan)
+                     float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0)
 
 
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
@@ -201,7 +206,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
         paper.paper_columns(img_t, mask_t, params.min_th, params.min_delta_th, params.alpha,
                             params.beta, params.gamma, params.continuity_px, max_w, v, amp)
         return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
-    ev = _evidence(sub, img_t, mask_t, chan, win, params)
+    ev = _evidence(sub, img_t, mask_t, chan, win, params,
+                   px_per_m is not None and params.sheet_sigma_mm > 0)
     y, y_avg, clipped = ev.y, ev.y_avg, ev.clipped
     sigma_y, sigma_avg = ev.sigma_y, ev.sigma_avg
     seed = params.seed_z * ev.noise_avg
@@ -219,7 +225,26 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
                          GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
+    if params.luma_rows and ev.blur_var > 0.0 and np.isfinite(v).any():
+        v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
+
+
+def _luma_refined(v: np.ndarray, sat: np.ndarray, cand: np.ndarray, img_t: np.ndarray,
+                  r0: int, ev: _Evidence, s_max: float, params: LaserParams) -> np.ndarray:
+    """The rows ``v`` (W,) found on the evidence of an image with subsampled chroma, fitted
+    again on the luma where it shows the stripe (:func:`slitcli.laser.luma.luma_rows`),
+    smoothed along the segments as the evidence's rows are, and combined with them by
+    their variances (:func:`slitcli.laser.luma.combined_rows`)."""
+    sigma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
+    v_l, se_l, w_l, se_ev = luma.luma_rows(
+        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma, blur_var_px2=ev.blur_var,
+        shape_error=params.shape_error, max_chi2=params.max_chi2, s_max=s_max,
+        min_z=params.weak_z, saturation_dn=params.saturation_dn)
+    keep = np.isfinite(v_l)
+    smooth = np.empty_like(v_l)
+    choose.smooth_rows(v_l, se_l, w_l, keep.view(np.uint8), params.max_jump_px, smooth)
+    return luma.combined_rows(v, se_ev, smooth, se_l)
 
 
 def _checked_inputs(left_bgr: np.ndarray, search_mask: np.ndarray | None,
@@ -269,7 +294,7 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
         min_th=params.min_th, min_delta_th=params.min_delta_th,
         colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
-        sheet_support=round(params.min_stripe_share * w))
+        sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var)
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)
@@ -277,4 +302,5 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(ev.sigma_y),
                                       params.shape_error, need)
     return cand, judge.one_crossing(cand, ok), laser
+
 

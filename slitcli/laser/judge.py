@@ -42,7 +42,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
                      max_chi2: float, min_th: float, min_delta_th: float,
                      colour_error: float, channel_sigma_dn: float,
                      sheet_px: np.ndarray | None, sheet_tolerance: float,
-                     sheet_support: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
+                     sheet_support: int = 0, blur_var_px2: float = 0.0
+                     ) -> tuple[np.ndarray, np.ndarray | None]:
     """Which candidates (W, K) can be the laser, and the laser colour used.
 
     Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
@@ -56,7 +57,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     candidate's row, px, NaN unknown) a width that implies a sheet at most
     ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
     strong columns do (when at least ``sheet_support`` of them show it, else the
-    parameter); and at most
+    parameter), the pixel's extent and ``blur_var_px2`` (px^2: what the image's
+    processing adds, :mod:`slitcli.laser.luma`) added to its variance; and at most
     ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
 
     Returns
@@ -67,7 +69,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     """
     cand = np.ascontiguousarray(cand, dtype=np.float64)
     ok, laser = shape_tests(cand, sheet_px, height_px, s_max, min_z, max_chi2, min_th,
-                            min_delta_th, sheet_tolerance, sheet_support, WIDTH_SPREAD)
+                            min_delta_th, sheet_tolerance, sheet_support, WIDTH_SPREAD,
+                            blur_var_px2)
     if laser is None:
         return ok, None
     # (the unit vector of the laser colour as numpy's norm gives it: the tests below

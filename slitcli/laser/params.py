@@ -92,6 +92,21 @@ class LaserParams:
         thinner is not the laser. 0 turns the test off.
     sheet_tolerance : float
         Factor of that test (> 1).
+    chroma_smoothness_max : float
+        An image whose red-difference chroma is smoother down the columns than its luma
+        by this ratio or more (:func:`slitcli.laser.luma.chroma_smoothness`: short-lag
+        over long-lag differences, chroma's over luma's; about 1 or more when as rough,
+        near 0 subsampled) is taken for JPEG 4:2:0 (subsampled chroma): the sheet test
+        adds the 4:2:0 chain's blur (``slitcli.laser.luma.CHAIN_VAR_PX2``, 0.92 px^2) to
+        the stripe's width. 0 turns it off. Default 0.85: renders without a camera model
+        measure 1.4-2.4, through the camera model's presets with JPEG 4:4:4 0.93-1.4,
+        its 4:2:0 presets 0.26-0.37 (``webcam``) and 0.72-0.80 (``robot``), the
+        development set's robot photographs (4:2:0) 0.54-0.60 (docs/laser.md).
+    luma_rows : bool
+        Under subsampled chroma (above), fit each found column's row again on the luma
+        (full resolution) and combine it with the evidence's row by their variances
+        (:func:`slitcli.laser.luma.combined_rows`). Off by default: it helps where the
+        surface under the stripe is plain and hurts on fine texture (docs/laser.md).
     """
 
     method: str = "model"
@@ -119,6 +134,8 @@ class LaserParams:
     max_search_range_m: float = 3.0
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
+    chroma_smoothness_max: float = 0.85
+    luma_rows: bool = False
 
     def __post_init__(self) -> None:
         checks = {
@@ -148,6 +165,8 @@ class LaserParams:
             "max_search_range_m": self.max_search_range_m > 0.0,
             "sheet_sigma_mm": self.sheet_sigma_mm >= 0.0,
             "sheet_tolerance": self.sheet_tolerance > 1.0,
+            "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
+            "luma_rows": isinstance(self.luma_rows, bool),
         }
         for name, ok in checks.items():
             if not ok:
@@ -200,4 +219,6 @@ _RANGES = {
     "max_search_range_m": "give a range > 0 m",
     "sheet_sigma_mm": "give a thickness >= 0 mm (0: no test)",
     "sheet_tolerance": "give a factor > 1",
+    "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
+    "luma_rows": "give true or false",
 }

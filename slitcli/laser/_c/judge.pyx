@@ -103,9 +103,13 @@ cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, d
 
 
 cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
-                      double tolerance) noexcept nogil:
+                      double tolerance, double blur_var) noexcept nogil:
     """A fitted width ``s`` that a sheet of sigma ``r x sheet_px`` (``r`` 1 or ``ref``)
-    gives, up to ``tolerance`` times either way, the pixel's extent added, widened by two
+    gives, up to ``tolerance`` times either way, the pixel's extent added (and, to the
+    widest, the image processing's blur ``blur_var``, px^2: subsampled chroma blurs the
+    evidence by up to it, fully on a grey surface, where the evidence is all chroma,
+    less on a red one, where the red channel's luma keeps full resolution), widened by
+    two
     standard errors of the width (about the centre's ``se_pos``); True where the
     sheet's width is unknown (:func:`slitcli.laser.judge.valid_candidates`)."""
     cdef double se, a, b, r
@@ -118,7 +122,8 @@ cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
         r = 1.0 if i == 0 else ref
         a = r * sheet_px / tolerance
         b = r * sheet_px * tolerance
-        if sqrt(a * a + PIXEL_VAR) - se <= s and s <= sqrt(b * b + PIXEL_VAR) + se:
+        if sqrt(a * a + PIXEL_VAR) - se <= s and \
+                s <= sqrt(b * b + PIXEL_VAR + blur_var) + se:
             return True
     return False
 
@@ -148,9 +153,10 @@ cdef bint _laser_colour(const double* cand, Py_ssize_t n, const unsigned char* o
 
 cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
                        double strong_z, double sheet_tolerance, Py_ssize_t sheet_support,
-                       unsigned char* ok, double* vals) noexcept nogil:
+                       double blur_var, unsigned char* ok, double* vals) noexcept nogil:
     """The sheet's thickness test of :func:`shape_tests` of the ``n`` fits of ``cand``
-    (``sheet_px`` (n,)) into ``ok`` (``vals`` scratch of n entries)."""
+    (``sheet_px`` (n,); ``blur_var`` px^2 the image processing's blur) into ``ok``
+    (``vals`` scratch of n entries)."""
     cdef Py_ssize_t i, m = 0
     cdef const double* c
     cdef double s, ratio, ref
@@ -160,7 +166,7 @@ cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
     for i in range(n):
         c = cand + i * N_FIELDS
         s = c[F_WIDTH]
-        ratio = sqrt(pmax(s * s - PIXEL_VAR, 0.01)) / sheet_px[i]
+        ratio = sqrt(pmax(s * s - PIXEL_VAR - blur_var, 0.01)) / sheet_px[i]
         if ok[i] and not c[F_SAT] > 0 and c[F_Z] >= strong_z and isfinite(ratio):
             vals[m] = ratio
             m += 1
@@ -169,14 +175,15 @@ cdef void _sheet_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
     for i in range(n):
         c = cand + i * N_FIELDS
         if ok[i] and not c[F_SAT] > 0:
-            ok[i] = _fits_sheet(c[F_WIDTH], c[F_SE_POS], sheet_px[i], ref, sheet_tolerance)
+            ok[i] = _fits_sheet(c[F_WIDTH], c[F_SE_POS], sheet_px[i], ref, sheet_tolerance,
+                                blur_var)
 
 
 cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
                        Py_ssize_t height_px, double s_max, double min_z, double max_chi2,
                        double min_th, double min_delta_th, double sheet_tolerance,
-                       Py_ssize_t sheet_support, double width_spread, unsigned char* ok,
-                       double* work, double* laser) noexcept nogil:
+                       Py_ssize_t sheet_support, double width_spread, double blur_var,
+                       unsigned char* ok, double* work, double* laser) noexcept nogil:
     """:func:`shape_tests` of the ``n`` fits of ``cand`` (``sheet_px`` (n,) or NULL;
     ``work`` scratch of 3 n entries); returns whether the frame shows the laser's
     colour."""
@@ -185,7 +192,8 @@ cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
     cdef double strong_z = COLOUR_Z * min_z, widest
     _model_tests(cand, n, height_px, s_max, max_chi2, min_th, min_delta_th, ok)
     if sheet_px != NULL:
-        _sheet_tests(cand, n, sheet_px, strong_z, sheet_tolerance, sheet_support, ok, work)
+        _sheet_tests(cand, n, sheet_px, strong_z, sheet_tolerance, sheet_support, blur_var,
+                     ok, work)
     # the sheet's width as the frame shows it: its strong unclipped columns
     for i in range(n):
         c = cand + i * N_FIELDS
@@ -203,7 +211,8 @@ cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
 
 def shape_tests(const double[:, :, ::1] cand, sheet_px, Py_ssize_t height_px, double s_max,
                 double min_z, double max_chi2, double min_th, double min_delta_th,
-                double sheet_tolerance, Py_ssize_t sheet_support, double width_spread):
+                double sheet_tolerance, Py_ssize_t sheet_support, double width_spread,
+                double blur_var_px2=0.0):
     """:func:`slitcli.laser.judge.valid_candidates` up to the colour tests.
 
     Parameters
@@ -218,6 +227,9 @@ def shape_tests(const double[:, :, ::1] cand, sheet_px, Py_ssize_t height_px, do
 width_spread
         As :func:`~slitcli.laser.judge.valid_candidates` (``width_spread``:
         ``WIDTH_SPREAD``).
+    blur_var_px2 : float
+        Variance the image processing adds to the stripe's profile across rows, px^2
+        (the sheet's test; :data:`slitcli.laser.luma.CHAIN_VAR_PX2` under 4:2:0 chroma).
 
     Returns
     -------
@@ -249,7 +261,8 @@ width_spread
     with nogil:
         found = _shape_tests(&cand[0, 0, 0], n, sheet_ptr, height_px, s_max, min_z,
                              max_chi2, min_th, min_delta_th, sheet_tolerance, sheet_support,
-                             width_spread, &ok[0, 0], &work[0], &work[3 * n])
+                             width_spread, blur_var_px2, &ok[0, 0], &work[0],
+                             &work[3 * n])
     return ok_arr, (work_arr[3 * n:].copy() if found else None)
 
 
@@ -540,3 +553,4 @@ def one_crossing_table(const double[:, :, ::1] cand, const unsigned char[:, ::1]
                     a += 1
                 out[col, b] = keep
     return out_arr
+
