@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 from stereo_synth import draw_seeds, plane_pair, quantise, texture
+from test_stereo_sgm_ground import ROAD_RIG, SEEDS, render_floor
 
 from slitcli.errors import SlitcliError
 from slitcli.rig import paper_rig
@@ -23,31 +24,18 @@ from slitcli.stereo.ground import (
 )
 from slitcli.stereo.matcher import MatcherParams, compute_disparity, with_rig_ground
 
-SEEDS = [0, 1, 2, 3, 4]
-#: the paper rig with a 0.25 m baseline (0.361 px per row, horizon row 28.5, KITTI's
-#: road about 0.33), and a higher, less tilted one (0.246 px per row, horizon 75.4)
-ROAD_RIG = replace(paper_rig(), baseline_m=0.25)
+#: ROAD_RIG: the paper rig with a 0.25 m baseline (0.361 px per row, horizon row 28.5,
+#: KITTI's road about 0.33); HIGH_RIG a higher, less tilted one (0.246 px per row,
+#: horizon 75.4)
 HIGH_RIG = replace(paper_rig(), baseline_m=0.2,
                    mount=replace(paper_rig().mount, height_m=0.8, tilt_deg=10.0))
 NUM = 96
 
 
 def _render_floor(rig, seed: int, contrast: float) -> dict:
-    from slitcli.sim.render import render_frame
-    from slitcli.sim.scene import scene_from_dict
-
-    d = {"slitcli_scene": 1, "name": f"floor-{seed}", "seed": seed,
-         "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
-                   "contrast": contrast},
-         "objects": [], "image": {"noise_sigma_dn": 2.0},
-         "robot": {"start": [0.0, 0.0, 0.0], "motion": "static", "frames": 1}}
-    scene = scene_from_dict(d, d["name"])
-    fr = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
-    return {"left": cv2.cvtColor(fr.left_bgr, cv2.COLOR_BGR2GRAY),
-            "right": cv2.cvtColor(fr.right_bgr, cv2.COLOR_BGR2GRAY),
-            "gt": fr.truth.disparity_px,
-            "floor": (fr.truth.object_id == 0) & (fr.truth.depth_m <= 3.0)
-            & np.isfinite(fr.truth.disparity_px)}
+    z = render_floor(seed, contrast, rig)
+    return {**z, "left": cv2.cvtColor(z["left"], cv2.COLOR_BGR2GRAY),
+            "right": cv2.cvtColor(z["right"], cv2.COLOR_BGR2GRAY)}
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -235,7 +235,9 @@ def test_sheared_window_removes_the_slant_bias(seed):
     assert (np.abs(err) > 1.0).mean() <= 0.001
 
 
-def _render_floor(seed: int, contrast: float) -> dict:
+def render_floor(seed: int, contrast: float, rig=ROAD_RIG) -> dict:
+    """A textured floor alone (noise texture of ``contrast``, 2 DN noise) seen by ``rig``:
+    BGR views, true disparity and the floor within 3 m."""
     from slitcli.sim.render import render_frame
     from slitcli.sim.scene import scene_from_dict
 
@@ -245,7 +247,7 @@ def _render_floor(seed: int, contrast: float) -> dict:
          "objects": [], "image": {"noise_sigma_dn": 2.0},
          "robot": {"start": [0.0, 0.0, 0.0], "motion": "static", "frames": 1}}
     scene = scene_from_dict(d, d["name"])
-    fr = render_frame(scene, ROAD_RIG, scene.poses(1)[0], frame_index=0)
+    fr = render_frame(scene, rig, scene.poses(1)[0], frame_index=0)
     return {"left": fr.left_bgr, "right": fr.right_bgr, "gt": fr.truth.disparity_px,
             "floor": (fr.truth.object_id == 0) & (fr.truth.depth_m <= 3.0)
             & np.isfinite(fr.truth.disparity_px)}
@@ -269,7 +271,7 @@ def test_rendered_floor_with_the_rig_shear(seed, contrast):
     residual never reaches 1 px)."""
     from slitcli.stereo.pipeline import StereoParams, process_stereo_pair
 
-    z = _render_floor(seed, contrast)
+    z = render_floor(seed, contrast)
     num = 96
     p = StereoParams(matcher=MatcherParams(num_disparities=num, aggregation="sgm"))
     got = process_stereo_pair(z["left"], z["right"], ROAD_RIG, p).disparity_px
