@@ -98,31 +98,26 @@ def estimate_match_noise(left_grey: np.ndarray, right_grey: np.ndarray,
     MatchNoise
         ``sigma_dn`` 0 when fewer than :data:`MIN_SAMPLES` matches are usable.
     """
-    gl = np.asarray(left_grey, np.float32)
-    gr = np.asarray(right_grey, np.float32)
+    from slitcli.stereo._c import noise as _kernels
+
+    gl = np.ascontiguousarray(left_grey, np.float32)
+    gr = np.ascontiguousarray(right_grey, np.float32)
     h, w = gl.shape
-    d = np.asarray(disparity_px, np.float32)
+    d = np.ascontiguousarray(disparity_px, np.float32)
+    ok = np.ascontiguousarray(valid, bool).view(np.uint8)
+    count = _kernels.count_matches(d, ok)
+    if count < MIN_SAMPLES:
+        return MatchNoise()
     # the matches as 1-D arrays (a frame's matches, not its pixels); more than
     # MAX_SAMPLES: pairs of rows at a regular step (neighbours along y stay together)
-    mask = np.asarray(valid, bool) & np.isfinite(d)
-    step = -(-int(np.count_nonzero(mask)) // MAX_SAMPLES)
-    if step > 1:
-        rows = np.arange(h)
-        mask &= ((rows // 2) % step == 0)[:, None]
-    ys, xs = np.nonzero(mask)
-    dv = d[ys, xs]
-    di = np.rint(dv)
-    frac = dv - di
-    xr = xs - di.astype(np.int64)
-    use = (np.abs(frac) <= _MAX_FRACTION_PX) & (xr >= 1) & (xr <= w - 2)
-    if use.sum() < MIN_SAMPLES:
+    step = -(-count // MAX_SAMPLES)
+    ys, xs, di = (np.empty(count, np.int32) for _ in range(3))
+    diff, slope = np.empty(count, np.float32), np.empty(count, np.float32)
+    n = _kernels.match_differences(gl, gr, d, ok, step, _MAX_FRACTION_PX, ys, xs, di,
+                                   diff, slope)
+    if n < MIN_SAMPLES:
         return MatchNoise()
-    ys, xs, xr, frac, di = ys[use], xs[use], xr[use], frac[use], di[use]
-    flat_r = gr.ravel()
-    at = ys * w + xr
-    # L(x) = R(x - d) ~ R(x - di) - frac R'(x - di): remove the fractional shift
-    slope = 0.5 * (flat_r[at + 1] - flat_r[at - 1])
-    diff = gl[ys, xs] - flat_r[at] + frac * slope
+    ys, xs, di, diff, slope = ys[:n], xs[:n], di[:n], diff[:n], slope[:n]
     q1, centre, q3 = _quantiles(diff)
     robust = max((q3 - q1) / 1.349, 0.5)
     keep = np.abs(diff - centre) <= _TRIM_SIGMAS * robust
@@ -136,24 +131,14 @@ def estimate_match_noise(left_grey: np.ndarray, right_grey: np.ndarray,
     res = (diff - centre)
     var2 = float(np.mean(np.square(res[flat], dtype=np.float64)))
     # neighbour pairs among the kept matches (one pair of noises: both on one whole
-    # disparity), looked up through an index image: the work stays on the matches
-    ys, xs, res, di = ys[keep], xs[keep], res[keep].astype(np.float64), di[keep]
-    index = np.full(h * w, -1, np.int32)
-    index[ys * w + xs] = np.arange(ys.size, dtype=np.int32)
-
-    # the four neighbours right, below, below-right, below-left at once
-    dy = np.array([0, 1, 1, 1])[:, None]
-    dx = np.array([1, 0, 1, -1])[:, None]
-    ny, nx = ys[None, :] + dy, xs[None, :] + dx
-    inside = (ny < h) & (nx >= 0) & (nx < w)
-    nb = np.where(inside, index[np.where(inside, ny * w + nx, 0)], -1)
-    pair = (nb >= 0) & (di[nb] == di[None, :])
-    # element-wise sums, not np.dot: BLAS would start its own threads
-    ra = np.where(pair, res[None, :], 0.0)
-    rb = np.where(pair, res[nb], 0.0)
-    den = np.sqrt(np.sum(ra * ra, axis=1) * np.sum(rb * rb, axis=1))
-    enough = (pair.sum(axis=1) >= MIN_SAMPLES) & (den > 0)
-    rho = np.where(enough, np.sum(ra * rb, axis=1) / np.where(enough, den, 1.0), 0.0)
+    # disparity): right, below, below-right, below-left
+    sums = np.empty((4, 4))
+    _kernels.neighbour_sums(ys[keep], xs[keep], di[keep], res[keep].astype(np.float64),
+                            np.full(h * w, -1, np.int32), h, w, sums)
+    pairs, saa, sbb, sab = sums.T
+    den = np.sqrt(saa * sbb)
+    enough = (pairs >= MIN_SAMPLES) & (den > 0)
+    rho = np.where(enough, sab / np.where(enough, den, 1.0), 0.0)
     return MatchNoise(sigma_dn=float(np.sqrt(var2 / 2.0)), rho_x=float(rho[0]),
                       rho_y=float(rho[1]), rho_diag=float(0.5 * (rho[2] + rho[3])), samples=n)
 
