@@ -165,8 +165,8 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
         ``s r .. s r + s - 1`` (centre ``s r + (s - 1) / 2``).
     """
     from slitcli.stereo import _nssd
-    from slitcli.stereo.bands import kernel_threads, run_row_bands
-    from slitcli.stereo.cost import _QUANT, prefilter_image
+    from slitcli.stereo.bands import kernel_threads
+    from slitcli.stereo.cost import prefilter_image
 
     h, w = left_grey.shape
     s = max(1, round(math.sqrt(h * w / fit.area_px)))
@@ -186,25 +186,19 @@ def first_pass(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherPar
         return cv2.resize(np.ascontiguousarray(img[:hs * s, :ws * s]), (ws, hs),
                           interpolation=cv2.INTER_AREA)
 
-    # the local matcher's winner step alone (slitcli.stereo.matcher._winners: texture,
-    # uniqueness, left-right, subpixel), on the matcher's prefilter: the line fit is
-    # robust to the few wrong pixels the support, depth-edge and speckle filters would
-    # remove, at a third of the time
+    # the local matcher's winner step alone (texture, uniqueness, left-right, subpixel),
+    # on the matcher's prefilter: the line fit is robust to the few wrong pixels the
+    # support, depth-edge and speckle filters would remove, at a third of the time
     p = replace(params, aggregation="none", num_disparities=int(num),
                 min_disparity_px=int(dmin), window_w_px=int(ww), window_h_px=int(wh))
     pl, pr = prefilter_image(reduce(left_grey), p), prefilter_image(reduce(right_grey), p)
-    prr = np.ascontiguousarray(pr[:, ::-1])
-    energy_min = (p.texture_min_dn * _QUANT) ** 2 if p.prefilter != "none" else 0.0
     disp, cost, rdisp = np.empty((3, hs, ws), np.float32)
     reason = np.empty((hs, ws), np.uint8)
-    args = (int(dmin), int(num), ww // 2, wh // 2, float(p.uniqueness_ratio),
-            float(p.lr_max_diff_px), p.subpixel == "parabola", np.float32(energy_min),
-            disp, cost, reason, rdisp)
     # a second thread only on the caller's pool: a pool of its own costs about 0.5 ms,
     # more than half this pass
     threads = kernel_threads() if pool is not None else 1
-    run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), hs,
-                  pool if threads > 1 else None, threads, min_rows=wh)
+    _nssd.winners(pl, pr, p, pool if threads > 1 else None, threads, disp, cost, reason,
+                  rdisp)
     return np.where(reason == 0, disp, np.float32(np.nan)), s
 
 

@@ -85,9 +85,8 @@ from slitcli.stereo.bands import (
     check_thread_setting,
     frame_pool,
     kernel_threads,
-    run_row_bands,
 )
-from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image, to_grey
+from slitcli.stereo.cost import DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
 from slitcli.stereo.reasons import Reason
@@ -365,6 +364,8 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     -------
     DisparityResult
     """
+    from slitcli.stereo._nssd import winners
+
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     cost = np.empty((h, w), np.float32)
@@ -379,32 +380,10 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
         else:
             pl = prefilter_image(left_grey, params)
             pr = prefilter_image(right_grey, params)
-        _winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
+        winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
                                            rdisp, pool, threads))
     return DisparityResult(disp, reason, cost)
-
-
-def _winners(pl: np.ndarray, pr: np.ndarray, params: MatcherParams,
-             pool: ThreadPoolExecutor | None, threads: int, disp: np.ndarray,
-             cost: np.ndarray, reason: np.ndarray, rdisp: np.ndarray) -> None:
-    """Eq. 10 winner-take-all with the window-energy, uniqueness and left-right tests
-    and the subpixel parabola (compiled, in bands of rows), filling the outputs
-    (``rdisp``: the right view's disparities, read by the depth-edge filter)."""
-    from slitcli.stereo import _nssd
-
-    h = pl.shape[0]
-    m = params.window_w_px // 2
-    n = params.window_h_px // 2
-    prr = np.ascontiguousarray(pr[:, ::-1])
-    # the prefiltered image is zero-mean: its window RMS is its texture, tested in the
-    # kernel on the window energy: RMS / 4 < t  <=>  energy < (4 t)^2 x pixel count
-    energy_min = (params.texture_min_dn * _QUANT) ** 2 if params.prefilter != "none" else 0.0
-    args = (int(params.min_disparity_px), int(params.num_disparities), int(m), int(n),
-            float(params.uniqueness_ratio), float(params.lr_max_diff_px),
-            params.subpixel == "parabola", np.float32(energy_min), disp, cost, reason, rdisp)
-    run_row_bands(lambda y0, y1: _nssd.nssd_rows(pl, pr, prr, y0, y1, *args), h,
-                  pool, threads, min_rows=2 * n + 1)
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
