@@ -38,9 +38,6 @@ LONG_LAG = 4
 #: every SMOOTHNESS_STEP-th column enters the smoothness ratio (~9,000 pairs a lag at
 #: 320x240)
 SMOOTHNESS_STEP = 8
-#: median absolute deviation of a Gaussian over its sigma, and the lag-2 residual's
-#: sigma over the pixel's (``x(v) - (x(v - 2) + x(v + 2)) / 2``: sqrt(1.5))
-MAD_TO_SIGMA = 1.0 / (0.6745 * math.sqrt(1.5))
 # JFIF's YCbCr: the luma and red-difference chroma of (b, g, r)
 _Y_BGR = np.array([0.114, 0.587, 0.299], np.float32)
 #: the lag medians' bin (slitcli/laser/_c/luma.pyx), DN
@@ -73,13 +70,15 @@ def chroma_smoothness(img_t: np.ndarray, step: int) -> float:
 
 
 def luma_sigma(img_t: np.ndarray, step: int) -> float:
-    """Noise sigma of the luma (JFIF), DN: the median absolute lag-2 residual down every
-    ``step``-th column of ``img_t`` (W, H, 3) BGR, as the evidence's."""
-    sub = np.asarray(img_t[::step], dtype=np.float32) @ _Y_BGR
+    """Noise sigma of the luma (JFIF), DN: the evidence's robust estimate
+    (:func:`slitcli.laser.evidence.robust_sigma`, the median absolute lag-2 residual)
+    down every ``step``-th column of ``img_t`` (W, H, 3) BGR."""
+    from slitcli.laser.evidence import robust_sigma
+
+    sub = np.ascontiguousarray(np.asarray(img_t[::step], dtype=np.float32) @ _Y_BGR)
     if sub.shape[1] < 5:
         return 0.0
-    r = sub[:, 2:-2] - 0.5 * (sub[:, :-4] + sub[:, 4:])
-    return MAD_TO_SIGMA * float(np.median(np.abs(r)))
+    return robust_sigma(sub, np.ones(sub.shape, np.uint8), 1)
 
 
 def luma_rows(img_t: np.ndarray, bg_t: np.ndarray, v_px: np.ndarray, saturated: np.ndarray,
