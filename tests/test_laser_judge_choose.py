@@ -341,3 +341,30 @@ def test_one_crossing_keeps_the_core_of_overlapping_fits(seed):
     assert np.array_equal(out[:, 1], ~(overlap & ok[:, 0]))
     assert out[:, 2].all()
     assert np.array_equal(ok, ok_in)  # the input is not changed
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_choose_stripe_sums_a_long_faint_stripe(seed):
+    """A segment's significance is summed along it (``sqrt(sum z^2)``) and compared with
+    that of the shortest segment kept (``min_segment_cols`` columns at ``min_z``): a
+    stripe whose columns are each below ``min_z`` but above ``weak_z`` is kept when it
+    is long enough to carry that much evidence, and dropped when it is not."""
+    rng = np.random.default_rng(seed)
+    w, k, min_seg, min_z, z_weak = 160, 1, 10, 5.0, 3.0
+    c = _table(rng, w, k, 240)
+    c[:, 0, F_POS] = 120 + 0.05 * np.arange(w) + rng.normal(0, 0.05, w)
+    c[..., F_NOISE] = c[..., F_GNOISE] = 2.0
+    c[..., F_SAT] = 0
+    c[:, 0, F_SE_POS] = 0.05
+    z = rng.uniform(3.5, 4.5, w)  # RMS about 4: under min_z column by column
+    c[:, 0, F_Z] = z
+    ok = np.ones((w, k), bool)
+    # a run of n columns (the rest hidden) is kept iff sum z^2 >= min_seg * min_z^2
+    for n in (8, 12, 16, 40):
+        ok[:] = False
+        ok[20:20 + n, 0] = True
+        v, amp, sat = np.empty(w), np.empty(w), np.empty(w, bool)
+        choose.choose_stripe(c, ok, np.empty(0), 0.5, z_weak, 2.0, 3.0, min_seg, min_z,
+                             4 * min_z, 0, choose.CHOICE_ROUNDS, v, amp, sat)
+        kept = np.sum(z[20:20 + n] ** 2) >= min_seg * min_z ** 2 and n >= min_seg
+        assert np.array_equal(np.isfinite(v), ok[:, 0] & kept), n

@@ -60,8 +60,8 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "measured on each image; unitless).",
      None),
     ("min_z",
-     "Root mean square significance (peak over its standard error) of a segment's columns "
-     "(unitless).",
+     "Significance (peak over its standard error) of a segment, summed along it and "
+     "compared with the shortest segment's length at this level (unitless).",
      None),
     ("weak_z",
      "Least significance of one column of a segment (unitless, <= --min-z).",

@@ -42,8 +42,9 @@ class LaserParams:
         Candidates are seeded at local maxima of the laser evidence at least this many
         of its noise sigmas high (the noise measured on the image, unitless).
     min_z : float
-        Root mean square significance (fitted peak over its standard error, against the
-        local noise) of a segment's columns (unitless).
+        Significance (fitted peak over its standard error, against the local noise) of
+        a segment, summed along it (``sqrt(sum z^2)``) and compared with that of the
+        shortest segment kept, ``min_segment_cols`` columns at ``min_z`` (unitless).
     weak_z : float
         Least significance of one column of a segment (unitless).
     shape_error : float

@@ -271,7 +271,12 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
             z = _fit(t, idx[r], pick[idx[r]])[F_Z]
             strong = strong and z >= strong_z
             z2 += z * z
-        good = (cnt >= min_segment_cols and z2 >= cnt * min_z * min_z) or strong
+        # the segment's evidence is summed along it: sqrt(z2) is its significance as one
+        # fit of a straight stripe of constant peak (the columns' noise independent), and
+        # it must reach that of the shortest segment kept, min_segment_cols columns at
+        # min_z (a faint but long stripe carries as much evidence as a short strong one;
+        # clutter is long only where the colour, shape and sheet tests let it through)
+        good = (cnt >= min_segment_cols and z2 >= min_segment_cols * min_z * min_z) or strong
         for r in range(cnt):
             keep[idx[r]] = good
             dropped[idx[r]] = not good
@@ -324,9 +329,11 @@ def choose_stripe(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
 
     Chosen columns join into a segment when their rows link (:func:`links`), across a
     gap of up to ``MAX_GAP`` columns when they differ by at most ``max_jump_px`` per
-    column. A segment stays when it has ``min_segment_cols`` columns whose root mean
-    square significance is ``min_z``, or a quarter of that (at least two), each
-    ``strong_z`` significant (a thin object). A candidate of a segment that does not
+    column. A segment stays when it has at least ``min_segment_cols`` columns and its
+    significance summed along it, ``sqrt(sum z^2)``, reaches that of
+    ``min_segment_cols`` columns at ``min_z`` (a long faint stripe as a short strong
+    one), or when it has a quarter of that (at least two) columns, each ``strong_z``
+    significant (a thin object). A candidate of a segment that does not
     stay is not the laser: it is struck out and the choice is made again (up to
     ``rounds`` times; ``CHOICE_ROUNDS`` by default), so that short clutter, more
     significant column by column, does not take the columns of a weaker but continuous
