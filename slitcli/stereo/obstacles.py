@@ -28,7 +28,9 @@ disparity, which carries the object up to half a window past its silhouette (and
 the prefilter's local mean half its size farther: 8 px with the defaults), often across
 a bearing-bin boundary (a phantom obstacle in a free bin). The silhouette is the
 outermost intensity step within that reach; the plain pixels beyond it carry no
-evidence of their own.
+evidence of their own. Where the camera's blur (read from the pair's noise,
+:func:`blur_edge_reach_px`) carries an object's texture a column past its silhouette,
+runs that end beside an unmatched pixel also lose that column (:func:`trim_blur_edges`).
 """
 
 from __future__ import annotations
