@@ -354,12 +354,15 @@ def blur_edge_reach_px(left_grey: np.ndarray, right_grey: np.ndarray,
     noise = estimate_match_noise(left_grey, right_grey, disparity_px, valid)
     if noise.samples == 0 or not noise.sigma_dn > 0:
         return 0
+    share = neighbour_light_share(noise.rho_x)
+    if share == 0.0:
+        return 0
     bw, bh = params.blur_edge_block_px
     grey = np.asarray(left_grey, np.float32)
     # the median of every third row and column: its sampling error is far below the
     # gate's margins, at a tenth of the cost
     texture = float(np.median(window_std_dn(grey, bw, bh)[::3, ::3][valid[::3, ::3]]))
-    snr = (neighbour_light_share(noise.rho_x) * texture
+    snr = (share * texture
            * math.sqrt(bw * bh / noise.variance_factor(bw, bh)) / noise.sigma_dn)
     return 1 if snr >= params.blur_edge_min_snr else 0
 
