@@ -71,16 +71,18 @@ def test_neighbour_light_share_inverts_the_kernels_correlation(w):
 
 
 def test_trim_blur_edges_removes_one_column_beside_unmatched_pixels():
-    mask = np.zeros((3, 12), bool)
+    mask = np.zeros((4, 12), bool)
     mask[:, 2:9] = True
-    disp = np.full((3, 12), 10.0, np.float32)
+    disp = np.full((4, 12), 10.0, np.float32)
     disp[0, 1] = np.nan          # row 0: unmatched on the left only
     disp[1, 9] = np.nan          # row 1: unmatched on the right only
     # row 2: matched on both sides (a depth edge or the floor): kept whole
+    disp[3, :2] = np.nan         # row 3: unmatched to the border on both sides: kept
+    disp[3, 9:] = np.nan
     out = trim_blur_edges(mask, disp, 1)
     assert out[0].tolist() == [False] * 3 + [True] * 6 + [False] * 3
     assert out[1].tolist() == [False] * 2 + [True] * 6 + [False] * 4
-    assert (out[2] == mask[2]).all()
+    assert (out[2:] == mask[2:]).all()
     assert (trim_blur_edges(mask, disp, 0) == mask).all()
     assert mask[:, 2:9].all()    # input untouched
 
