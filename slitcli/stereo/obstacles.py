@@ -386,11 +386,16 @@ def trim_blur_edges(obstacle_mask: np.ndarray, disparity_px: np.ndarray,
     not modified.
     """
     mask = np.array(obstacle_mask, dtype=np.bool_, copy=True)
-    unmatched = ~np.isfinite(disparity_px)
-    # unmatched from each pixel to the row's right / left end
-    keep = np.zeros_like(mask)
-    keep[:, :-1] = np.logical_and.accumulate(unmatched[:, :0:-1], axis=1)[:, ::-1]
-    keep[:, 1:] |= np.logical_and.accumulate(unmatched[:, :-1], axis=1)
+    if int(reach_px) <= 0:
+        return mask
+    matched = np.isfinite(disparity_px)
+    unmatched = ~matched
+    # pixels with nothing matched between them and the row's left / right end
+    width = mask.shape[1]
+    first = np.where(matched.any(axis=1), matched.argmax(axis=1), width)
+    last = width - 1 - matched[:, ::-1].argmax(axis=1)
+    cols = np.arange(width)
+    keep = (cols <= first[:, None]) | (cols >= last[:, None])
     for _ in range(int(reach_px)):
         end = np.zeros_like(mask)
         end[:, :-1] |= mask[:, :-1] & unmatched[:, 1:]
