@@ -42,9 +42,10 @@ next to depth steps (a row-wise running minimum of the candidates says where). T
 kernel releases the GIL; each row's result depends only on read-only inputs, so bands
 can run on plain threads.
 
-The kernels are compiled ahead of time (Cython: slitcli/stereo/_c/boundary.pyx, and
-the block correlations of the one-sided and cross tests, eight at a time, in
-slitcli/stereo/_c/zncc.pxd), so this module imports no JIT compiler. They reproduce
+The kernels are compiled ahead of time (Cython: slitcli/stereo/_c/boundary.pyx, the
+depth-edge test in slitcli/stereo/_c/depth_edge.pxd, and the block correlations of the
+one-sided and cross tests, eight at a time, in slitcli/stereo/_c/zncc.pxd), so this
+module imports no JIT compiler. They reproduce
 the numba kernels they replaced bit for bit, including the fused multiply-adds and
 reciprocals that numba's fastmath had made (docs/notes/stereo-support-cython.md).
 """
