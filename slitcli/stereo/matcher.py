@@ -135,6 +135,7 @@ class MatcherParams:
     support_strong_zncc: float = 0.95
     support_noise: bool = True
     support_noise_ref_dn: float = 1.5
+    colour_noise_whiten: bool = True
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -347,7 +348,8 @@ def _check_image(p: MatcherParams, image_width_px: int) -> None:
 
 
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
-               params: MatcherParams, pool: ThreadPoolExecutor | None = None
+               params: MatcherParams, pool: ThreadPoolExecutor | None = None, *,
+               left_bgr: np.ndarray | None = None, right_bgr: np.ndarray | None = None
                ) -> DisparityResult:
     """The paper's matcher: Eq. 10 cost, winner-take-all, subpixel, validity filters.
 
@@ -359,6 +361,11 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     pool : ThreadPoolExecutor, optional
         Helper threads held by the caller for a whole sequence (see
         :func:`compute_disparity`).
+    left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3), optional
+        The colour pair the grey pair was made from. With ``colour_noise_whiten``, a
+        pair whose grey noise (estimated from the grey pass's matches) exceeds
+        ``support_noise_ref_dn`` is matched again on its noise-whitened images
+        (:func:`noise_whitened_pair`).
 
     Returns
     -------
@@ -373,17 +380,77 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with frame_pool(pool, threads) as pool:
-        if pool is not None:
-            right_job = pool.submit(prefilter_image, right_grey, params)
-            pl = prefilter_image(left_grey, params)
-            pr = right_job.result()
-        else:
-            pl = prefilter_image(left_grey, params)
-            pr = prefilter_image(right_grey, params)
+        pl, pr = _prefiltered_pair(left_grey, right_grey, params, pool)
         winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
+        if params.colour_noise_whiten and left_bgr is not None and right_bgr is not None:
+            whitened = noise_whitened_pair(left_bgr, right_bgr, left_grey, right_grey,
+                                           disp, reason == Reason.VALID, params)
+            if whitened is not None:
+                left_grey, right_grey = whitened
+                pl, pr = _prefiltered_pair(left_grey, right_grey, params, pool)
+                winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
         run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
                                            rdisp, pool, threads))
     return DisparityResult(disp, reason, cost)
+
+
+def _prefiltered_pair(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherParams,
+                      pool: ThreadPoolExecutor | None) -> tuple[np.ndarray, np.ndarray]:
+    """Both views prefiltered (the right one on a helper thread when there is one)."""
+    if pool is None:
+        return prefilter_image(left_grey, params), prefilter_image(right_grey, params)
+    right_job = pool.submit(prefilter_image, right_grey, params)
+    return prefilter_image(left_grey, params), right_job.result()
+
+
+def noise_whitened_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, left_grey: np.ndarray,
+                        right_grey: np.ndarray, disparity_px: np.ndarray, valid: np.ndarray,
+                        params: MatcherParams) -> tuple[np.ndarray, np.ndarray] | None:
+    """The images to match a noisy colour pair on, or None where the grey pair will do.
+
+    The matcher's thresholds were set on pairs with at most ``support_noise_ref_dn`` of
+    noise (slitcli.stereo.noise). Where the grey pair's noise, estimated from the grey
+    pass's matches, is above that:
+
+    1. each view becomes the texture-to-noise weighted combination of its colour
+       channels (slitcli.stereo.cost.colour_matching_image);
+    2. that combination's noise and lag-1 correlations are estimated at the same
+       matches, and it is low-passed by the least Gaussian that brings its noise down
+       to ``support_noise_ref_dn`` (slitcli.stereo.cost.smoothing_sigma_px), at most a
+       quarter of the window's smaller side (the window must still hold several of
+       the texture's cycles).
+
+    Parameters
+    ----------
+    left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3)
+    left_grey, right_grey : ndarray, shape (H, W)
+        The grey (luma) pair the first pass matched.
+    disparity_px, valid : ndarray, shape (H, W)
+        The grey pass's winners and which of them passed its tests.
+    params : MatcherParams
+
+    Returns
+    -------
+    (left, right) float32 (H, W) DN, or None.
+    """
+    from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
+    from slitcli.stereo.noise import estimate_match_noise
+
+    grey_noise = estimate_match_noise(left_grey, right_grey, disparity_px, valid)
+    ref = params.support_noise_ref_dn
+    if grey_noise.sigma_dn <= ref:
+        return None
+    ww, wh = params.window_w_px, params.window_h_px
+    cl = colour_matching_image(left_bgr, ww, wh)
+    cr = colour_matching_image(right_bgr, ww, wh)
+    noise = estimate_match_noise(cl, cr, disparity_px, valid)
+    if noise.sigma_dn <= 0:
+        noise = grey_noise  # too few matches on the combination: the grey pair's
+    sigma = smoothing_sigma_px(noise.sigma_dn, noise.rho_x, noise.rho_y, noise.rho_diag,
+                               ref, 0.25 * min(ww, wh))
+    if sigma > 0:
+        cl, cr = smooth_image(cl, sigma), smooth_image(cr, sigma)
+    return cl, cr
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -503,5 +570,7 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
         return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
     if p.matcher == "nssd":
-        return match_nssd(lg, rg, p, pool)
+        colour = np.ndim(left) == 3
+        return match_nssd(lg, rg, p, pool, left_bgr=left if colour else None,
+                          right_bgr=right if colour else None)
     return match_opencv(lg, rg, p)
