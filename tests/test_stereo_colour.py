@@ -100,8 +100,9 @@ def test_black_image_keeps_luma():
 @pytest.mark.parametrize("rho", [0.0, 0.3, 0.45])
 def test_smoothing_factor_of_correlated_noise(rho):
     """Noise with lag-1 correlation rho along x and y and none further (white noise
-    plus b times its next neighbour, b / (1 + b^2) = rho, along both axes): the measured variance after the low-pass over the variance before is
-    the factor; the smoothing that the helper picks brings 6 DN down to 1.5 DN."""
+    plus b times its next neighbour, b / (1 + b^2) = rho, along both axes): the
+    measured variance after the low-pass over the variance before is the factor; the
+    smoothing that the helper picks brings 6 DN down to 1.5 DN."""
     rng = np.random.default_rng(3)
     white = rng.normal(0.0, 1.0, (600, 600))
     b = 0.5 * (1.0 - np.sqrt(1.0 - 4.0 * rho ** 2)) / rho if rho else 0.0
