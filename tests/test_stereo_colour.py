@@ -150,7 +150,7 @@ def test_grey_plane_through_camera_denser_not_wronger(seed, preset):
     right disparities than luma and no more wrong ones (more than 2 px off; 0.5 %
     slack)."""
     left, right = _plane(seed, preset, GREY_RGB, 0.5)
-    off = _scores(compute_disparity(left, right, MatcherParams(colour_noise_whiten=False)))
+    off = _scores(compute_disparity(left, right, MatcherParams(colour_whiten=False)))
     on = _scores(compute_disparity(left, right))
     assert on[0] > off[0]
     assert on[2] <= off[2] + 0.005

@@ -135,7 +135,9 @@ class MatcherParams:
     support_strong_zncc: float = 0.95
     support_noise: bool = True
     support_noise_ref_dn: float = 1.5
-    colour_noise_whiten: bool = True
+    colour_whiten: bool = True
+    colour_whiten_min_noise_dn: float = 2.0
+    noise_smoothing: bool = False
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -301,6 +303,9 @@ def _check_filters(p: MatcherParams) -> None:
     if not (math.isfinite(p.support_noise_ref_dn) and p.support_noise_ref_dn >= 0):
         raise SlitcliError(f"support_noise_ref_dn {p.support_noise_ref_dn} must be >= 0 DN",
                            param="support_noise_ref_dn")
+    if not (math.isfinite(p.colour_whiten_min_noise_dn) and p.colour_whiten_min_noise_dn >= 0):
+        raise SlitcliError(f"colour_whiten_min_noise_dn {p.colour_whiten_min_noise_dn} must be "
+                           ">= 0 DN", param="colour_whiten_min_noise_dn")
     if not 0 <= p.boundary_ratio < 1:
         raise SlitcliError(f"`boundary_ratio` {p.boundary_ratio} must be in [0, 1) (0 = off)",
                            param="boundary_ratio")
@@ -362,10 +367,10 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
         Helper threads held by the caller for a whole sequence (see
         :func:`compute_disparity`).
     left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3), optional
-        The colour pair the grey pair was made from. With ``colour_noise_whiten``, a
-        pair whose grey noise (estimated from the grey pass's matches) exceeds
-        ``support_noise_ref_dn`` is matched again on its noise-whitened images
-        (:func:`noise_whitened_pair`).
+        The colour pair the grey pair was made from. With ``colour_whiten``, a pair
+        whose luma noise (estimated from the luma pass's matches) exceeds
+        ``colour_whiten_min_noise_dn`` is matched again on its noise-whitened images
+        (:func:`noise_whitened_pair`), and filtered on them.
 
     Returns
     -------
@@ -382,16 +387,48 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     with frame_pool(pool, threads) as pool:
         pl, pr = _prefiltered_pair(left_grey, right_grey, params, pool)
         winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
-        if params.colour_noise_whiten and left_bgr is not None and right_bgr is not None:
-            whitened = noise_whitened_pair(left_bgr, right_bgr, left_grey, right_grey,
-                                           disp, reason == Reason.VALID, params)
-            if whitened is not None:
-                left_grey, right_grey = whitened
-                pl, pr = _prefiltered_pair(left_grey, right_grey, params, pool)
-                winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
-        run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
-                                           rdisp, pool, threads))
+        white = None
+        if params.colour_whiten and left_bgr is not None and right_bgr is not None:
+            white = noise_whitened_pair(left_bgr, right_bgr, left_grey, right_grey,
+                                        disp, reason == Reason.VALID, params)
+        if white is None:
+            run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp,
+                                               reason, rdisp, pool, threads))
+            return DisparityResult(disp, reason, cost)
+        pl, pr = _prefiltered_pair(white.left, white.right, params, pool)
+        winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
+        if white.smoothing_px == 0:
+            run_disparity_filters(FilterInputs(white.left, white.right, pl, params, disp,
+                                               reason, rdisp, pool, threads))
+        else:
+            _smoothed_filters(white, pl, params, disp, reason, rdisp, pool, threads)
     return DisparityResult(disp, reason, cost)
+
+
+def _smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
+                      disp: np.ndarray, reason: np.ndarray, rdisp: np.ndarray,
+                      pool: ThreadPoolExecutor | None, threads: int) -> None:
+    """The filter chain after a match on low-passed images (``noise_smoothing``).
+
+    The support tests run on the low-passed images the match was made on (at the
+    reference noise their thresholds were set at); the depth-edge test, whose evidence
+    is a one-pixel-wide column, runs on the sharp whitened images (the low-pass would
+    blur the edge it looks for); then speckle. The window, low-passed, carries a
+    surface's disparity up to ``m + 3 sigma`` columns past its silhouette (m the
+    window's half width), and on a noisy background few of the pixels just past that
+    band are valid: the depth-edge test looks for the farther surface's valid pixels
+    ``boundary_radius_px`` beyond the band.
+    """
+    from slitcli.stereo.filters import DISPARITY_FILTERS
+
+    support = replace(params, boundary_ratio=0.0)
+    run_disparity_filters(FilterInputs(white.left, white.right, pl, support, disp, reason,
+                                       rdisp, pool, threads), DISPARITY_FILTERS[:2])
+    reach = (params.boundary_radius_px + params.window_w_px // 2
+             + math.ceil(3.0 * white.smoothing_px))
+    edges = replace(params, support_min_zncc=0.0, boundary_radius_px=reach)
+    run_disparity_filters(FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp,
+                                       reason, rdisp, pool, threads), DISPARITY_FILTERS[1:])
 
 
 def _prefiltered_pair(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherParams,
@@ -403,54 +440,75 @@ def _prefiltered_pair(left_grey: np.ndarray, right_grey: np.ndarray, params: Mat
     return prefilter_image(left_grey, params), right_job.result()
 
 
+@dataclass(frozen=True)
+class WhitenedPair:
+    """The images a noisy colour pair is matched on (:func:`noise_whitened_pair`).
+
+    ``left``, ``right``: float32 (H, W), DN, what the cost is computed on;
+    ``sharp_left``, ``sharp_right``: the same before the low-pass (the same arrays
+    when ``smoothing_px`` is 0); ``smoothing_px``: the low-pass's Gaussian sigma, px.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    sharp_left: np.ndarray
+    sharp_right: np.ndarray
+    smoothing_px: float
+
+
 def noise_whitened_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, left_grey: np.ndarray,
                         right_grey: np.ndarray, disparity_px: np.ndarray, valid: np.ndarray,
-                        params: MatcherParams) -> tuple[np.ndarray, np.ndarray] | None:
-    """The images to match a noisy colour pair on, or None where the grey pair will do.
+                        params: MatcherParams) -> WhitenedPair | None:
+    """The images to match a noisy colour pair on, or None where its luma will do.
 
-    The matcher's thresholds were set on pairs with at most ``support_noise_ref_dn`` of
-    noise (slitcli.stereo.noise). Where the grey pair's noise, estimated from the grey
-    pass's matches, is above that:
+    The matcher was set up on pairs with 2 DN of independent noise per colour channel
+    (the renderer's default; their luma's noise reads 1.3-1.8 DN in the estimate of
+    slitcli.stereo.noise). Where the luma pair's noise, estimated from the luma pass's
+    matches, exceeds ``colour_whiten_min_noise_dn``:
 
     1. each view becomes the texture-to-noise weighted combination of its colour
-       channels (slitcli.stereo.cost.colour_matching_image);
-    2. that combination's noise and lag-1 correlations are estimated at the same
-       matches, and it is low-passed by the least Gaussian that brings its noise down
-       to ``support_noise_ref_dn`` (slitcli.stereo.cost.smoothing_sigma_px), at most a
-       quarter of the window's smaller side (the window must still hold several of
-       the texture's cycles).
+       channels (slitcli.stereo.cost.colour_matching_image): a camera's noise differs
+       by channel and level, and a coloured surface's texture lives in its bright
+       channels, which luma may weight little;
+    2. with ``noise_smoothing``, the combination's noise and lag-1 correlations are
+       estimated at the same matches and it is low-passed by the least Gaussian that
+       brings its noise down to ``support_noise_ref_dn`` (the noise the thresholds
+       were set at; slitcli.stereo.cost.smoothing_sigma_px), at most a quarter of the
+       window's smaller side (the window must still hold several of the texture's
+       cycles).
 
     Parameters
     ----------
     left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3)
     left_grey, right_grey : ndarray, shape (H, W)
-        The grey (luma) pair the first pass matched.
+        The luma pair the first pass matched.
     disparity_px, valid : ndarray, shape (H, W)
-        The grey pass's winners and which of them passed its tests.
+        The luma pass's winners and which of them passed its tests.
     params : MatcherParams
 
     Returns
     -------
-    (left, right) float32 (H, W) DN, or None.
+    WhitenedPair or None
     """
     from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
     from slitcli.stereo.noise import estimate_match_noise
 
     grey_noise = estimate_match_noise(left_grey, right_grey, disparity_px, valid)
-    ref = params.support_noise_ref_dn
-    if grey_noise.sigma_dn <= ref:
+    if grey_noise.sigma_dn <= params.colour_whiten_min_noise_dn:
         return None
     ww, wh = params.window_w_px, params.window_h_px
     cl = colour_matching_image(left_bgr, ww, wh)
     cr = colour_matching_image(right_bgr, ww, wh)
+    if not params.noise_smoothing:
+        return WhitenedPair(cl, cr, cl, cr, 0.0)
     noise = estimate_match_noise(cl, cr, disparity_px, valid)
     if noise.sigma_dn <= 0:
-        noise = grey_noise  # too few matches on the combination: the grey pair's
+        noise = grey_noise  # too few usable matches on the combination: the luma's
     sigma = smoothing_sigma_px(noise.sigma_dn, noise.rho_x, noise.rho_y, noise.rho_diag,
-                               ref, 0.25 * min(ww, wh))
-    if sigma > 0:
-        cl, cr = smooth_image(cl, sigma), smooth_image(cr, sigma)
-    return cl, cr
+                               params.support_noise_ref_dn, 0.25 * min(ww, wh))
+    if sigma <= 0:
+        return WhitenedPair(cl, cr, cl, cr, 0.0)
+    return WhitenedPair(smooth_image(cl, sigma), smooth_image(cr, sigma), cl, cr, sigma)
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
