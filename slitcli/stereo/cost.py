@@ -16,6 +16,7 @@ from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
     from slitcli.stereo.matcher import MatcherParams
+    from slitcli.stereo.noise import ChannelNoise
 
 # Prefiltered images are stored as integers in units of 1/_QUANT DN: every window
 # sum of the matcher is then exact in float32, whatever the band split of the rows.
@@ -61,7 +62,8 @@ def to_grey(image: np.ndarray) -> np.ndarray:
 _LUMA_BGR = np.array([0.114, 0.587, 0.299], np.float32)
 
 
-def colour_matching_image(bgr: np.ndarray, window_w_px: int, window_h_px: int) -> np.ndarray:
+def colour_matching_image(bgr: np.ndarray, window_w_px: int, window_h_px: int,
+                          noise: ChannelNoise) -> np.ndarray:
     """The grey image the Eq. 10 cost is computed on for a noisy colour camera, float32
     (H, W), DN: per pixel, the colour channels weighted for the texture's
     signal-to-noise ratio.
@@ -69,16 +71,14 @@ def colour_matching_image(bgr: np.ndarray, window_w_px: int, window_h_px: int) -
     Model: a surface's texture is a modulation of its reflectance (albedo, shading), so
     it moves every channel by the same share of the channel's level ``mu_c`` (in linear
     light, and so too after a power-law tone curve: ``d out / out = d in / (gamma in)``);
-    each channel carries its own noise variance ``v_c``, which through a camera differs
-    by channel and by level (shot noise, the tone curve's slope, the colour matrix that
-    undoes the filters' overlap). The channels' noises taken as independent, the
-    combination with the largest texture-to-noise ratio weights channel c by
-    ``mu_c / v_c`` (a matched filter). Both are read over the matching window around
-    each pixel: ``mu_c`` its mean, ``v_c`` the mean square of the channel's residual from
-    its 3 x 3 mean (9/8 of the variance of white noise; the texture's fine part adds to
-    it, which only lowers a textured channel's weight) plus the 8-bit rounding's 1/12
-    DN^2. On a red surface the texture lives in the red channel, which luma weights by
-    0.3 while it takes 0.7 of the green and blue channels' noise.
+    each channel carries its own noise variance ``v_c(mu_c)``, which through a camera
+    differs by channel and level (estimated from the pair's matches,
+    slitcli.stereo.noise.estimate_channel_noise). The channels' noises taken as
+    independent, the combination with the largest texture-to-noise ratio weights
+    channel c by ``mu_c / v_c`` (a matched filter); ``mu_c`` is the channel's mean over
+    the matching window around the pixel, ``v_c`` its noise at that level plus the 8-bit
+    rounding's 1/12 DN^2. On a red surface the texture lives in the red channel, which
+    luma weights by 0.3 while it takes 0.7 of the green and blue channels' noise.
 
     The weights are normalised to sum 1 and act on each channel's departure from its
     window mean; the window means enter with the luma weights, so a flat region keeps
@@ -89,19 +89,18 @@ def colour_matching_image(bgr: np.ndarray, window_w_px: int, window_h_px: int) -
     bgr : ndarray, uint8, shape (H, W, 3)
         Rectified BGR image.
     window_w_px, window_h_px : int
-        The matching window (odd), over which the weights are estimated.
+        The matching window (odd), over which the levels are taken.
+    noise : ChannelNoise
+        The pair's noise per channel and level.
 
     Returns
     -------
     ndarray, float32, shape (H, W)
     """
     x = np.asarray(bgr, np.float32)
-    k = (int(window_w_px), int(window_h_px))
-    border = cv2.BORDER_REFLECT_101
-    mu = cv2.blur(x, k, borderType=border)
-    res = x - cv2.blur(x, (3, 3), borderType=border)
-    v = cv2.blur(res * res, k, borderType=border) * np.float32(9.0 / 8.0) + np.float32(1 / 12)
-    w = mu / v
+    mu = cv2.blur(x, (int(window_w_px), int(window_h_px)), borderType=cv2.BORDER_REFLECT_101)
+    v = np.stack([noise.variance_at(c, mu[..., c]) for c in range(3)], axis=2)
+    w = (mu / (v + 1.0 / 12.0)).astype(np.float32)
     total = w.sum(axis=2, keepdims=True)
     # a black window (all levels 0) has no texture to weigh: luma weights there
     w = np.where(total > 0, w / np.where(total > 0, total, 1.0), _LUMA_BGR)

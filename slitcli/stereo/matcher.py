@@ -135,7 +135,7 @@ class MatcherParams:
     support_strong_zncc: float = 0.95
     support_noise: bool = True
     support_noise_ref_dn: float = 1.5
-    colour_whiten: bool = True
+    colour_whiten: bool = False
     colour_whiten_min_noise_dn: float = 2.0
     noise_smoothing: bool = False
     boundary_ratio: float = 0.5
@@ -303,6 +303,9 @@ def _check_filters(p: MatcherParams) -> None:
     if not (math.isfinite(p.support_noise_ref_dn) and p.support_noise_ref_dn >= 0):
         raise SlitcliError(f"support_noise_ref_dn {p.support_noise_ref_dn} must be >= 0 DN",
                            param="support_noise_ref_dn")
+    if p.noise_smoothing and not p.colour_whiten:
+        raise SlitcliError("noise_smoothing low-passes the whitened colour images: it needs "
+                           "colour_whiten True", param=("noise_smoothing", "colour_whiten"))
     if not (math.isfinite(p.colour_whiten_min_noise_dn) and p.colour_whiten_min_noise_dn >= 0):
         raise SlitcliError(f"colour_whiten_min_noise_dn {p.colour_whiten_min_noise_dn} must be "
                            ">= 0 DN", param="colour_whiten_min_noise_dn")
@@ -467,9 +470,11 @@ def noise_whitened_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, left_grey: 
     matches, exceeds ``colour_whiten_min_noise_dn``:
 
     1. each view becomes the texture-to-noise weighted combination of its colour
-       channels (slitcli.stereo.cost.colour_matching_image): a camera's noise differs
-       by channel and level, and a coloured surface's texture lives in its bright
-       channels, which luma may weight little;
+       channels (slitcli.stereo.cost.colour_matching_image) under each channel's noise
+       by level, estimated at the same matches (slitcli.stereo.noise.
+       estimate_channel_noise): a camera's noise differs by channel and level, and a
+       coloured surface's texture lives in its bright channels, which luma may weight
+       little;
     2. with ``noise_smoothing``, the combination's noise and lag-1 correlations are
        estimated at the same matches and it is low-passed by the least Gaussian that
        brings its noise down to ``support_noise_ref_dn`` (the noise the thresholds
@@ -491,14 +496,17 @@ def noise_whitened_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, left_grey: 
     WhitenedPair or None
     """
     from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
-    from slitcli.stereo.noise import estimate_match_noise
+    from slitcli.stereo.noise import estimate_channel_noise, estimate_match_noise
 
     grey_noise = estimate_match_noise(left_grey, right_grey, disparity_px, valid)
     if grey_noise.sigma_dn <= params.colour_whiten_min_noise_dn:
         return None
+    channels = estimate_channel_noise(left_bgr, right_bgr, disparity_px, valid)
+    if channels is None:
+        return None
     ww, wh = params.window_w_px, params.window_h_px
-    cl = colour_matching_image(left_bgr, ww, wh)
-    cr = colour_matching_image(right_bgr, ww, wh)
+    cl = colour_matching_image(left_bgr, ww, wh, channels)
+    cr = colour_matching_image(right_bgr, ww, wh, channels)
     if not params.noise_smoothing:
         return WhitenedPair(cl, cr, cl, cr, 0.0)
     noise = estimate_match_noise(cl, cr, disparity_px, valid)
