@@ -97,14 +97,28 @@ def colour_matching_image(bgr: np.ndarray, window_w_px: int, window_h_px: int,
     -------
     ndarray, float32, shape (H, W)
     """
-    x = np.asarray(bgr, np.float32)
-    mu = cv2.blur(x, (int(window_w_px), int(window_h_px)), borderType=cv2.BORDER_REFLECT_101)
-    v = np.stack([noise.variance_at(c, mu[..., c]) for c in range(3)], axis=2)
-    w = (mu / (v + 1.0 / 12.0)).astype(np.float32)
-    total = w.sum(axis=2, keepdims=True)
-    # a black window (all levels 0) has no texture to weigh: luma weights there
-    w = np.where(total > 0, w / np.where(total > 0, total, 1.0), _LUMA_BGR)
-    return ((w * (x - mu)).sum(axis=2) + mu @ _LUMA_BGR).astype(np.float32)
+    k = (int(window_w_px), int(window_h_px))
+    area = k[0] * k[1]
+    img = np.asarray(bgr, np.uint8)
+    num = np.zeros(img.shape[:2], np.float32)
+    total = np.zeros_like(num)
+    level = np.zeros_like(num)
+    # window sums of 8-bit levels are whole numbers: the weight mu / v is tabled per sum
+    sums = np.arange(area * 255 + 1, dtype=np.float64)
+    for c in range(3):
+        x = np.ascontiguousarray(img[..., c])
+        window_sum = cv2.boxFilter(x, cv2.CV_32S, k, normalize=False,
+                                   borderType=cv2.BORDER_REFLECT_101)
+        mu_table = sums / area
+        w_table = (mu_table / (noise.variance_at(c, mu_table) + 1.0 / 12.0)).astype(np.float32)
+        w = w_table[window_sum]
+        mu = window_sum.astype(np.float32) * np.float32(1.0 / area)
+        num += w * (x - mu)
+        total += w
+        level += _LUMA_BGR[c] * mu
+    # a black window (all levels 0) has no texture to weigh, nor any departure from it
+    return (np.divide(num, total, out=np.zeros_like(num), where=total > 0) + level
+            ).astype(np.float32)
 
 
 def gaussian_noise_factor(sigma_px: float, rho_x: float, rho_y: float,

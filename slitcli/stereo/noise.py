@@ -217,11 +217,15 @@ def estimate_channel_noise(left_bgr: np.ndarray, right_bgr: np.ndarray,
             (np.abs(slope) <= _FLAT_SIGMAS * robust / np.sqrt(2.0))
         if int(use.sum()) < MIN_SAMPLES:
             return None
-        level, res2 = level[use], np.square(diff[use] - centre, dtype=np.float64)
-        order = np.argsort(level, kind="stable")
-        parts = np.array_split(order, max(1, min(level_bins, order.size // (MIN_SAMPLES // 4))))
-        levels.append(np.array([float(np.median(level[i])) for i in parts]))
-        variances.append(np.array([float(np.mean(res2[i])) / 2.0 for i in parts]))
+        order = np.argsort(level[use], kind="stable")
+        level = level[use][order]
+        res2 = np.square(diff[use] - centre, dtype=np.float64)[order]
+        # bins of equal count (at least 50 differences each), in order of level
+        k = max(1, min(level_bins, level.size // (MIN_SAMPLES // 4)))
+        starts = (np.arange(k) * level.size) // k
+        ends = np.append(starts[1:], level.size)
+        levels.append(level[(starts + ends - 1) // 2].astype(np.float64))
+        variances.append(np.add.reduceat(res2, starts) / (ends - starts) / 2.0)
     return ChannelNoise(tuple(levels), tuple(variances))  # type: ignore[arg-type]
 
 
