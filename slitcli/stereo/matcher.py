@@ -55,6 +55,13 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   the thresholds hold through a camera's demosaiced, compressed, signal-dependent noise;
   the depth-edge test compares its two residuals less that noise. Only the noise beyond
   ``support_noise_ref_dn`` is taken off (the thresholds were set at that noise);
+- noisy colour cameras (``colour_whiten``, off by default; local matcher only): a
+  colour pair whose luma noise exceeds ``colour_whiten_min_noise_dn`` is matched again
+  on each view's channels weighted for the texture's signal-to-noise ratio under each
+  channel's noise by level, estimated from the luma pass's matches
+  (:func:`noise_whitened_pair`); with ``noise_smoothing`` those images are also
+  low-passed down to ``support_noise_ref_dn`` of noise, the depth-edge test then
+  running on the sharp ones (docs/stereo.md);
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
@@ -113,6 +120,8 @@ class MatcherParams:
     ``speckle_window_px``) or negative (``lr_max_diff_px``). The depth-edge test
     compares grey-level columns ``window_h_px`` tall; residuals at or below
     ``boundary_noise_dn`` (RMS, DN) are taken as sensor noise and carry no evidence.
+    ``colour_whiten`` / ``colour_whiten_min_noise_dn`` (DN of the luma pair's noise) and
+    ``noise_smoothing``: a noisy colour pair's matching images (:func:`match_nssd`).
     """
 
     matcher: str = "nssd"
