@@ -1,6 +1,6 @@
 """The noise-whitened matching images of a noisy colour pair (slitcli.stereo.cost's
 colour_matching_image / smoothing, slitcli.stereo.noise.estimate_channel_noise,
-slitcli.stereo.matcher.noise_whitened_pair): the per-channel noise estimate against
+slitcli.stereo.whiten.noise_whitened_pair): the per-channel noise estimate against
 the noise the camera model put in, the combination's texture-to-noise ratio against
 the hand-derived optimum, the low-pass's noise factor against measured correlated
 noise, and the local matcher on textured planes seen through the ``robot`` and

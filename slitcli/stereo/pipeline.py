@@ -130,7 +130,7 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
     # (or the pair's ground, with sgm_ground 'pair' / 'check': compute_disparity)
     # with colour_whiten the colour pair: a noisy camera's pair is matched on its
-    # noise-whitened channels (slitcli.stereo.matcher.noise_whitened_pair)
+    # noise-whitened channels (slitcli.stereo.whiten.noise_whitened_pair)
     colour = p.matcher.colour_whiten
     disp = compute_disparity(left if colour else left_grey, right if colour else right_grey,
                              with_rig_ground(p.matcher, geometry), pool=pool)
