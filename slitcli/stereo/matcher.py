@@ -55,6 +55,13 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   the thresholds hold through a camera's demosaiced, compressed, signal-dependent noise;
   the depth-edge test compares its two residuals less that noise. Only the noise beyond
   ``support_noise_ref_dn`` is taken off (the thresholds were set at that noise);
+- noisy colour cameras (``colour_whiten``, off by default; local matcher only): a
+  colour pair whose luma noise exceeds ``colour_whiten_min_noise_dn`` is matched again
+  on each view's channels weighted for the texture's signal-to-noise ratio under each
+  channel's noise by level, estimated from the luma pass's matches
+  (slitcli.stereo.whiten); with ``noise_smoothing`` those images are also
+  low-passed down to ``support_noise_ref_dn`` of noise, the depth-edge test then
+  running on the sharp ones (docs/stereo.md);
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
@@ -90,6 +97,7 @@ from slitcli.stereo.cost import DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
 from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
 from slitcli.stereo.reasons import Reason
+from slitcli.stereo.whiten import noise_whitened_pair, smoothed_filters
 
 if TYPE_CHECKING:
     from slitcli.stereo.geometry import StereoGeometry
@@ -113,6 +121,8 @@ class MatcherParams:
     ``speckle_window_px``) or negative (``lr_max_diff_px``). The depth-edge test
     compares grey-level columns ``window_h_px`` tall; residuals at or below
     ``boundary_noise_dn`` (RMS, DN) are taken as sensor noise and carry no evidence.
+    ``colour_whiten`` / ``colour_whiten_min_noise_dn`` (DN of the luma pair's noise) and
+    ``noise_smoothing``: a noisy colour pair's matching images (:func:`match_nssd`).
     """
 
     matcher: str = "nssd"
@@ -135,6 +145,9 @@ class MatcherParams:
     support_strong_zncc: float = 0.95
     support_noise: bool = True
     support_noise_ref_dn: float = 1.5
+    colour_whiten: bool = False
+    colour_whiten_min_noise_dn: float = 2.0
+    noise_smoothing: bool = False
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -300,6 +313,12 @@ def _check_filters(p: MatcherParams) -> None:
     if not (math.isfinite(p.support_noise_ref_dn) and p.support_noise_ref_dn >= 0):
         raise SlitcliError(f"support_noise_ref_dn {p.support_noise_ref_dn} must be >= 0 DN",
                            param="support_noise_ref_dn")
+    if p.noise_smoothing and not p.colour_whiten:
+        raise SlitcliError("noise_smoothing low-passes the whitened colour images: it needs "
+                           "colour_whiten True", param=("noise_smoothing", "colour_whiten"))
+    if not (math.isfinite(p.colour_whiten_min_noise_dn) and p.colour_whiten_min_noise_dn >= 0):
+        raise SlitcliError(f"colour_whiten_min_noise_dn {p.colour_whiten_min_noise_dn} must be "
+                           ">= 0 DN", param="colour_whiten_min_noise_dn")
     if not 0 <= p.boundary_ratio < 1:
         raise SlitcliError(f"`boundary_ratio` {p.boundary_ratio} must be in [0, 1) (0 = off)",
                            param="boundary_ratio")
@@ -347,7 +366,8 @@ def _check_image(p: MatcherParams, image_width_px: int) -> None:
 
 
 def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
-               params: MatcherParams, pool: ThreadPoolExecutor | None = None
+               params: MatcherParams, pool: ThreadPoolExecutor | None = None, *,
+               left_bgr: np.ndarray | None = None, right_bgr: np.ndarray | None = None
                ) -> DisparityResult:
     """The paper's matcher: Eq. 10 cost, winner-take-all, subpixel, validity filters.
 
@@ -359,6 +379,11 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     pool : ThreadPoolExecutor, optional
         Helper threads held by the caller for a whole sequence (see
         :func:`compute_disparity`).
+    left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3), optional
+        The colour pair the grey pair was made from. With ``colour_whiten``, a pair
+        whose luma noise (estimated from the luma pass's matches) exceeds
+        ``colour_whiten_min_noise_dn`` is matched again on its noise-whitened images
+        (slitcli.stereo.whiten.noise_whitened_pair), and filtered on them.
 
     Returns
     -------
@@ -373,17 +398,33 @@ def match_nssd(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with frame_pool(pool, threads) as pool:
-        if pool is not None:
-            right_job = pool.submit(prefilter_image, right_grey, params)
-            pl = prefilter_image(left_grey, params)
-            pr = right_job.result()
-        else:
-            pl = prefilter_image(left_grey, params)
-            pr = prefilter_image(right_grey, params)
+        pl, pr = _prefiltered_pair(left_grey, right_grey, params, pool)
         winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
-        run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp, reason,
-                                           rdisp, pool, threads))
+        white = None
+        if params.colour_whiten and left_bgr is not None and right_bgr is not None:
+            white = noise_whitened_pair(left_bgr, right_bgr, left_grey, right_grey,
+                                        disp, reason == Reason.VALID, params)
+        if white is None:
+            run_disparity_filters(FilterInputs(left_grey, right_grey, pl, params, disp,
+                                               reason, rdisp, pool, threads))
+            return DisparityResult(disp, reason, cost)
+        pl, pr = _prefiltered_pair(white.left, white.right, params, pool)
+        winners(pl, pr, params, pool, threads, disp, cost, reason, rdisp)
+        if white.smoothing_px == 0:
+            run_disparity_filters(FilterInputs(white.left, white.right, pl, params, disp,
+                                               reason, rdisp, pool, threads))
+        else:
+            smoothed_filters(white, pl, params, disp, reason, rdisp, pool, threads)
     return DisparityResult(disp, reason, cost)
+
+
+def _prefiltered_pair(left_grey: np.ndarray, right_grey: np.ndarray, params: MatcherParams,
+                      pool: ThreadPoolExecutor | None) -> tuple[np.ndarray, np.ndarray]:
+    """Both views prefiltered (the right one on a helper thread when there is one)."""
+    if pool is None:
+        return prefilter_image(left_grey, params), prefilter_image(right_grey, params)
+    right_job = pool.submit(prefilter_image, right_grey, params)
+    return prefilter_image(left_grey, params), right_job.result()
 
 
 def match_opencv(left_grey: np.ndarray, right_grey: np.ndarray,
@@ -503,5 +544,7 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
         return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
     if p.matcher == "nssd":
-        return match_nssd(lg, rg, p, pool)
+        colour = np.ndim(left) == 3
+        return match_nssd(lg, rg, p, pool, left_bgr=left if colour else None,
+                          right_bgr=right if colour else None)
     return match_opencv(lg, rg, p)

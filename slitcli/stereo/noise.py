@@ -143,6 +143,92 @@ def estimate_match_noise(left_grey: np.ndarray, right_grey: np.ndarray,
                       rho_y=float(rho[1]), rho_diag=float(0.5 * (rho[2] + rho[3])), samples=n)
 
 
+@dataclass(frozen=True)
+class ChannelNoise:
+    """Noise variance of each colour channel of one view as a function of the channel's
+    level (:func:`estimate_channel_noise`).
+
+    Attributes
+    ----------
+    levels_dn, variances_dn2 : tuple of three ndarrays, float64, shape (K_c,)
+        For channel c (B, G, R order): the median level of each level bin (DN,
+        increasing) and the noise variance of one view there (DN^2).
+    """
+
+    levels_dn: tuple[np.ndarray, np.ndarray, np.ndarray]
+    variances_dn2: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+    def variance_at(self, channel: int, level_dn: np.ndarray) -> np.ndarray:
+        """The noise variance (DN^2) of ``channel`` at ``level_dn`` (any shape; linear
+        between the bins' levels, constant beyond the end ones)."""
+        return np.interp(level_dn, self.levels_dn[channel], self.variances_dn2[channel])
+
+
+def estimate_channel_noise(left_bgr: np.ndarray, right_bgr: np.ndarray,
+                           disparity_px: np.ndarray, valid: np.ndarray,
+                           level_bins: int = 8) -> ChannelNoise | None:
+    """Each colour channel's noise as a function of its level, from the pair's matches.
+
+    A camera's noise differs by channel and level: photo-electron noise grows with the
+    light, the tone curve's slope is steepest in the dark, and the colour matrix that
+    undoes the filters' overlap adds a bright channel's noise to the dim ones (a red
+    surface's green and blue through the ``robot`` preset carry 15-16 DN, its red 10,
+    a grey floor's channels 8-9). As :func:`estimate_match_noise`, per channel: the
+    left-minus-right differences at the matches (subpixel rest removed with the right
+    image's slope), trimmed at 3.5 robust sigmas and taken where the slope is within
+    two noise sigmas, half their mean square in each of ``level_bins`` bins of equal
+    count over the left pixel's level.
+
+    Parameters
+    ----------
+    left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3)
+        The rectified colour pair.
+    disparity_px, valid : ndarray, shape (H, W)
+        Left disparities (px, NaN = none) and the matches to use.
+    level_bins : int
+
+    Returns
+    -------
+    ChannelNoise, or None when a channel has fewer than :data:`MIN_SAMPLES` usable
+    differences.
+    """
+    from slitcli.stereo._c import noise as _kernels
+
+    d = np.ascontiguousarray(disparity_px, np.float32)
+    ok = np.ascontiguousarray(valid, bool).view(np.uint8)
+    count = _kernels.count_matches(d, ok)
+    if count < MIN_SAMPLES:
+        return None
+    step = -(-count // MAX_SAMPLES)
+    levels, variances = [], []
+    for c in range(3):
+        gl = np.ascontiguousarray(left_bgr[..., c], np.float32)
+        gr = np.ascontiguousarray(right_bgr[..., c], np.float32)
+        ys, xs, di = (np.empty(count, np.int32) for _ in range(3))
+        diff, slope = np.empty(count, np.float32), np.empty(count, np.float32)
+        n = _kernels.match_differences(gl, gr, d, ok, step, _MAX_FRACTION_PX, ys, xs, di,
+                                       diff, slope)
+        if n < MIN_SAMPLES:
+            return None
+        diff, slope, level = diff[:n], slope[:n], gl[ys[:n], xs[:n]]
+        q1, centre, q3 = _quantiles(diff)
+        robust = max((q3 - q1) / 1.349, 0.5)
+        use = (np.abs(diff - centre) <= _TRIM_SIGMAS * robust) & \
+            (np.abs(slope) <= _FLAT_SIGMAS * robust / np.sqrt(2.0))
+        if int(use.sum()) < MIN_SAMPLES:
+            return None
+        order = np.argsort(level[use], kind="stable")
+        level = level[use][order]
+        res2 = np.square(diff[use] - centre, dtype=np.float64)[order]
+        # bins of equal count (at least 50 differences each), in order of level
+        k = max(1, min(level_bins, level.size // (MIN_SAMPLES // 4)))
+        starts = (np.arange(k) * level.size) // k
+        ends = np.append(starts[1:], level.size)
+        levels.append(level[(starts + ends - 1) // 2].astype(np.float64))
+        variances.append(np.add.reduceat(res2, starts) / (ends - starts) / 2.0)
+    return ChannelNoise(tuple(levels), tuple(variances))  # type: ignore[arg-type]
+
+
 def _quantiles(x: np.ndarray) -> tuple[float, float, float]:
     """First quartile, median and third quartile of ``x`` (nearest rank; one O(n)
     partition instead of a sort)."""
@@ -152,4 +238,5 @@ def _quantiles(x: np.ndarray) -> tuple[float, float, float]:
     return float(part[k[0]]), float(part[k[1]]), float(part[k[2]])
 
 
-__all__ = ["MAX_SAMPLES", "MIN_SAMPLES", "MatchNoise", "estimate_match_noise"]
+__all__ = ["MAX_SAMPLES", "MIN_SAMPLES", "ChannelNoise", "MatchNoise", "estimate_channel_noise",
+           "estimate_match_noise"]

@@ -129,7 +129,10 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     left_grey, right_grey = to_grey(left), to_grey(right)
     # SGM's windows sheared by the ground's disparity gradient where the rig sees ground
     # (or the pair's ground, with sgm_ground 'pair' / 'check': compute_disparity)
-    disp = compute_disparity(left_grey, right_grey,
+    # with colour_whiten the colour pair: a noisy camera's pair is matched on its
+    # noise-whitened channels (slitcli.stereo.whiten.noise_whitened_pair)
+    colour = p.matcher.colour_whiten
+    disp = compute_disparity(left if colour else left_grey, right if colour else right_grey,
                              with_rig_ground(p.matcher, geometry), pool=pool)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
     inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)

@@ -1,0 +1,125 @@
+"""The images a noisy colour pair is matched on: each view's channels weighted for the
+texture's signal-to-noise ratio, optionally low-passed down to the noise the matcher's
+thresholds were set at (``colour_whiten``, ``noise_smoothing``; docs/stereo.md).
+
+:func:`noise_whitened_pair` builds them from the luma pass's matches (the pair's
+noise per channel and level, slitcli.stereo.noise); :func:`smoothed_filters` runs the
+filter chain after a match on low-passed images. slitcli.stereo.matcher.match_nssd
+calls both.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
+from slitcli.stereo.filters import DISPARITY_FILTERS, FilterInputs, run_disparity_filters
+from slitcli.stereo.noise import estimate_channel_noise, estimate_match_noise
+
+if TYPE_CHECKING:
+    from slitcli.stereo.matcher import MatcherParams
+
+
+@dataclass(frozen=True)
+class WhitenedPair:
+    """The images a noisy colour pair is matched on (:func:`noise_whitened_pair`).
+
+    ``left``, ``right``: float32 (H, W), DN, what the cost is computed on;
+    ``sharp_left``, ``sharp_right``: the same before the low-pass (the same arrays
+    when ``smoothing_px`` is 0); ``smoothing_px``: the low-pass's Gaussian sigma, px.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    sharp_left: np.ndarray
+    sharp_right: np.ndarray
+    smoothing_px: float
+
+
+def noise_whitened_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, left_grey: np.ndarray,
+                        right_grey: np.ndarray, disparity_px: np.ndarray, valid: np.ndarray,
+                        params: MatcherParams) -> WhitenedPair | None:
+    """The images to match a noisy colour pair on, or None where its luma will do.
+
+    The matcher was set up on pairs with 2 DN of independent noise per colour channel
+    (the renderer's default; their luma's noise reads 1.3-1.8 DN in the estimate of
+    slitcli.stereo.noise). Where the luma pair's noise, estimated from the luma pass's
+    matches, exceeds ``colour_whiten_min_noise_dn``:
+
+    1. each view becomes the texture-to-noise weighted combination of its colour
+       channels (slitcli.stereo.cost.colour_matching_image) under each channel's noise
+       by level, estimated at the same matches (slitcli.stereo.noise.
+       estimate_channel_noise): a camera's noise differs by channel and level, and a
+       coloured surface's texture lives in its bright channels, which luma may weight
+       little;
+    2. with ``noise_smoothing``, the combination's noise and lag-1 correlations are
+       estimated at the same matches and it is low-passed by the least Gaussian that
+       brings its noise down to ``support_noise_ref_dn`` (the noise the thresholds
+       were set at; slitcli.stereo.cost.smoothing_sigma_px), at most a quarter of the
+       window's smaller side (the window must still hold several of the texture's
+       cycles).
+
+    Parameters
+    ----------
+    left_bgr, right_bgr : ndarray, uint8, shape (H, W, 3)
+    left_grey, right_grey : ndarray, shape (H, W)
+        The luma pair the first pass matched.
+    disparity_px, valid : ndarray, shape (H, W)
+        The luma pass's winners and which of them passed its tests.
+    params : MatcherParams
+
+    Returns
+    -------
+    WhitenedPair or None
+    """
+    grey_noise = estimate_match_noise(left_grey, right_grey, disparity_px, valid)
+    if grey_noise.sigma_dn <= params.colour_whiten_min_noise_dn:
+        return None
+    channels = estimate_channel_noise(left_bgr, right_bgr, disparity_px, valid)
+    if channels is None:
+        return None
+    ww, wh = params.window_w_px, params.window_h_px
+    cl = colour_matching_image(left_bgr, ww, wh, channels)
+    cr = colour_matching_image(right_bgr, ww, wh, channels)
+    if not params.noise_smoothing:
+        return WhitenedPair(cl, cr, cl, cr, 0.0)
+    noise = estimate_match_noise(cl, cr, disparity_px, valid)
+    if noise.sigma_dn <= 0:
+        noise = grey_noise  # too few usable matches on the combination: the luma's
+    sigma = smoothing_sigma_px(noise.sigma_dn, noise.rho_x, noise.rho_y, noise.rho_diag,
+                               params.support_noise_ref_dn, 0.25 * min(ww, wh))
+    if sigma <= 0:
+        return WhitenedPair(cl, cr, cl, cr, 0.0)
+    return WhitenedPair(smooth_image(cl, sigma), smooth_image(cr, sigma), cl, cr, sigma)
+
+
+def smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
+                      disp: np.ndarray, reason: np.ndarray, rdisp: np.ndarray,
+                      pool: ThreadPoolExecutor | None, threads: int) -> None:
+    """The filter chain after a match on low-passed images (``noise_smoothing``).
+
+    The support tests run on the low-passed images the match was made on (at the
+    reference noise their thresholds were set at); the depth-edge test, whose evidence
+    is a one-pixel-wide column, runs on the sharp whitened images (the low-pass would
+    blur the edge it looks for); then speckle. The window, low-passed, carries a
+    surface's disparity up to ``m + 3 sigma`` columns past its silhouette (m the
+    window's half width), and on a noisy background few of the pixels just past that
+    band are valid: the depth-edge test looks for the farther surface's valid pixels
+    ``boundary_radius_px`` beyond the band.
+    """
+    support = replace(params, boundary_ratio=0.0)
+    run_disparity_filters(FilterInputs(white.left, white.right, pl, support, disp, reason,
+                                       rdisp, pool, threads), DISPARITY_FILTERS[:2])
+    reach = (params.boundary_radius_px + params.window_w_px // 2
+             + math.ceil(3.0 * white.smoothing_px))
+    edges = replace(params, support_min_zncc=0.0, boundary_radius_px=reach)
+    run_disparity_filters(FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp,
+                                       reason, rdisp, pool, threads), DISPARITY_FILTERS[1:])
+
+
+__all__ = ["WhitenedPair", "noise_whitened_pair", "smoothed_filters"]
