@@ -88,7 +88,7 @@ from slitcli.stereo.bands import (
 )
 from slitcli.stereo.cost import DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
-from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
+from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams
 from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
@@ -500,8 +500,8 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 
-        # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
-        return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
+        # no rig's ground (or sgm_ground 'pair'): match_sgm takes it from the pair
+        return match_sgm(lg, rg, p, pool)
     if p.matcher == "nssd":
         return match_nssd(lg, rg, p, pool)
     return match_opencv(lg, rg, p)

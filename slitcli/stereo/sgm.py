@@ -489,7 +489,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         Rectified grey images (right camera at +baseline along x).
     params : MatcherParams
         ``aggregation = "sgm"``; ``sgm_window_px``, ``sgm_p1``, ``sgm_p2``,
-        ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``.
+        ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``; without a ground
+        (``sgm_ground_px_per_row`` None) and ``sgm_ground`` 'auto', 'pair' or 'check':
+        the pair's (slitcli.stereo.ground.with_pair_ground).
     pool : ThreadPoolExecutor, optional
         Helper threads held by the caller for a sequence
         (slitcli.stereo.matcher.compute_disparity).
@@ -500,11 +502,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
     """
     from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
+    from slitcli.stereo.ground import with_pair_ground
 
-    if params.sgm_window_px > 0:
-        # SGM's own window for the cost and for the filters that read the window size
-        params = replace(params, window_w_px=params.sgm_window_px,
-                         window_h_px=params.sgm_window_px)
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     mcost = np.empty((h, w), np.float32)
@@ -512,6 +511,13 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with frame_pool(pool, threads) as pool:
+        # no ground given (no rig, or sgm_ground 'pair'/'check'): the pair's, its first
+        # pass on this frame's threads
+        params = with_pair_ground(params, left_grey, right_grey, pool)
+        if params.sgm_window_px > 0:
+            # SGM's own window for the cost and for the filters that read the window size
+            params = replace(params, window_w_px=params.sgm_window_px,
+                             window_h_px=params.sgm_window_px)
         right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
         pr = right_job.result() if right_job else prefilter_image(right_grey, params)
