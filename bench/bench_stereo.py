@@ -24,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -102,14 +103,17 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
         compute_disparity(lg, rg, nssd)
 
     before = _load()
-    t = interleaved({
-        "bm": lambda: bm.compute(lg, rg),
-        "nssd default filters": nssd_default,
-        "nssd plain WTA": lambda: compute_disparity(lg, rg, plain),
-        "nssd sgm": lambda: compute_disparity(lg, rg, sgm),
-        "nssd sgm, ground off": lambda: compute_disparity(lg, rg, sgm_off),
-        "sgbm": lambda: sgbm.compute(lg, rg),
-    })
+    # a sequence's caller holds one pool for all its frames (slitcli.stereo.run)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        t = interleaved({
+            "bm": lambda: bm.compute(lg, rg),
+            "nssd default filters": nssd_default,
+            "nssd plain WTA": lambda: compute_disparity(lg, rg, plain),
+            "nssd sgm": lambda: compute_disparity(lg, rg, sgm),
+            "nssd sgm, caller's pool": lambda: compute_disparity(lg, rg, sgm, pool=pool),
+            "nssd sgm, ground off": lambda: compute_disparity(lg, rg, sgm_off),
+            "sgbm": lambda: sgbm.compute(lg, rg),
+        })
     load = f"{before} before, {_load()} after; matcher threads {min(threads)}-{max(threads)}"
     notes = {
         "nssd default filters": "Eq. 10 + prefilter, texture, uniqueness, left-right, "
@@ -119,6 +123,8 @@ def _speed_rows(timer, size, num, label: str = "") -> list[dict]:
         "nssd sgm": "Eq. 10 + 4-path semi-global aggregation + the default filters and "
                     "the bracket test, its ground estimated from the pair (no rig: "
                     "sgm_ground auto; none found on this pair); issue 23: <= sgbm at 320x240",
+        "nssd sgm, caller's pool": "the same with a helper thread held for the sequence "
+                                   "(no pool started and joined per frame)",
         "nssd sgm, ground off": "the same without the ground estimate (as with a rig "
                                 "whose ground shifts no window row, e.g. the paper rig)",
         "sgbm": "OpenCV StereoSGBM, P1=8w^2, P2=32w^2",

@@ -111,6 +111,54 @@ def test_fit_finds_an_exact_line_among_outliers(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+def test_fit_kernels_equal_plain_loops(seed):
+    """The fit's compiled steps (slitcli/stereo/_c/ground.pyx) against plain NumPy on
+    random first passes: the valid points in row-major order, each line's v-disparity
+    mass counted point by point in its bins, the least-squares refit of the inliers
+    (np.polyfit) and their residuals and per-row counts."""
+    from slitcli.stereo._c import ground as k
+
+    rng = np.random.default_rng(seed)
+    hr, wr = 40, 53
+    disp = rng.uniform(0, 12, (hr, wr)).astype(np.float32)
+    disp[rng.random((hr, wr)) < 0.3] = np.nan
+    disp[0, 0] = np.inf                                   # not finite: not a point
+    rows = np.empty(hr * wr, np.int32)
+    r, d = np.empty((2, hr * wr))
+    n = k.valid_points(disp, rows, r, d)
+    yy, xx = np.nonzero(np.isfinite(disp))
+    assert n == yy.size
+    np.testing.assert_array_equal(rows[:n], yy)
+    np.testing.assert_array_equal(d[:n], disp[yy, xx])
+    rows, r, d = rows[:n], r[:n], d[:n]
+    q, half = 0.25, 2.0
+    lo = math.floor(d.min() / q) - 1
+    nb = math.floor(d.max() / q) - lo + 2
+    g = rng.uniform(0.0, 0.5, 16)
+    b = rng.uniform(-5.0, 10.0, 16)
+    mass = np.empty(16, np.int64)
+    k.line_mass(rows, d, hr, q, lo, nb, half, g, b, mass)
+    bins = np.floor(d / q).astype(np.int64) - lo
+    for i in range(16):
+        c = (g[i] * rows + b[i]) / q - lo
+        a = np.clip(np.floor(c - half), 0, nb)
+        z = np.clip(np.floor(c + half) + 1, 0, nb)
+        assert mass[i] == np.sum((bins >= a) & (bins < z))
+    tol = 2.0
+    on = np.abs(d - (0.1 * r + 3.0)) <= tol
+    g2, b2, count, r_mean, sxx = k.line_refit(r, d, 0.1, 3.0, tol)
+    want_g, want_b = np.polyfit(r[on], d[on], 1)
+    assert count == on.sum()
+    assert (g2, b2) == pytest.approx((want_g, want_b), rel=1e-9, abs=1e-9)
+    assert (r_mean, sxx) == pytest.approx((r[on].mean(), ((r[on] - r[on].mean()) ** 2).sum()))
+    resid = np.empty(n)
+    per_row = np.zeros(hr, np.int64)
+    m = k.line_inliers(rows, r, d, 0.1, 3.0, tol, resid, per_row)
+    np.testing.assert_array_equal(resid[:m], (d - (0.1 * r + 3.0))[on])
+    np.testing.assert_array_equal(per_row, np.bincount(rows[on], minlength=hr))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_auto_is_the_pair_estimate_and_the_rig_path_stays(seed):
     """Without a rig, 'auto' shears by the pair's estimate (the same map as with those
     values given); with the rig, the pipeline takes the rig's ground (bit for bit the

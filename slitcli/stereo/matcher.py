@@ -95,7 +95,7 @@ from slitcli.stereo.bands import (
 )
 from slitcli.stereo.cost import DisparityResult, prefilter_image, to_grey
 from slitcli.stereo.filters import FilterInputs, run_disparity_filters
-from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams, with_pair_ground
+from slitcli.stereo.ground import GROUND_SOURCES, GroundFitParams
 from slitcli.stereo.reasons import Reason
 from slitcli.stereo.whiten import noise_whitened_pair, smoothed_filters
 
@@ -171,9 +171,6 @@ class MatcherParams:
     sgm_ground_tilt_tol_deg: float = 1.0
     sgm_ground: str = "auto"
     sgm_ground_fit: GroundFitParams = field(default_factory=GroundFitParams)
-    sgm_bracket_edge_dn: float = 0.0
-    sgm_run_check_sigma: float = 0.0
-    sgm_bracket_plain_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         check_matcher_params(self)
@@ -221,16 +218,6 @@ def _check_sgm(p: MatcherParams) -> None:
     if not 0 <= p.sgm_p1 <= p.sgm_p2 <= 8.0:
         raise SlitcliError(f"sgm_p1 {p.sgm_p1} and sgm_p2 {p.sgm_p2} must satisfy "
                            "0 <= sgm_p1 <= sgm_p2 <= 8 (Eq. 10 cost units)")
-    if not 0 <= p.sgm_bracket_edge_dn <= 255:
-        raise SlitcliError(f"sgm_bracket_edge_dn {p.sgm_bracket_edge_dn} must lie in 0..255 DN "
-                           "(0 = off)", param="sgm_bracket_edge_dn")
-    if not p.sgm_bracket_plain_sigma >= 0:
-        raise SlitcliError(f"sgm_bracket_plain_sigma {p.sgm_bracket_plain_sigma} must be >= 0 "
-                           "(noise standard deviations; 0 = off)",
-                           param="sgm_bracket_plain_sigma")
-    if not p.sgm_run_check_sigma >= 0:
-        raise SlitcliError(f"sgm_run_check_sigma {p.sgm_run_check_sigma} must be >= 0 "
-                           "(robust standard deviations; 0 = off)", param="sgm_run_check_sigma")
     if p.sgm_bracket_px < 0 or p.sgm_bracket_tol_px < 0:
         raise SlitcliError(f"sgm_bracket_px {p.sgm_bracket_px} and sgm_bracket_tol_px "
                            f"{p.sgm_bracket_tol_px} must be >= 0 (0 px reach = off)")
@@ -541,8 +528,8 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
     if p.matcher == "nssd" and p.aggregation == "sgm":
         from slitcli.stereo.sgm import match_sgm
 
-        # no rig's ground (or sgm_ground 'pair'): the ground from the pair itself
-        return match_sgm(lg, rg, with_pair_ground(p, lg, rg, pool), pool)
+        # no rig's ground (or sgm_ground 'pair'): match_sgm takes it from the pair
+        return match_sgm(lg, rg, p, pool)
     if p.matcher == "nssd":
         colour = np.ndim(left) == 3
         return match_nssd(lg, rg, p, pool, left_bgr=left if colour else None,

@@ -24,7 +24,6 @@ class Reason(IntEnum):
     OPENCV = 6
     SUPPORT = 7
     BOUNDARY = 8
-    PLAIN_RUN = 9
 
     @property
     def description(self) -> str:
@@ -42,8 +41,6 @@ _DESCRIPTIONS = {
     Reason.OPENCV: "rejected by the OpenCV matcher",
     Reason.SUPPORT: "local support",
     Reason.BOUNDARY: "depth edge (the farther surface explains the pixel better)",
-    Reason.PLAIN_RUN: "plain run (SGM: its row's plain run at its disparity does not match the "
-                      "right image at the run's ends)",
 }
 
 __all__ = ["Reason"]

@@ -18,17 +18,10 @@ left-right consistency on the aggregated costs, the subpixel parabola) and the l
 matcher's post-filter chain with one more step, the bracket test (:data:`SGM_FILTERS`,
 slitcli.stereo._bracket): a pixel whose own neighbourhood does not carry the match is
 kept where valid pixels on both sides of it agree with each other and with it, and so
-is a small isolated region. Three optional tests (off by default, measured in
-docs/notes/stereo-sgm.md, session 7) aim at plain surfaces, where the paths carry a
-neighbour's disparity: no bracket along a line that runs beside a grey step
-(``sgm_bracket_edge_dn``, :func:`edge_lines`), both lines needed for a pixel whose
-window holds nothing but noise (``sgm_bracket_plain_sigma``, :func:`plain_pixels`), and
-a plain row run rejected where its ends contradict its disparity
-(``sgm_run_check_sigma``, :func:`plain_runs`). Last, the subpixel offsets of the
-pixels valid on their own are refitted to their own Eq. 10 costs (:func:`raw_subpixel`'s
-rule; the sums' parabola is pulled to the whole pixel by the path penalties), computed
-in the winner step while each row's costs are in cache, so the volumes are freed before
-the filters.
+is a small isolated region. Last, the subpixel offsets of the pixels valid on their
+own are refitted to their own Eq. 10 costs (:func:`raw_subpixel`'s rule; the sums'
+parabola is pulled to the whole pixel by the path penalties), computed in the winner
+step while each row's costs are in cache, so the volumes are freed before the filters.
 
 Cost: two fused passes (compiled kernels, slitcli/stereo/_c/sgm.pyx): the costs of each
 row with the top-down sweep over them, then the bottom-up sweep with each row's winner
@@ -45,7 +38,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from slitcli.stereo.bands import frame_pool, kernel_threads, run_row_bands
@@ -144,11 +136,10 @@ def aggregate(cost: np.ndarray, params: MatcherParams,
     return s_a, s_b
 
 
-def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ...],
-                  edge: np.ndarray | None) -> np.ndarray:
+def _bracket_pass(x: FilterInputs, reason: np.ndarray,
+                  weak_codes: tuple[int, ...]) -> np.ndarray:
     """(H, W) bool: pixels of a code in ``weak_codes`` bracketed by ``reason == VALID``
-    pixels (slitcli.stereo._bracket, reach/tol/span from ``sgm_bracket_*``; ``edge``:
-    :func:`edge_lines`, or None)."""
+    pixels (slitcli.stereo._bracket, reach/tol/span from ``sgm_bracket_*``)."""
     from slitcli.stereo import _bracket
 
     p = x.params
@@ -157,33 +148,8 @@ def _bracket_pass(x: FilterInputs, reason: np.ndarray, weak_codes: tuple[int, ..
     weak[list(weak_codes)] = True
     _bracket.bracket_rows(x.disparity_px, reason, int(Reason.VALID), weak,
                           int(p.sgm_bracket_px), np.float32(p.sgm_bracket_tol_px),
-                          np.float32(p.sgm_bracket_span_px), keep, edge)
+                          np.float32(p.sgm_bracket_span_px), keep)
     return keep
-
-
-def edge_lines(left_grey: np.ndarray, step_dn: float, half_px: int) -> np.ndarray:
-    """(H, W) uint8: where a line of the bracket test runs along a grey step.
-
-    Bit 1: within ``half_px`` rows of a step of more than ``step_dn`` between two rows
-    (3 x 3 mean grey levels of the left image, DN); bit 2: within ``half_px`` columns of
-    such a step between two columns. A window centred within half its size of a
-    horizontal step sees the texture beyond it on one side only and takes that side's
-    disparity (the step itself moves with no horizontal disparity: the aperture
-    problem), and so do its neighbours along the row: a row there brackets a pixel with
-    copies of one guess. At a plain box's top edge before a textured wall, the box's
-    first rows carry the wall's disparity, and the row brackets the pixels between them.
-    The column across the step, and the row across a vertical step, stay tests."""
-    g = cv2.blur(np.asarray(left_grey, np.float32), (3, 3))
-    rows = np.zeros(g.shape, np.uint8)
-    cols = np.zeros(g.shape, np.uint8)
-    rows[1:] = np.abs(g[1:] - g[:-1]) > step_dn
-    cols[:, 1:] = np.abs(g[:, 1:] - g[:, :-1]) > step_dn
-    # row y holds the step between rows y - 1 and y: rows y - half_px .. y + half_px
-    # (half_px rows above the step and half_px + 1 below) are marked
-    k = np.ones((2 * half_px + 1, 1), np.uint8)
-    rows = cv2.dilate(rows, k)
-    cols = cv2.dilate(cols, k.T)
-    return rows | (cols << 1)
 
 
 def _small_regions(x: FilterInputs) -> np.ndarray:
@@ -209,11 +175,7 @@ def _bracket(x: FilterInputs) -> None:
     a plain region, whose fill neighbours lie within ``speckle_range_px`` of it.
     Pass 2: a region the speckle filter would have removed before pass 1 is evidence
     of one small patch only; its pixels stay valid where the other valid pixels
-    (fills included) bracket them, as for pass 1's candidates. With
-    ``sgm_bracket_edge_dn`` > 0 neither pass brackets along a line that runs within half
-    a window of a grey step parallel to it (:func:`edge_lines`); with
-    ``sgm_bracket_plain_sigma`` > 0 a plain pixel (:func:`plain_pixels`) needs both its
-    row and its column to bracket it."""
+    (fills included) bracket them, as for pass 1's candidates."""
     p = x.params
     small = small_job = None
     if p.speckle_window_px > 0:
@@ -223,13 +185,7 @@ def _bracket(x: FilterInputs) -> None:
             small_job = x.pool.submit(_small_regions, x)
         else:
             small = _small_regions(x)
-    edge = (edge_lines(x.left_grey, p.sgm_bracket_edge_dn, p.window_h_px // 2)
-            if p.sgm_bracket_edge_dn > 0 else None)
-    if p.sgm_bracket_plain_sigma > 0:
-        both = plain_pixels(x, p.sgm_bracket_plain_sigma).view(np.uint8) << 2
-        edge = both if edge is None else edge | both
-    keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)),
-                         edge)
+    keep = _bracket_pass(x, x.invalid_reason, (int(Reason.SUPPORT), int(Reason.UNIQUENESS)))
     if small_job is not None:
         small = small_job.result()
     x.invalid_reason[keep] = Reason.VALID
@@ -241,107 +197,7 @@ def _bracket(x: FilterInputs) -> None:
 
     bracket_marked(x.disparity_px, x.invalid_reason, int(Reason.VALID), small.view(np.uint8),
                    int(p.sgm_bracket_px), np.float32(p.sgm_bracket_tol_px),
-                   np.float32(p.sgm_bracket_span_px),
-                   np.zeros(small.shape, np.uint8) if edge is None else edge,
-                   int(Reason.SPECKLE))
-
-
-def match_noise_dn(x: FilterInputs) -> float:
-    """Sensor noise of one image, DN, from the matches: the robust standard deviation of
-    left grey minus right grey at the valid pixels' disparities (linear interpolation),
-    over sqrt(2) (two images' noise). Interpolation on steep texture adds to it; 0 when
-    fewer than 100 pixels are valid."""
-    d, valid = x.disparity_px, x.invalid_reason == Reason.VALID
-    h, w = d.shape
-    map_x = np.arange(w, dtype=np.float32)[None, :] - np.where(valid, d, np.float32(0))
-    map_y = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
-    warped = cv2.remap(np.asarray(x.right_grey, np.float32),
-                       np.ascontiguousarray(map_x, np.float32), np.ascontiguousarray(map_y),
-                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                       borderValue=float("nan"))
-    residual = np.asarray(x.left_grey, np.float32) - warped
-    seen = residual[valid & np.isfinite(residual)]
-    if seen.size < 100:
-        return 0.0
-    return float(np.median(np.abs(seen - np.median(seen)))) * 1.4826 / math.sqrt(2.0)
-
-
-def plain_pixels(x: FilterInputs, sigmas: float) -> np.ndarray:
-    """(H, W) bool: pixels whose window (``window_w_px`` x ``window_h_px``) of the left
-    grey image varies by less than ``sigmas`` times the noise (:func:`match_noise_dn`):
-    nothing but noise in it. A bracket along one line fills such a pixel with whatever
-    that line carries (on a plain box, the wall's disparity along its top rows, between
-    two fattened silhouettes); a weakly textured floor, whose windows vary by about
-    twice the noise, is not plain, and its rows (constant disparity on a level floor)
-    still bracket alone."""
-    from slitcli.stereo.filters import window_std_dn
-
-    p = x.params
-    noise = match_noise_dn(x)
-    if noise <= 0:
-        return np.zeros(x.disparity_px.shape, np.bool_)
-    spread = window_std_dn(np.asarray(x.left_grey, np.float32), p.window_w_px, p.window_h_px)
-    return spread < sigmas * noise
-
-
-def image_noise_dn(grey: np.ndarray) -> float:
-    """Robust standard deviation of the sensor noise of a grey image, DN: the median
-    absolute response to the 3 x 3 mask [1 -2 1; -2 4 -2; 1 -2 1] (zero on any plane,
-    so on smooth shading; 36 sigma^2 of white noise, sqrt(36) = 6) over 0.6745. Edges
-    and texture add to few pixels' responses and move the median little."""
-    mask = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
-    response = cv2.filter2D(np.asarray(grey, np.float32), cv2.CV_32F, mask)[1:-1, 1:-1]
-    return float(np.median(np.abs(response))) * 1.4826 / 6.0
-
-
-def plain_runs(x: FilterInputs) -> None:
-    """Reject valid pixels whose plain row run is not one surface at their disparity.
-
-    A run is a maximal stretch of a row's valid pixels whose 3 x 3 mean grey steps by
-    less than ``3 sigma`` from pixel to pixel (``sigma``: :func:`image_noise_dn` of the
-    left image; nothing in the run but noise) and whose disparities step by at most
-    1 px. Nothing in a plain run carries its disparity; the paths and the bracket
-    brought it. If it is the disparity of the surface the run lies on, the right image
-    at ``x - d`` repeats the run's grey levels along its whole length. If it is a
-    farther neighbour's (a plain box's top rows carry the textured wall's disparity
-    behind them, and the bracket fills between them), the run is shifted by the
-    difference ``e`` against the box in the right image, and its last ``e`` pixels
-    sample the wall's texture there: the run is refuted at an end. So a run is
-    rejected (:attr:`Reason.PLAIN_RUN`) where at least 2 of the ``sgm_window_px - 1``
-    pixels at one of its ends differ from the right image at their disparities
-    (linear interpolation, 3 x 3 means) by more than ``sgm_run_check_sigma`` robust
-    standard deviations of that difference over all valid pixels (its median removed:
-    a gain or offset between the cameras). One such pixel may be noise; two within a
-    few pixels of one end are the other surface. The runs are scanned by
-    slitcli/stereo/_c/bracket.pyx (``plain_run_rows``)."""
-    from slitcli.stereo._c.bracket import plain_run_rows
-
-    p = x.params
-    d, reason = x.disparity_px, x.invalid_reason
-    h, w = d.shape
-    gl = cv2.blur(np.asarray(x.left_grey, np.float32), (3, 3))
-    gr = cv2.blur(np.asarray(x.right_grey, np.float32), (3, 3))
-    valid = reason == Reason.VALID
-    map_x = (np.arange(w, dtype=np.float32)[None, :] - np.where(valid, d, np.float32(0)))
-    map_y = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
-    warped = cv2.remap(gr, np.ascontiguousarray(map_x, np.float32),
-                       np.ascontiguousarray(map_y), cv2.INTER_LINEAR,
-                       borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
-    residual = gl - warped
-    seen = valid & np.isfinite(residual)
-    if seen.sum() < 100:
-        return
-    offset = float(np.median(residual[seen]))
-    spread = float(np.median(np.abs(residual[seen] - offset))) * 1.4826
-    refuted = seen & (np.abs(residual - offset) > p.sgm_run_check_sigma * spread)
-    step = np.zeros((h, w), np.float32)
-    step[:, 1:] = np.abs(gl[:, 1:] - gl[:, :-1])
-    plain_dn = 3.0 * image_noise_dn(x.left_grey)
-    plain = np.maximum(step, np.roll(step, -1, axis=1)) < plain_dn
-    member = valid & plain
-    plain_run_rows(np.ascontiguousarray(d, np.float32), member.view(np.uint8),
-                   refuted.view(np.uint8), max(int(p.window_w_px) - 1, 1),
-                   int(Reason.PLAIN_RUN), reason)
+                   np.float32(p.sgm_bracket_span_px), int(Reason.SPECKLE))
 
 
 #: The filters after the SGM winner step: the local matcher's chain with the bracket
@@ -359,10 +215,6 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
                     "valid again; then regions the speckle filter would have removed "
                     "before (speckle_window_px) stay valid only where so bracketed",
                     lambda p: p.sgm_bracket_px > 0, _bracket),
-    DisparityFilter("sgm_plain_runs", (Reason.PLAIN_RUN,),
-                    "valid pixels in a row run of plain pixels at one disparity whose ends "
-                    "do not match the right image at it (sgm_run_check_sigma)",
-                    lambda p: p.sgm_run_check_sigma > 0, plain_runs),
     DISPARITY_FILTERS[-1],
 )
 
@@ -489,7 +341,9 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         Rectified grey images (right camera at +baseline along x).
     params : MatcherParams
         ``aggregation = "sgm"``; ``sgm_window_px``, ``sgm_p1``, ``sgm_p2``,
-        ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``.
+        ``sgm_paths``, ``sgm_subpixel``, ``sgm_bracket_*``; without a ground
+        (``sgm_ground_px_per_row`` None) and ``sgm_ground`` 'auto', 'pair' or 'check':
+        the pair's (slitcli.stereo.ground.with_pair_ground).
     pool : ThreadPoolExecutor, optional
         Helper threads held by the caller for a sequence
         (slitcli.stereo.matcher.compute_disparity).
@@ -500,11 +354,8 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         ``match_cost``: the Eq. 10 cost of the winning disparity (to 1/256).
     """
     from slitcli.stereo.cost import _QUANT, DisparityResult, prefilter_image
+    from slitcli.stereo.ground import with_pair_ground
 
-    if params.sgm_window_px > 0:
-        # SGM's own window for the cost and for the filters that read the window size
-        params = replace(params, window_w_px=params.sgm_window_px,
-                         window_h_px=params.sgm_window_px)
     h, w = left_grey.shape
     disp = np.empty((h, w), np.float32)
     mcost = np.empty((h, w), np.float32)
@@ -512,6 +363,13 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     rdisp = np.empty((h, w), np.float32)
     threads = kernel_threads()
     with frame_pool(pool, threads) as pool:
+        # no ground given (no rig, or sgm_ground 'pair'/'check'): the pair's, its first
+        # pass on this frame's threads
+        params = with_pair_ground(params, left_grey, right_grey, pool)
+        if params.sgm_window_px > 0:
+            # SGM's own window for the cost and for the filters that read the window size
+            params = replace(params, window_w_px=params.sgm_window_px,
+                             window_h_px=params.sgm_window_px)
         right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
         pr = right_job.result() if right_job else prefilter_image(right_grey, params)
@@ -548,5 +406,4 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
     return DisparityResult(disp, reason, mcost)
 
 
-__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "edge_lines",
-           "image_noise_dn", "match_noise_dn", "match_sgm", "plain_pixels", "plain_runs"]
+__all__ = ["COST_MAX", "COST_SCALE", "aggregate", "cost_volume", "match_sgm"]

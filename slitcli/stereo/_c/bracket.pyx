@@ -8,14 +8,6 @@ smooth surface (plain, slanted or not) the aggregated disparity runs between tho
 its textured borders; where the aggregation carried a neighbour's disparity across an
 edge onto a plain surface (a floor's or a wall's disparity into a plain box, whose
 own silhouette matched at the box's disparity) the box's borders do not bracket it.
-
-``edge`` marks where a line may not bracket: bit 1, no bracket along the row (the
-pixel lies within half a window of a horizontal grey step: the window there sees the
-texture beyond the step, on one side only, and the pixels along the row all carry its
-disparity: they are no independent evidence of the pixel's own); bit 2, none along the
-column (a vertical step nearby); bit 3 (value 4), the pixel needs both its row and its
-column to bracket it (a plain pixel: ``sgm_bracket_plain_sigma``). slitcli.stereo.sgm
-sets it (``sgm_bracket_edge_dn``).
 """
 
 from libc.math cimport fabsf
@@ -36,12 +28,10 @@ cdef inline bint _between(float d, float a, float b, float tol, float span) noex
 
 def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int code_valid,
                  const uint8_t[::1] weak, Py_ssize_t reach, float tol, float span,
-                 const uint8_t[:, ::1] edge, uint8_t[:, ::1] keep):
+                 uint8_t[:, ::1] keep):
     """Set ``keep`` (H, W) bool where a pixel whose code is marked in ``weak`` (bool per
     code, 256) is bracketed along its row or its column by pixels of code
-    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module), where
-    ``edge`` (H, W) uint8 allows the line (bit 1 set: not along the row; bit 2: not
-    along the column; value 4: both lines must bracket the pixel).
+    ``code_valid`` within ``reach`` px (``tol``, ``span`` in px, see the module).
 
     ``disp`` (H, W) float32, px; ``reason`` (H, W) uint8 codes. Only ``keep`` is
     written (False for the other non-valid pixels; valid pixels untouched)."""
@@ -75,7 +65,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                 if not weak[r]:
                     continue
                 a = up_d[y, x]
-                if last_y[x] - y <= reach and a == a and not (edge[y, x] & 2):
+                if last_y[x] - y <= reach and a == a:
                     keep[y, x] = _between(disp[y, x], a, last_d[x], tol, span)
         for y in range(height):
             ld = NAN
@@ -95,18 +85,7 @@ def bracket_rows(const float[:, ::1] disp, const uint8_t[:, ::1] reason, int cod
                     rd = disp[y, x]
                     rx = x
                     continue
-                if not weak[r]:
-                    continue
-                if edge[y, x] & 4:
-                    # both lines needed: the column's verdict is in keep
-                    if not keep[y, x]:
-                        continue
-                    keep[y, x] = False
-                    a = left[x]
-                    if not (edge[y, x] & 1) and rx - x <= reach and a == a:
-                        keep[y, x] = _between(disp[y, x], a, rd, tol, span)
-                    continue
-                if keep[y, x] or (edge[y, x] & 1):
+                if not weak[r] or keep[y, x]:
                     continue
                 a = left[x]
                 if rx - x <= reach and a == a:
@@ -133,12 +112,12 @@ cdef inline float _nearest(const float[:, ::1] disp, const uint8_t[:, ::1] reaso
 
 def bracket_marked(const float[:, ::1] disp, uint8_t[:, ::1] reason, int code_valid,
                    const uint8_t[:, ::1] mark, Py_ssize_t reach, float tol, float span,
-                   const uint8_t[:, ::1] edge, int code):
+                   int code):
     """:func:`bracket_rows` for the few pixels ``mark`` (H, W) sets: each is tested
     against the nearest pixels of code ``code_valid`` that are not marked, searched
     from it along its row and its column (the scans of :func:`bracket_rows` over the
     whole image find the same pixels), and gets ``code`` in ``reason`` where it is not
-    bracketed. The same rule and ``edge`` bits as :func:`bracket_rows`, whose result
+    bracketed. The same rule as :func:`bracket_rows`, whose result
     for a copy of ``reason`` with the marked pixels as its only weak code this equals
     (the marked pixels are never bracketing pixels, so writing their codes in place
     changes no other pixel's test). The bracket test's second pass
@@ -146,11 +125,9 @@ def bracket_marked(const float[:, ::1] disp, uint8_t[:, ::1] reason, int code_va
     the whole image for them took as long as the first pass."""
     cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y
     cdef float d, a, b
-    cdef bint col, keep
-    cdef uint8_t e
+    cdef bint keep
     if (reason.shape[0] != height or reason.shape[1] != width or mark.shape[0] != height
-            or mark.shape[1] != width or edge.shape[0] != height
-            or edge.shape[1] != width):
+            or mark.shape[1] != width):
         raise ValueError("bracket_marked: every array must have the shape of disp")
     with nogil:
         for y in range(height):
@@ -158,56 +135,15 @@ def bracket_marked(const float[:, ::1] disp, uint8_t[:, ::1] reason, int code_va
                 if not mark[y, x]:
                     continue
                 d = disp[y, x]
-                e = edge[y, x]
-                col = False
-                if not (e & 2):
-                    a = _nearest(disp, reason, mark, code_valid, y, x, -1, 0, reach)
+                keep = False
+                a = _nearest(disp, reason, mark, code_valid, y, x, -1, 0, reach)
+                if a == a:
+                    b = _nearest(disp, reason, mark, code_valid, y, x, 1, 0, reach)
+                    keep = _between(d, a, b, tol, span)
+                if not keep:
+                    a = _nearest(disp, reason, mark, code_valid, y, x, 0, -1, reach)
                     if a == a:
-                        b = _nearest(disp, reason, mark, code_valid, y, x, 1, 0, reach)
-                        col = _between(d, a, b, tol, span)
-                keep = col
-                if (e & 4) or not (col or (e & 1)):
-                    if (e & 4) and not col:
-                        keep = False
-                    elif e & 1:
-                        keep = False
-                    else:
-                        a = _nearest(disp, reason, mark, code_valid, y, x, 0, -1, reach)
-                        keep = False
-                        if a == a:
-                            b = _nearest(disp, reason, mark, code_valid, y, x, 0, 1, reach)
-                            keep = _between(d, a, b, tol, span)
+                        b = _nearest(disp, reason, mark, code_valid, y, x, 0, 1, reach)
+                        keep = _between(d, a, b, tol, span)
                 if not keep:
                     reason[y, x] = code
-
-
-def plain_run_rows(const float[:, ::1] disp, const uint8_t[:, ::1] member,
-                   const uint8_t[:, ::1] refuted, Py_ssize_t end_px, int code,
-                   uint8_t[:, ::1] reason):
-    """The plain-run check's scan (slitcli.stereo.sgm.plain_runs): along each row, a
-    run is a maximal stretch of ``member`` pixels whose disparities (``disp``, px) step
-    by at most 1 px; where at least 2 of its pixels within ``end_px`` of one of its
-    ends (``min(x - first, last - x) < end_px``) are ``refuted``, every pixel of the run
-    gets ``code`` in ``reason``. All arrays (H, W); ``member``, ``refuted`` 0/1."""
-    cdef Py_ssize_t height = disp.shape[0], width = disp.shape[1], x, y, a, b, k
-    cdef int hits
-    with nogil:
-        for y in range(height):
-            x = 0
-            while x < width:
-                if not member[y, x]:
-                    x += 1
-                    continue
-                a = x
-                while x + 1 < width and member[y, x + 1] and \
-                        fabsf(disp[y, x + 1] - disp[y, x]) <= 1.0:
-                    x += 1
-                b = x
-                hits = 0
-                for k in range(a, b + 1):
-                    if refuted[y, k] and (k - a < end_px or b - k < end_px):
-                        hits += 1
-                if hits >= 2:
-                    for k in range(a, b + 1):
-                        reason[y, k] = code
-                x += 1
