@@ -22,7 +22,8 @@ image's evidence noise and the robust noise of the evidence around the candidate
 core left out), so red texture that the colour cannot cancel raises the bar where it is.
 
 The kernels (``column_candidates``, ``fill_gaps``, ``sheet_width_px``, ``evidence_live``
-and the seed screen ``_linear_z``) are compiled C, ``slitcli/laser/_c/candidates.pyx``,
+and the seed screen ``_linear_z``) are compiled C, ``slitcli/laser/_c/candidates.pyx``
+(``fill_gaps``: ``_c/gaps.pyx``),
 re-exported here (``column_candidates`` runs bands of columns on threads); this module
 keeps their constants, which that file mirrors (a test checks that the two agree).
 """
@@ -38,9 +39,9 @@ from slitcli.laser._c import candidates as _kernels
 from slitcli.laser._c.candidates import (
     _linear_z,
     evidence_live,
-    fill_gaps,
     sheet_width_px,
 )
+from slitcli.laser._c.gaps import fill_gaps
 from slitcli.stereo.bands import kernel_threads, run_bands
 
 __all__ = ["_linear_z", "column_candidates", "evidence_live", "fill_gaps", "run_column_bands",

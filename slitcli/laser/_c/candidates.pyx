@@ -11,10 +11,9 @@ numba's but for ``profile.pxd``'s ``_normal`` sums, which numba could reorder
 
 import numpy as np
 
-from libc.float cimport DBL_MAX
-from libc.math cimport INFINITY, NAN, ceil, exp, fabs, isfinite, isnan, rint, sqrt
+from libc.math cimport ceil, exp, fabs, isnan, rint, sqrt
 
-from slitcli.laser._c.light cimport OWN_REACH_PX, own_light
+from slitcli.laser._c.light cimport OWN_REACH_PX
 from slitcli.laser._c.fields cimport (F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB, F_KG, F_KR,
                                       F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS, F_TB, F_TG,
                                       F_TR, F_WIDTH, F_Z, N_FIELDS)
@@ -514,90 +513,3 @@ def evidence_live(mask, const unsigned char[:, :, ::1] img, clipped, out):
                 seen |= res[i, j]
     return seen != 0
 
-
-cdef inline double _fit_gap(const float[:, ::1] y_avg, const unsigned char[:, ::1] ci,
-                            const unsigned char[:, ::1] mi, Py_ssize_t i, double row,
-                            double width, double sigma_avg, double z_min,
-                            double shape_error, double s_max, double* res,
-                            unsigned char* use, double* ebuf) noexcept nogil:
-    """The averaged evidence of column ``i`` fitted near ``row`` (rows of ``y_avg``),
-    starting at width ``width``: the fitted row, or NaN where the fit is not within a
-    pixel of ``row`` or less than ``z_min`` significant (against ``sigma_avg``)."""
-    cdef Py_ssize_t n = y_avg.shape[1], jj
-    cdef double s0 = pmin(pmax(width, 0.6), s_max)
-    cdef Py_ssize_t w_half = <Py_ssize_t>ceil(3.0 * s0 + 3.0)
-    cdef Py_ssize_t c = <Py_ssize_t>(row + 0.5)
-    cdef Py_ssize_t j0 = imax(c - w_half, 0)
-    cdef Py_ssize_t j1 = imin(c + w_half + 1, n)
-    cdef Py_ssize_t m = j1 - j0
-    if m < 6:
-        return NAN
-    for jj in range(m):
-        use[jj] = mi[i, j0 + jj] and not ci[i, j0 + jj]
-    if fit_gaussian(&y_avg[i, j0], use, m, j0, row, s0, sigma_avg, shape_error, s_max, res,
-                    ebuf, NULL) and fabs(res[0] - row) <= 1.0 and res[3] >= z_min:
-        return res[0]
-    return NAN
-
-
-def fill_gaps(double[::1] v, double[::1] amp, const double[:, :, ::1] cand,
-              const float[:, ::1] y, const float[:, ::1] y_avg, clipped, mask,
-              double sigma_y, double sigma_avg, Py_ssize_t row0, Py_ssize_t max_gap,
-              double max_jump_px, double z_min, double shape_error, double s_max,
-              double own_z):
-    """Columns without a stripe between two found ones at most ``max_gap + 1`` apart
-    whose rows differ by at most ``max_jump_px`` a column: the stripe passes there, so
-    the averaged evidence ``y_avg`` (W, H', float32, rows from ``row0``) of each column
-    between is fitted at the row interpolated across the gap (starting at the width of
-    the left column's candidate nearest its row). Where that fit holds (``z_min``
-    significant against ``sigma_avg``, within a pixel of the interpolated row, and its
-    light the column's own: :func:`~slitcli.laser.judge.own_light` on ``y`` (W, H')
-    float32, ``own_z``), ``v`` (W,) float64, rows from the image's top, gets the fitted
-    row and ``amp`` (W,) float64 the left column's peak (0 where that is NaN), in place.
-    ``cand`` (W, K, N_FIELDS) is the candidate table, ``clipped`` and ``mask`` (W, H')
-    bool."""
-    cdef const unsigned char[:, ::1] ci = np.ascontiguousarray(clipped).view(np.uint8)
-    cdef const unsigned char[:, ::1] mi = np.ascontiguousarray(mask).view(np.uint8)
-    cdef Py_ssize_t n_cols = v.shape[0], n = y_avg.shape[1]
-    if amp.shape[0] != n_cols or cand.shape[0] != n_cols or cand.shape[2] != N_FIELDS \
-            or y.shape[0] != n_cols or y_avg.shape[0] != n_cols or ci.shape[0] != n_cols \
-            or mi.shape[0] != n_cols or y.shape[1] != n or ci.shape[1] != n \
-            or mi.shape[1] != n:
-        raise ValueError("fill_gaps: v, amp (W,), cand (W, K, N_FIELDS), y, y_avg, "
-                         "clipped and mask (W, H') disagree in shape")
-    if n == 0 or n_cols == 0:
-        return
-    cdef unsigned char[::1] use = np.empty(n, np.uint8)
-    cdef double[::1] ebuf = np.empty(n)
-    cdef double res[6]
-    cdef Py_ssize_t a = -1, b, i, q, k_best
-    cdef double best, d, width, fill, t, row, fit
-    with nogil:
-        for b in range(n_cols):
-            if not isfinite(v[b]):
-                continue
-            if a < 0 or b - a <= 1 or b - a > max_gap + 1 \
-                    or not fabs(v[b] - v[a]) <= max_jump_px * (b - a):
-                a = b
-                continue
-            # the width of the left column's candidate nearest its row (the first of
-            # equals)
-            k_best = -1
-            best = INFINITY
-            for q in range(cand.shape[1]):
-                d = fabs(cand[a, q, 0] - v[a])
-                if d < best:
-                    best = d
-                    k_best = q
-            width = cand[a, imax(k_best, 0), 2]
-            fill = 0.0 if isnan(amp[a]) else pmin(pmax(amp[a], -DBL_MAX), DBL_MAX)
-            for i in range(a + 1, b):
-                t = <double>(i - a) / (b - a)
-                row = v[a] + t * (v[b] - v[a])
-                fit = _fit_gap(y_avg, ci, mi, i, row - row0, width, sigma_avg, z_min,
-                               shape_error, s_max, res, &use[0], &ebuf[0])
-                if isfinite(fit) and own_light(&y[i, 0], &y_avg[i, 0], &ci[i, 0], &mi[i, 0],
-                                               n, fit, width, sigma_y, shape_error, own_z):
-                    v[i] = fit + row0
-                    amp[i] = fill
-            a = b
