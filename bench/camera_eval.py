@@ -14,10 +14,16 @@ on photographs and on the renders: per-channel noise (robust, from horizontal se
 differences), the JPEG 8x8 block-edge step, and the stripe's red excess, width and core
 colour along the truth. Photographs are only read, never copied.
 
-Not part of `make bench` (about a minute).
+``--ablate`` instead switches the extractor's rules off one at a time (the list of
+bench/laser_real_eval.py, with the paper rig's geometry: ``--search rig``) and scores
+each on the sample scenes' first and middle frames, rendered plain and through the
+``webcam`` and ``robot`` presets: the rendered half of docs/laser.md's ablation.
+
+Not part of `make bench` (about a minute each).
 
     .venv/bin/python bench/camera_eval.py [--scene sample_data/fig4.yaml] [--seeds 8]
         [--real ../shared/real_laser_dev] [--preview /tmp/previews]
+    .venv/bin/python bench/camera_eval.py --ablate [--seeds 3]
 """
 
 from __future__ import annotations
@@ -114,6 +120,53 @@ def laser_study(scene_path: Path, seeds: int, preview: Path | None) -> dict[str,
     return out
 
 
+ABLATE_SCENES = ("fig4", "corridor", "distractors", "overhang")
+ABLATE_VARIANTS = ("clean", "webcam", "robot")
+
+
+def ablation_study(seeds: int) -> dict[str, dict[str, dict]]:
+    """Found / false / median row error of every ablation of bench/laser_real_eval.py
+    per camera variant, pooled over :data:`ABLATE_SCENES` (first and middle frames) and
+    ``seeds`` noise seeds: {ablation: {variant: scores}}."""
+    from laser_real_eval import ablation_extractors
+
+    rig = paper_rig()
+    extractors = ablation_extractors("rig", rig)
+    tot = {n: {v: {"truth_cols": 0, "found": 0, "false": 0, "cols": 0, "err": []}
+               for v in ABLATE_VARIANTS} for n in extractors}
+    for name in ABLATE_SCENES:
+        scene = load_scene(ROOT / "sample_data" / f"{name}.yaml")
+        poses = scene.poses()
+        for pose in (poses[0], poses[len(poses) // 2]):
+            left, _ = camera_poses(rig, pose)
+            scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, left)
+            truth_v = frame_truth(scene, rig, pose).stripe_v_px
+            for variant in ABLATE_VARIANTS:
+                for seed in range(seeds):
+                    rng = np.random.default_rng([scene.seed, seed])
+                    img = make_image(scene_rgb, laser_rgb, STAGES[variant],
+                                     scene.image.noise_sigma_dn, rng)
+                    for n, run in extractors.items():
+                        s = score(run(img), truth_v)
+                        t = tot[n][variant]
+                        for k in ("truth_cols", "found", "false", "cols"):
+                            t[k] += s[k]
+                        t["err"] += s["err"]
+    return {n: {v: {"found": t["found"] / max(t["truth_cols"], 1),
+                    "false": t["false"] / max(t["cols"], 1),
+                    "median_err_px": float(np.median(t["err"])) if t["err"] else
+                    float("nan")} for v, t in per.items()} for n, per in tot.items()}
+
+
+def print_ablation(res: dict[str, dict[str, dict]]) -> None:
+    """One line per ablation: found % / false % / median px per variant."""
+    print(f"{'rule switched off':<50}" + "".join(f"{v:>24}" for v in ABLATE_VARIANTS))
+    for n, per in res.items():
+        print(f"{n:<50}" + "".join(
+            f"{100 * r['found']:>10.1f}{100 * r['false']:>7.2f}{r['median_err_px']:>7.3f}"
+            for r in per.values()))
+
+
 # ------------------------------------------------------------------ image statistics
 def noise_per_channel(bgr: np.ndarray) -> np.ndarray:
     """Robust noise sigma per channel (B, G, R), DN: MAD of the horizontal second
@@ -200,7 +253,15 @@ def main() -> None:
     ap.add_argument("--preview", type=Path, default=None,
                     help="write seed 0's image of each variant here (PNG)")
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
+    ap.add_argument("--ablate", action="store_true",
+                    help="switch the extractor's rules off one at a time (see above)")
     a = ap.parse_args()
+    if a.ablate:
+        abl = ablation_study(a.seeds)
+        print_ablation(abl)
+        if a.json is not None:
+            a.json.write_text(json.dumps(abl, indent=1))
+        return
     res: dict[str, dict] = {"laser": laser_study(a.scene, a.seeds, a.preview)}
     print(f"{'variant':28s} {'found':>7s} {'false':>7s} {'median':>7s} {'rms':>7s} "
           f"{'sigma':>6s}")

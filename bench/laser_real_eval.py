@@ -239,9 +239,18 @@ ABLATIONS = {
 }
 
 
-def ablation_extractors(search: str = "full") -> dict:
-    """One extractor per entry of ``ABLATIONS`` (each sets its switch while it runs)."""
-    from slitcli.laser import LaserParams, choose, extract_stripe, judge
+def ablation_extractors(search: str = "full", rig=None) -> dict:
+    """One extractor per entry of ``ABLATIONS`` (each sets its switch while it runs):
+    ``extract_stripe`` over the whole image, or with ``rig`` ``detect_laser`` with that
+    rig's geometry (``search`` 'rig': its laser band and sheet test)."""
+    from slitcli.laser import (
+        LaserGeometry,
+        LaserParams,
+        choose,
+        detect_laser,
+        extract_stripe,
+        judge,
+    )
 
     ex = {}
     for name, over in ABLATIONS.items():
@@ -258,7 +267,11 @@ def ablation_extractors(search: str = "full") -> dict:
             for k, v in consts.items():
                 setattr(home[k], k, v)
             try:
-                return extract_stripe(bgr, LaserParams(search=search, **kw)).v_px
+                p = LaserParams(search=search, **kw)
+                if rig is None:
+                    return extract_stripe(bgr, p).v_px
+                return detect_laser(bgr, rig, p,
+                                    geometry=LaserGeometry.from_rig(rig, p)).v_px
             finally:
                 for k, v in keep.items():
                     setattr(home[k], k, v)
