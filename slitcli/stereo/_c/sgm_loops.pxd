@@ -44,11 +44,11 @@ cdef extern from *:
     """
     /* One path at one pixel, d = 0..n-1: L = C + min(prev, prev -+ 1 + P1, min prev + P2)
        - min prev (Hirschmueller) with prev from index 1 (a sentinel at both ends),
-       int16 throughout (every value stays below SGM_SENTINEL + P2 < 2^15). */
+       int16 throughout (every value stays below SGM_SENTINEL + P2 < 2^15, so the smaller
+       of prev[i], prev[i + 2] plus P1 is the smaller of the two sums). */
     #define SGM_STEP(prev, h, pm, l) do { \
-            int16_t v_ = prev[i + 1], t_ = (int16_t)(prev[i] + q1); \
-            v_ = t_ < v_ ? t_ : v_; \
-            t_ = (int16_t)(prev[i + 2] + q1); \
+            int16_t v_ = prev[i + 1], t_ = prev[i] < prev[i + 2] ? prev[i] : prev[i + 2]; \
+            t_ = (int16_t)(t_ + q1); \
             v_ = t_ < v_ ? t_ : v_; \
             v_ = h < v_ ? h : v_; \
             l = (int16_t)((int16_t)(c[i] + v_) - pm); \
@@ -59,11 +59,14 @@ cdef extern from *:
        kept gcc from unswitching it well. */
     #ifdef __AVX2__
     #include <immintrin.h>
+    /* min(a + P1, b + P1) is min(a, b) + P1: no term wraps (all below SGM_SENTINEL + P1
+       < 2^15), so one add instead of two, the same values */
     #define SGM_VSTEP(prev, q, h, pm, cv) _mm256_sub_epi16(_mm256_add_epi16(cv, \
-        _mm256_min_epi16(_mm256_min_epi16(_mm256_min_epi16( \
+        _mm256_min_epi16(_mm256_min_epi16( \
             _mm256_loadu_si256((const __m256i *)(prev + i + 1)), \
-            _mm256_add_epi16(_mm256_loadu_si256((const __m256i *)(prev + i)), q)), \
-            _mm256_add_epi16(_mm256_loadu_si256((const __m256i *)(prev + i + 2)), q)), h)), \
+            _mm256_add_epi16(_mm256_min_epi16( \
+                _mm256_loadu_si256((const __m256i *)(prev + i)), \
+                _mm256_loadu_si256((const __m256i *)(prev + i + 2))), q)), h)), \
         pm)
     /* the smallest of 16 int16 lanes (minpos works on unsigned: flip the sign bit) */
     static inline int16_t sgm_hmin16(__m256i v) {

@@ -13,6 +13,7 @@ from slitcli.stereo._c.sgm_loops cimport KEY_SHIFT, NO_KEY, cip, ip
 
 cdef extern from *:
     """
+    #include <math.h>
     #ifdef __AVX2__
     #include <immintrin.h>
     #endif
@@ -114,7 +115,11 @@ cdef extern from *:
                                         float *restrict disp, float *restrict mcost,
                                         uint8_t *restrict reason, int r_valid, int r_none,
                                         int r_texture, int r_uniq) {
-        int ovf = 0;
+        int ovf = 0, ex;
+        /* a power-of-two scale: c / scale is c times its exact inverse, bit for bit
+           (no rounding in either), without a division per pixel */
+        int pow2 = frexpf(scale, &ex) == 0.5f;
+        float inv = pow2 ? 1.0f / scale : 0.0f;
         for (Py_ssize_t x = 0; x < width; x++) {
             Py_ssize_t base = x * n;
             int32_t bi = 0;
@@ -138,7 +143,7 @@ cdef extern from *:
                     delta = 0.5f * (cm - cp) / den;
             }
             disp[x] = (float)(dmin + bi) + delta;
-            mcost[x] = (float)c[base + bi] / scale;
+            mcost[x] = pow2 ? (float)c[base + bi] * inv : (float)c[base + bi] / scale;
             int code = r_valid;
             if (energy_min > 0 && el[x] < energy_min * count[x])
                 code = r_texture;
