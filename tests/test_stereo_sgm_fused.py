@@ -213,3 +213,40 @@ def test_winners_equal_their_definition(seed, num, high):
     want = reference_winners(s_a, s_b, cost, el, count, *args)
     for a, b in zip(want, got, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_held_volumes_equal_fresh_ones_across_frames(seed):
+    """The volumes in the thread's kept buffer (match_sgm's) against new arrays, over a
+    sequence whose frames change size, disparity count and thread count (the buffer
+    is reused, grown and shrunk): the same maps and cost volume bit for bit, so
+    nothing of one frame's volumes reaches the next; the buffer is reallocated only
+    where a frame needs more than it holds, or less than half."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from slitcli.stereo import sgm as _s
+
+    tests = (0, np.float32(0.1), 1.0, True, np.float32(16.0 ** 2),
+             np.uint16(round(COST_MAX * COST_SCALE)), np.float32(COST_SCALE))
+    kinds = (np.float32, np.float32, np.uint8, np.float32)
+    frames = [(80, 51, 32, 1), (96, 40, 16, 1), (80, 51, 32, 2), (80, 51, 32, 1),
+              (40, 30, 16, 1), (80, 51, 32, 1)]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for k, (w, h, num, threads) in enumerate(frames):
+            left, right = plane_pair(7.6 - k * 0.3, width=w, height=h, noise_dn=2.0,
+                                     seed=seed + k, plain_cols=(w // 3, w // 2))
+            p = MatcherParams(num_disparities=num, aggregation="sgm")
+            pl, pr = prefilter_image(left, p), prefilter_image(right, p)
+            use = pool if threads > 1 else None
+            fresh = [np.empty((h, w), t) for t in kinds]
+            held = [np.empty((h, w), t) for t in kinds]
+            want = _match_fused(pl, pr, p, left, tests, tuple(fresh), use, threads).copy()
+            before = getattr(_s._HELD, "volumes", None)
+            got = _match_fused(pl, pr, p, left, tests, tuple(held), use, threads, held=True)
+            need = (3 if threads > 1 else 2) * h * w * num
+            kept = before is not None and need <= before.size <= 2 * need
+            assert (_s._HELD.volumes is before) == kept
+            assert np.shares_memory(got, _s._HELD.volumes)
+            np.testing.assert_array_equal(got, want)
+            for a, b in zip(fresh, held, strict=True):
+                np.testing.assert_array_equal(a, b)
