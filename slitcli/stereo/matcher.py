@@ -148,6 +148,7 @@ class MatcherParams:
     colour_whiten: bool = False
     colour_whiten_min_noise_dn: float = 2.0
     noise_smoothing: bool = False
+    smoothing_edge_sigmas: float = 2.0
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5

@@ -20,6 +20,7 @@ import numpy as np
 from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
 from slitcli.stereo.filters import DISPARITY_FILTERS, FilterInputs, run_disparity_filters
 from slitcli.stereo.noise import estimate_channel_noise, estimate_match_noise
+from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
     from slitcli.stereo.matcher import MatcherParams
@@ -118,8 +119,53 @@ def smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
     reach = (params.boundary_radius_px + params.window_w_px // 2
              + math.ceil(3.0 * white.smoothing_px))
     edges = replace(params, support_min_zncc=0.0, boundary_radius_px=reach)
-    run_disparity_filters(FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp,
-                                       reason, rdisp, pool, threads), DISPARITY_FILTERS[1:])
+    sharp = FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp, reason, rdisp,
+                         pool, threads)
+    run_disparity_filters(sharp, DISPARITY_FILTERS[1:2])
+    trim = params.support_radius_px + math.ceil(params.smoothing_edge_sigmas
+                                                * white.smoothing_px)
+    trim_depth_steps(disp, reason, trim, params.boundary_step_px)
+    run_disparity_filters(sharp, DISPARITY_FILTERS[2:])
 
 
-__all__ = ["WhitenedPair", "noise_whitened_pair", "smoothed_filters"]
+def trim_depth_steps(disparity_px: np.ndarray, reason: np.ndarray, reach_px: int,
+                     step_px: float) -> None:
+    """Invalidate (BOUNDARY) the last ``reach_px`` pixels of each row's valid runs where
+    they end at a depth step, in place.
+
+    A run ends at a depth step when, across the invalid pixels beside its end, the
+    first valid pixel of the row lies more than ``step_px`` farther (lower disparity)
+    than the run's end pixel. Runs whose gap reaches the image border, or whose gap
+    ends on the same or a nearer surface (a hole in the surface, or the farther side of
+    a step) keep their ends.
+    """
+    if reach_px <= 0:
+        return
+    h, w = reason.shape
+    valid = reason == Reason.VALID
+    cols = np.arange(w)
+    # previous / next valid column of every pixel (-1 / w: none)
+    prev_v = np.maximum.accumulate(np.where(valid, cols, -1), axis=1)
+    next_v = np.minimum.accumulate(np.where(valid, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    d = np.where(valid, disparity_px, np.nan)
+    rows = np.arange(h)[:, None]
+    # per pixel: its run's end columns (valid pixels only)
+    gap_r = np.concatenate([~valid[:, 1:], np.zeros((h, 1), bool)], axis=1)
+    end_r = np.where(valid & gap_r, cols, w)
+    run_end = np.minimum.accumulate(end_r[:, ::-1], axis=1)[:, ::-1]
+    gap_l = np.concatenate([np.zeros((h, 1), bool), ~valid[:, :-1]], axis=1)
+    start_l = np.where(valid & gap_l, cols, -1)
+    run_start = np.maximum.accumulate(start_l, axis=1)
+    re = np.clip(run_end, 0, w - 1)
+    rs = np.clip(run_start, 0, w - 1)
+    # the first valid pixel across each end's gap
+    beyond_r = np.concatenate([next_v[:, 1:], np.full((h, 1), w)], axis=1)[rows, re]
+    beyond_l = np.concatenate([np.full((h, 1), -1), prev_v[:, :-1]], axis=1)[rows, rs]
+    with np.errstate(invalid="ignore"):
+        far_r = (run_end < w) & (beyond_r < w) & (d[rows, np.clip(beyond_r, 0, w - 1)] < d[rows, re] - step_px)
+        far_l = (run_start >= 0) & (beyond_l >= 0) & (d[rows, np.clip(beyond_l, 0, w - 1)] < d[rows, rs] - step_px)
+    cut = valid & ((far_r & (run_end - cols < reach_px)) | (far_l & (cols - run_start < reach_px)))
+    reason[cut] = Reason.BOUNDARY
+
+
+__all__ = ["WhitenedPair", "noise_whitened_pair", "smoothed_filters", "trim_depth_steps"]
