@@ -130,41 +130,51 @@ def smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
 
 def trim_depth_steps(disparity_px: np.ndarray, reason: np.ndarray, reach_px: int,
                      step_px: float) -> None:
-    """Invalidate (BOUNDARY) the last ``reach_px`` pixels of each row's valid runs where
-    they end at a depth step, in place.
+    """Invalidate (``Reason.BOUNDARY``) the last ``reach_px`` pixels of each row's valid
+    runs that end at a depth step, in place (:func:`smoothed_filters` says why).
 
-    A run ends at a depth step when, across the invalid pixels beside its end, the
-    first valid pixel of the row lies more than ``step_px`` farther (lower disparity)
-    than the run's end pixel. Runs whose gap reaches the image border, or whose gap
-    ends on the same or a nearer surface (a hole in the surface, or the farther side of
-    a step) keep their ends.
+    A run ends at a depth step when, across the invalid pixels beside its end, the first
+    valid pixel of the row differs from the run's end pixel by more than ``step_px``
+    (either way: the nearer surface's disparity is carried onto the farther one, and the
+    farther one's footprint holds the band the other camera does not see). A run whose
+    gap reaches the image border, or ends on the same surface (a hole), keeps its end.
+
+    Parameters
+    ----------
+    disparity_px : ndarray, float32, shape (H, W)
+        Winner disparities (read where ``reason`` is VALID).
+    reason : ndarray, uint8, shape (H, W)
+        Reason codes, updated in place.
+    reach_px : int
+        Pixels cut from a run's end (0: nothing).
+    step_px : float
+        Least disparity difference across the gap that makes a depth step, px.
     """
     if reach_px <= 0:
         return
     h, w = reason.shape
     valid = reason == Reason.VALID
-    cols = np.arange(w)
-    # previous / next valid column of every pixel (-1 / w: none)
-    prev_v = np.maximum.accumulate(np.where(valid, cols, -1), axis=1)
-    next_v = np.minimum.accumulate(np.where(valid, cols, w)[:, ::-1], axis=1)[:, ::-1]
-    d = np.where(valid, disparity_px, np.nan)
+    cols = np.broadcast_to(np.arange(w), (h, w))
     rows = np.arange(h)[:, None]
-    # per pixel: its run's end columns (valid pixels only)
-    gap_r = np.concatenate([~valid[:, 1:], np.zeros((h, 1), bool)], axis=1)
-    end_r = np.where(valid & gap_r, cols, w)
-    run_end = np.minimum.accumulate(end_r[:, ::-1], axis=1)[:, ::-1]
-    gap_l = np.concatenate([np.zeros((h, 1), bool), ~valid[:, :-1]], axis=1)
-    start_l = np.where(valid & gap_l, cols, -1)
-    run_start = np.maximum.accumulate(start_l, axis=1)
-    re = np.clip(run_end, 0, w - 1)
-    rs = np.clip(run_start, 0, w - 1)
-    # the first valid pixel across each end's gap
-    beyond_r = np.concatenate([next_v[:, 1:], np.full((h, 1), w)], axis=1)[rows, re]
-    beyond_l = np.concatenate([np.full((h, 1), -1), prev_v[:, :-1]], axis=1)[rows, rs]
-    with np.errstate(invalid="ignore"):
-        far_r = (run_end < w) & (beyond_r < w) & (d[rows, np.clip(beyond_r, 0, w - 1)] < d[rows, re] - step_px)
-        far_l = (run_start >= 0) & (beyond_l >= 0) & (d[rows, np.clip(beyond_l, 0, w - 1)] < d[rows, rs] - step_px)
-    cut = valid & ((far_r & (run_end - cols < reach_px)) | (far_l & (cols - run_start < reach_px)))
+    pad = np.zeros((h, 1), bool)
+    starts = valid & ~np.concatenate([pad, valid[:, :-1]], axis=1)
+    ends = valid & ~np.concatenate([valid[:, 1:], pad], axis=1)
+    # per pixel: the start of its run and the end of its run (-1 / w: none)
+    run_start = np.maximum.accumulate(np.where(starts, cols, -1), axis=1)
+    run_end = np.minimum.accumulate(np.where(ends, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    # the first valid column after each run's end / before each run's start
+    next_valid = np.minimum.accumulate(np.where(valid, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    prev_valid = np.maximum.accumulate(np.where(valid, cols, -1), axis=1)
+    e = np.clip(run_end, 0, w - 1)
+    b = np.clip(run_start, 0, w - 1)
+    after = np.concatenate([next_valid[:, 1:], np.full((h, 1), w)], axis=1)[rows, e]
+    before = np.concatenate([np.full((h, 1), -1), prev_valid[:, :-1]], axis=1)[rows, b]
+    d = disparity_px
+    step_r = (after < w) & (np.abs(d[rows, np.clip(after, 0, w - 1)] - d[rows, e]) > step_px)
+    step_l = (before >= 0) & (np.abs(d[rows, np.clip(before, 0, w - 1)] - d[rows, b])
+                              > step_px)
+    cut = valid & ((step_r & (run_end - cols < reach_px))
+                   | (step_l & (cols - run_start < reach_px)))
     reason[cut] = Reason.BOUNDARY
 
 
