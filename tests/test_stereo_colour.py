@@ -277,3 +277,68 @@ def test_rendered_red_box_through_robot_camera(seed):
     assert white[0] >= luma[0]
     assert smooth[0] >= 0.4
     assert smooth[1] <= 0.02
+
+
+NEAR_PX, FAR_PX, NEAR_COLS = 20, 8, (80, 140)
+
+
+def _step_pair(seed: int, preset: str):
+    """A textured plane at NEAR_PX over columns NEAR_COLS of the left view before a
+    textured plane at FAR_PX (each view drawn from the same two albedo maps, so the
+    right view hides the band left of the near plane that the left one sees), through
+    a camera preset."""
+    rng = np.random.default_rng(seed)
+    far = np.clip(1.0 + 0.5 * _texture(rng, W + 40), 0.2, 1.8)
+    near = np.clip(1.0 + 0.5 * _texture(rng, W + 40), 0.2, 1.8)
+    x = np.arange(W)
+    a, b = NEAR_COLS
+    left = np.where((x >= a) & (x < b), near[:, x], far[:, x])
+    xn = x + NEAR_PX                                  # the left column a right pixel shows
+    right = np.where((xn >= a) & (xn < b), near[:, np.minimum(xn, W + 39)], far[:, x + FAR_PX])
+    model = camera_preset(preset)
+    colour = np.array([0.7, 0.6, 0.5])
+    return [apply_camera(200.0 * v[..., None] * colour, model, np.random.default_rng([seed, k]))
+            for k, v in enumerate((left, right))]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("preset", ["robot", "webcam"])
+def test_low_pass_does_not_carry_a_near_plane_past_its_edges(seed, preset):
+    """A near plane before a far one through a camera preset, low-passed
+    (``noise_smoothing``): the low-passed window carries the near plane's disparity a
+    few columns past both silhouettes (8-27 pixels within 15 columns of them without
+    the depth-step trim, slitcli.stereo.whiten.trim_depth_steps); with it at most 4
+    such pixels remain, and at least 75 % of the near plane keeps its disparity
+    within 1 px (about 81 %: the trim costs its 4-5 edge columns)."""
+    left, right = _step_pair(seed, preset)
+    d = compute_disparity(left, right, SMOOTH).disparity_px
+    x = np.arange(W)[None, :]
+    a, b = NEAR_COLS
+    beside = ((x >= a - 15) & (x < a)) | ((x >= b) & (x < b + 15))
+    carried = np.isfinite(d) & beside & (d > FAR_PX + 2.0)
+    inside = np.broadcast_to((x >= a) & (x < b), d.shape)
+    right_share = np.mean(np.abs(d[inside] - NEAR_PX) <= 1.0)
+    assert np.count_nonzero(carried) <= 4
+    assert right_share >= 0.75
+
+
+def test_depth_step_trim_cuts_run_ends_at_steps_only():
+    """trim_depth_steps on a hand-made row: a run ending across a gap on a farther or a
+    nearer surface loses its last ``reach`` pixels; one whose gap ends on its own
+    disparity (a hole) or reaches the image border keeps them."""
+    from slitcli.stereo.reasons import Reason
+    from slitcli.stereo.whiten import trim_depth_steps
+
+    d = np.array([[5, 5, 5, 5, 9, 9, 9, 9, 9, 9, 0, 0, 5, 5, 5, 9, 9, 9, 0, 9, 9, 0, 0, 0,
+                   3, 3, 3, 0, 0]], np.float32)
+    reason = np.zeros(d.shape, np.uint8)
+    reason[0, [10, 11, 18, 21, 22, 23, 27, 28]] = Reason.UNIQUENESS
+    before = reason.copy()
+    trim_depth_steps(d, reason, 2, 1.0)
+    cut = np.nonzero(reason[0] != before[0])[0].tolist()
+    # 8-9: 9 before 5 (farther); 12-13: 5 after 9 (nearer); 19-20: 9 before 3;
+    # 24-25: 3 after 9; 15-17 (a hole, 9 on both sides) and 26 (gap to the border) stay
+    assert cut == [8, 9, 12, 13, 19, 20, 24, 25]
+    assert np.all(reason[0, cut] == Reason.BOUNDARY)
+    trim_depth_steps(d, reason, 0, 1.0)               # reach 0: nothing more
+    assert np.count_nonzero(reason[0] != before[0]) == 8

@@ -61,7 +61,9 @@ all optional and each measured in docs/notes/stereo-kernels.md:
   channel's noise by level, estimated from the luma pass's matches
   (slitcli.stereo.whiten); with ``noise_smoothing`` those images are also
   low-passed down to ``support_noise_ref_dn`` of noise, the depth-edge test then
-  running on the sharp ones (docs/stereo.md);
+  running on the sharp ones, and valid runs that end at a depth step lose the
+  low-pass's reach, ``support_radius_px + ceil(smoothing_edge_sigmas x sigma)``
+  pixels (slitcli.stereo.whiten.trim_depth_steps; docs/stereo.md);
 - depth edges (``boundary_ratio``): the window carries the disparity of the more
   textured side of a depth edge up to half a window past it. Where a valid neighbour
   within ``boundary_radius_px`` columns lies more than ``boundary_step_px`` farther,
@@ -122,7 +124,9 @@ class MatcherParams:
     compares grey-level columns ``window_h_px`` tall; residuals at or below
     ``boundary_noise_dn`` (RMS, DN) are taken as sensor noise and carry no evidence.
     ``colour_whiten`` / ``colour_whiten_min_noise_dn`` (DN of the luma pair's noise) and
-    ``noise_smoothing``: a noisy colour pair's matching images (:func:`match_nssd`).
+    ``noise_smoothing``: a noisy colour pair's matching images (:func:`match_nssd`);
+    ``smoothing_edge_sigmas``: how many of the low-pass's sigmas (beyond the support
+    block) a surface's disparity is cut back at a depth step (slitcli.stereo.whiten).
     """
 
     matcher: str = "nssd"
@@ -148,6 +152,7 @@ class MatcherParams:
     colour_whiten: bool = False
     colour_whiten_min_noise_dn: float = 2.0
     noise_smoothing: bool = False
+    smoothing_edge_sigmas: float = 2.0
     boundary_ratio: float = 0.5
     boundary_step_px: float = 1.0
     boundary_radius_px: int = 5
@@ -303,6 +308,10 @@ def _check_filters(p: MatcherParams) -> None:
     if p.noise_smoothing and not p.colour_whiten:
         raise SlitcliError("noise_smoothing low-passes the whitened colour images: it needs "
                            "colour_whiten True", param=("noise_smoothing", "colour_whiten"))
+    if not (math.isfinite(p.smoothing_edge_sigmas) and 0 <= p.smoothing_edge_sigmas <= 6):
+        raise SlitcliError(f"smoothing_edge_sigmas {p.smoothing_edge_sigmas} must lie in 0..6 "
+                           "(sigmas of the noise_smoothing low-pass)",
+                           param="smoothing_edge_sigmas")
     if not (math.isfinite(p.colour_whiten_min_noise_dn) and p.colour_whiten_min_noise_dn >= 0):
         raise SlitcliError(f"colour_whiten_min_noise_dn {p.colour_whiten_min_noise_dn} must be "
                            ">= 0 DN", param="colour_whiten_min_noise_dn")

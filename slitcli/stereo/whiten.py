@@ -20,6 +20,7 @@ import numpy as np
 from slitcli.stereo.cost import colour_matching_image, smooth_image, smoothing_sigma_px
 from slitcli.stereo.filters import DISPARITY_FILTERS, FilterInputs, run_disparity_filters
 from slitcli.stereo.noise import estimate_channel_noise, estimate_match_noise
+from slitcli.stereo.reasons import Reason
 
 if TYPE_CHECKING:
     from slitcli.stereo.matcher import MatcherParams
@@ -111,6 +112,18 @@ def smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
     window's half width), and on a noisy background few of the pixels just past that
     band are valid: the depth-edge test looks for the farther surface's valid pixels
     ``boundary_radius_px`` beyond the band.
+
+    That test still misses most of the carried pixels: under the noise that called
+    for the low-pass, a one-pixel column's residual has no clear minimum at any
+    disparity (through the ``robot`` preset the sharp column residuals of carried
+    pixels lie at 15-110 DN^2 both at their own and at the true disparity, against
+    58 DN^2 of noise), so the test decides by chance. The low-passed support blocks
+    (half width r) see a surface's texture up to about ``r + 2 sigma`` columns past
+    its silhouette (the Gaussian's weight beyond 2 sigma is 2 %), on either side of
+    it, and the farther surface's pixels as close to the step have the band the other
+    camera does not see in their footprint. So where a valid run ends across invalid
+    pixels on a surface at another disparity (:func:`trim_depth_steps`), its last
+    ``r + ceil(smoothing_edge_sigmas x sigma)`` pixels are not trusted.
     """
     support = replace(params, boundary_ratio=0.0)
     run_disparity_filters(FilterInputs(white.left, white.right, pl, support, disp, reason,
@@ -118,8 +131,74 @@ def smoothed_filters(white: WhitenedPair, pl: np.ndarray, params: MatcherParams,
     reach = (params.boundary_radius_px + params.window_w_px // 2
              + math.ceil(3.0 * white.smoothing_px))
     edges = replace(params, support_min_zncc=0.0, boundary_radius_px=reach)
-    run_disparity_filters(FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp,
-                                       reason, rdisp, pool, threads), DISPARITY_FILTERS[1:])
+    sharp = FilterInputs(white.sharp_left, white.sharp_right, pl, edges, disp, reason, rdisp,
+                         pool, threads)
+    run_disparity_filters(sharp, DISPARITY_FILTERS[1:2])
+    trim = params.support_radius_px + math.ceil(params.smoothing_edge_sigmas
+                                                * white.smoothing_px)
+    trim_depth_steps(disp, reason, trim, params.boundary_step_px)
+    run_disparity_filters(sharp, DISPARITY_FILTERS[2:])
 
 
-__all__ = ["WhitenedPair", "noise_whitened_pair", "smoothed_filters"]
+def trim_depth_steps(disparity_px: np.ndarray, reason: np.ndarray, reach_px: int,
+                     step_px: float) -> None:
+    """Invalidate (``Reason.BOUNDARY``) the last ``reach_px`` pixels of each row's valid
+    runs that end at a depth step, in place (:func:`smoothed_filters` says why).
+
+    A run ends at a depth step when, across the invalid pixels beside its end, the first
+    valid pixel of the row differs from the run's end pixel by more than ``step_px``
+    (either way: the nearer surface's disparity is carried onto the farther one, and the
+    farther one's footprint holds the band the other camera does not see). A run whose
+    gap reaches the image border, or ends on the same surface (a hole), keeps its end.
+
+    Parameters
+    ----------
+    disparity_px : ndarray, float32, shape (H, W)
+        Winner disparities (read where ``reason`` is VALID).
+    reason : ndarray, uint8, shape (H, W)
+        Reason codes, updated in place.
+    reach_px : int
+        Pixels cut from a run's end (0: nothing).
+    step_px : float
+        Least disparity difference across the gap that makes a depth step, px.
+    """
+    if reach_px <= 0:
+        return
+    h, w = reason.shape
+    valid = reason == Reason.VALID
+    cols = np.arange(w, dtype=np.int32)
+    # the first valid column at or after / at or before every pixel (w / -1: none)
+    next_valid = np.minimum.accumulate(np.where(valid, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    prev_valid = np.maximum.accumulate(np.where(valid, cols, -1), axis=1)
+    cut = np.zeros((h, w), bool)
+    # run ends (a valid pixel before an invalid one) and run starts, with the first
+    # valid pixel across their gaps; the image border is no gap
+    ys, xs = np.nonzero(valid[:, :-1] & ~valid[:, 1:])
+    _cut_steps(cut, valid, disparity_px, ys, xs, next_valid[ys, xs + 1] if len(ys) else xs,
+               w, reach_px, step_px, -1)
+    ys, xs = np.nonzero(valid[:, 1:] & ~valid[:, :-1])
+    xs = xs + 1
+    _cut_steps(cut, valid, disparity_px, ys, xs, prev_valid[ys, xs - 1] if len(ys) else xs,
+               w, reach_px, step_px, 1)
+    reason[cut] = Reason.BOUNDARY
+
+
+def _cut_steps(cut: np.ndarray, valid: np.ndarray, disparity_px: np.ndarray, ys: np.ndarray,
+               xs: np.ndarray, across: np.ndarray, width: int, reach_px: int,
+               step_px: float, inward: int) -> None:
+    """Mark in ``cut`` the ``reach_px`` pixels from run ends (``ys``, ``xs``) inward
+    (``inward`` +-1 column) where the first valid pixel across the gap (``across``;
+    -1 or ``width``: none) differs by more than ``step_px``."""
+    ok = (across >= 0) & (across < width)
+    ys, xs, across = ys[ok], xs[ok], across[ok]
+    step = np.abs(disparity_px[ys, across] - disparity_px[ys, xs]) > step_px
+    ys, xs = ys[step], xs[step]
+    alive = np.ones(len(ys), bool)
+    for k in range(reach_px):      # along the run, while it lasts
+        x = xs + inward * k
+        alive &= (x >= 0) & (x < width)
+        alive[alive] &= valid[ys[alive], x[alive]]
+        cut[ys[alive], x[alive]] = True
+
+
+__all__ = ["WhitenedPair", "noise_whitened_pair", "smoothed_filters", "trim_depth_steps"]
