@@ -34,7 +34,6 @@ same disparities bit for bit.
 from __future__ import annotations
 
 import math
-import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -220,42 +219,9 @@ SGM_FILTERS: tuple[DisparityFilter, ...] = (
 )
 
 
-#: each calling thread's volume buffer (_volume_buffer), kept from one frame to the next
-_HELD = threading.local()
-#: below glibc's largest dynamic mmap threshold (32 MiB on 64-bit) by its chunk header
-_MMAP_MAX_BYTES = 32 * 2**20 - 2**16
-
-
-def _volume_buffer(count: int, h: int, w: int, num: int) -> np.ndarray:
-    """``count`` (H, W, D) uint16 volumes, uninitialised, in a buffer this thread keeps
-    for its next frame (reallocated when a frame needs more, or less than half).
-
-    A buffer above glibc's largest mmap threshold (32 MiB: 640 x 480 / 128 d needs
-    157 MiB) is a fresh mapping at every allocation, its pages faulted in and zeroed
-    by the kernel in every frame (measured at 640 x 480 / 128 d: 2670 page faults and
-    27-31 ms of system time a frame); kept, they are mapped once. Each thread that
-    matches holds its own (match_sgm runs on its caller's thread; the frame's helper
-    threads write into the caller's).
-
-    glibc raises its mmap threshold to the size of a mapped block when that block is
-    freed (up to 32 MiB), so that the frame's other arrays (0.3-5 MB) then come from
-    the heap and stay mapped: the freed volumes did that once a frame before. A kept
-    buffer is never freed, so a block of that size is mapped and freed here once
-    instead (without it: 735 page faults a 320 x 240 frame, measured)."""
-    need = count * h * w * num
-    buf = getattr(_HELD, "volumes", None)
-    if buf is None or buf.size < need or buf.size > 2 * need:
-        _HELD.volumes = None   # the old one freed before the new one is mapped
-        del buf
-        np.empty(min(2 * need, _MMAP_MAX_BYTES), np.uint8)   # freed at once
-        buf = _HELD.volumes = np.empty(need, np.uint16)
-    return buf[:need].reshape(count, h, w, num)
-
-
 def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np.ndarray,
                  tests: tuple, outputs: tuple, pool: ThreadPoolExecutor | None = None,
-                 threads: int = 1, refit: tuple = (None, 0.0), held: bool = False
-                 ) -> np.ndarray:
+                 threads: int = 1, refit: tuple = (None, 0.0)) -> np.ndarray:
     """Cost, SGM and the winner step in two fused passes over the rows
     (slitcli/stereo/_c/sgm.pyx): the costs of each row and the top-down sweep over
     them while they are in cache; then the bottom-up sweep with each row's winner step,
@@ -273,11 +239,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     ``refit``: an (H, W) float32 array and ``den_min``: each row's winners refitted to
     its own costs (:func:`raw_subpixel`'s rule) in the winner step, while the row is
     in cache (the refit at the end of the frame took 1.2 ms of a 320 x 240 / 64 d
-    frame, reading the 20 MB volume back); (None, 0.0): no refit.
-
-    ``held``: the volumes in this thread's kept buffer (:func:`_volume_buffer`; the
-    returned cost volume is then overwritten by the thread's next frame), else in a
-    new array."""
+    frame, reading the 20 MB volume back); (None, 0.0): no refit."""
     from slitcli.stereo._c import sgm as _k
 
     c = _cost_inputs(pl, pr, params)
@@ -288,8 +250,7 @@ def _match_fused(pl: np.ndarray, pr: np.ndarray, params: MatcherParams, grey: np
     # its pages mapped from one frame to the next (two or three separate volumes freed
     # together are returned to the system and faulted in again: measured 700-1200
     # page faults, ~5 ms of a 320 x 240 frame)
-    shape = (2 if one_thread else 3, h, w, num)
-    volumes = _volume_buffer(*shape) if held else np.empty(shape, np.uint16)
+    volumes = np.empty((2 if one_thread else 3, h, w, num), np.uint16)
     cost = volumes[0]
     s_a = volumes[1]
     p1 = round(params.sgm_p1 * COST_SCALE)
@@ -423,7 +384,7 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
         refit = params.subpixel == "parabola" and params.sgm_subpixel == "cost"
         refit_disp = np.empty((h, w), np.float32) if refit else None
         _match_fused(pl, pr, params, grey, tests, (disp, mcost, reason, rdisp), pool, threads,
-                     (refit_disp, params.sgm_p1 * COST_SCALE), held=True)
+                     (refit_disp, params.sgm_p1 * COST_SCALE))
         inputs = FilterInputs(left_grey, right_grey, pl, params, disp, reason, rdisp, pool,
                               threads)
         split = [f.name for f in SGM_FILTERS].index("sgm_bracket")
