@@ -72,6 +72,7 @@ from slitcli.stereo.pipeline import (
     check_stereo_params,
     process_stereo_pair,
 )
+from slitcli.stereo.sgm import SgmWorkspace
 
 COLOUR_ORDERS = ("bgr", "rgb")
 COLOUR_CHECKS = ("every", "once", "off")
@@ -231,12 +232,14 @@ class Detector:
         return las
 
     def __call__(self, left_bgr: np.ndarray, right_bgr: np.ndarray, *,
-                 pool: ThreadPoolExecutor | None = None) -> FrameDetection:
+                 pool: ThreadPoolExecutor | None = None,
+                 workspace: SgmWorkspace | None = None) -> FrameDetection:
         """Detect obstacles in one stereo pair (raw pairs are rectified with ``rig.raw``).
 
         ``pool``: helper threads for the stereo kernels, held by the caller for a
         sequence (:func:`slitcli.stereo.bands.frame_pool`); without one, a frame that
-        runs on several cores starts its own.
+        runs on several cores starts its own. ``workspace``: memory for SGM's cost
+        volumes held by such a caller (:class:`slitcli.stereo.sgm.SgmWorkspace`).
 
         A frame's result depends on this pair only (docs/api.md: the previous-frame
         rule), so frames may be processed in any order, resumed or in parallel.
@@ -244,7 +247,8 @@ class Detector:
         left, right = self.prepare(left_bgr, right_bgr)
         las = self.laser(left)
         st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
-                                 geometry=self._stereo_geometry, pool=pool)
+                                 geometry=self._stereo_geometry, pool=pool,
+                                 workspace=workspace)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)
@@ -266,9 +270,10 @@ class _Task:
 
 
 def _work(detector: Detector, batch: FrameBatch, save_images: bool, task: _Task, *,
-          pool: ThreadPoolExecutor | None = None) -> int:
+          pool: ThreadPoolExecutor | None = None,
+          workspace: SgmWorkspace | None = None) -> int:
     """Detect one frame and write its parts (and images); returns the frame index."""
-    res = detector(task.left_bgr, task.right_bgr, pool=pool)
+    res = detector(task.left_bgr, task.right_bgr, pool=pool, workspace=workspace)
     i = task.info.index
     if save_images:
         name = f"{task.info.name}.png"
@@ -363,7 +368,9 @@ def run_detect(source: str | Path, out: str | Path, *, rig_path: str | Path | No
     # per frame costs ~0.5 ms to start and join); process workers run on one thread
     helpers = thread_setting() - 1 if jobs == 1 else 0
     with ThreadPoolExecutor(max_workers=helpers) if helpers > 0 else nullcontext() as pool:
-        work = partial(_work, detector, batch, save_images, pool=pool)
+        # SGM's volumes too are held for the run (process workers: one per frame)
+        work = partial(_work, detector, batch, save_images, pool=pool,
+                       workspace=SgmWorkspace() if jobs == 1 else None)
         for _ in run_pool(tasks(), work, jobs=jobs,
                           initializer=single_thread_worker if jobs > 1 else None):
             done += 1

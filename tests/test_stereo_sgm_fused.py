@@ -213,3 +213,36 @@ def test_winners_equal_their_definition(seed, num, high):
     want = reference_winners(s_a, s_b, cost, el, count, *args)
     for a, b in zip(want, got, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", SEEDS[:3])
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_a_held_workspace_changes_no_result(seed, threads, monkeypatch):
+    """Frames matched through one SgmWorkspace that earlier frames (of other sizes and
+    disparity counts) and junk left dirty: every output bit for bit as with fresh
+    volumes, on one thread (two volumes) and two (three volumes, three phases)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from slitcli.stereo.matcher import compute_disparity
+    from slitcli.stereo.sgm import SgmWorkspace
+
+    monkeypatch.setenv("SLITCLI_THREADS", threads)
+    # the frame's helper threads are wanted even on a loaded machine (bands.kernel_threads
+    # counts only free cores): the pool is passed and the split does not depend on load
+    monkeypatch.setattr("slitcli.stereo.sgm.kernel_threads", lambda: int(threads))
+    ws = SgmWorkspace()
+    rng = np.random.default_rng(seed)
+    junk = ws.volumes((3, 64, 120, 48))
+    junk[...] = rng.integers(0, 65536, junk.shape, dtype=np.uint16)
+    frames = [(7.6, 80, 51, 32), (12.2, 120, 64, 48), (5.1, 96, 40, 16)]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for shift, w, h, num in frames:
+            left, right = plane_pair(shift, width=w, height=h, noise_dn=2.0, seed=seed,
+                                     plain_cols=(w // 3, w // 2))
+            p = MatcherParams(num_disparities=num, aggregation="sgm")
+            fresh = compute_disparity(left, right, p, pool=pool)
+            held = compute_disparity(left, right, p, pool=pool, workspace=ws)
+            assert np.isfinite(fresh.disparity_px).mean() > 0.3
+            np.testing.assert_array_equal(held.disparity_px, fresh.disparity_px)
+            np.testing.assert_array_equal(held.invalid_reason, fresh.invalid_reason)
+            np.testing.assert_array_equal(held.match_cost, fresh.match_cost)

@@ -103,6 +103,7 @@ from slitcli.stereo.whiten import noise_whitened_pair, smoothed_filters
 
 if TYPE_CHECKING:
     from slitcli.stereo.geometry import StereoGeometry
+    from slitcli.stereo.sgm import SgmWorkspace
 
 MATCHERS = ("nssd", "bm", "sgbm")
 AGGREGATIONS = ("none", "sgm")
@@ -499,7 +500,8 @@ def _given(value: float | None, default: float) -> float:
 
 def compute_disparity(left: np.ndarray, right: np.ndarray,
                       params: MatcherParams | None = None, *,
-                      pool: ThreadPoolExecutor | None = None) -> DisparityResult:
+                      pool: ThreadPoolExecutor | None = None,
+                      workspace: SgmWorkspace | None = None) -> DisparityResult:
     """Disparity of a rectified pair with the chosen matcher.
 
     Parameters
@@ -517,6 +519,10 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         still uses only the cores free right now (``SLITCLI_THREADS``, the load), but
         does not start and join threads of its own (about 0.5 ms a frame). Without one
         a frame that uses a second core makes its own pool.
+    workspace : SgmWorkspace, optional
+        Memory for SGM's cost volumes (``aggregation`` 'sgm'), held by such a caller
+        across its frames (slitcli.stereo.sgm.SgmWorkspace); without one each frame
+        allocates its own.
 
     Raises
     ------
@@ -538,7 +544,7 @@ def compute_disparity(left: np.ndarray, right: np.ndarray,
         from slitcli.stereo.sgm import match_sgm
 
         # no rig's ground (or sgm_ground 'pair'): match_sgm takes it from the pair
-        return match_sgm(lg, rg, p, pool)
+        return match_sgm(lg, rg, p, pool, workspace=workspace)
     if p.matcher == "nssd":
         colour = np.ndim(left) == 3
         return match_nssd(lg, rg, p, pool, left_bgr=left if colour else None,

@@ -24,6 +24,7 @@ from slitcli.stereo.obstacles import (
     bins_check,
     obstacle_points,
 )
+from slitcli.stereo.sgm import SgmWorkspace
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,8 @@ def check_stereo_params(rig: Rig, params: StereoParams) -> None:
 def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
                         params: StereoParams | None = None, *,
                         geometry: StereoGeometry | None = None,
-                        pool: ThreadPoolExecutor | None = None) -> StereoFrameResult:
+                        pool: ThreadPoolExecutor | None = None,
+                        workspace: SgmWorkspace | None = None) -> StereoFrameResult:
     """Disparity, distance image, obstacle mask and ranges per bearing of one pair.
 
     Parameters
@@ -103,6 +105,9 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     pool : ThreadPoolExecutor, optional
         The matcher's helper threads, held by a caller that processes a sequence
         (slitcli.stereo.matcher.compute_disparity); the frame makes its own when None.
+    workspace : SgmWorkspace, optional
+        Memory for SGM's cost volumes held by such a caller (slitcli.stereo.sgm); the
+        frame allocates its own when None.
 
     Returns
     -------
@@ -133,7 +138,8 @@ def process_stereo_pair(left_bgr: np.ndarray, right_bgr: np.ndarray, rig: Rig,
     # noise-whitened channels (slitcli.stereo.whiten.noise_whitened_pair)
     colour = p.matcher.colour_whiten
     disp = compute_disparity(left if colour else left_grey, right if colour else right_grey,
-                             with_rig_ground(p.matcher, geometry), pool=pool)
+                             with_rig_ground(p.matcher, geometry), pool=pool,
+                             workspace=workspace)
     depth, pts, obstacle, feature = obstacle_points(disp.disparity_px, geometry, p.obstacles)
     inputs = MaskInputs(left_grey, right_grey, disp.disparity_px, geometry)
     obstacle = apply_mask_filters(obstacle, inputs, p.obstacles)

@@ -53,6 +53,7 @@ from slitcli.stereo.pipeline import (
     check_stereo_params,
     process_stereo_pair,
 )
+from slitcli.stereo.sgm import SgmWorkspace
 
 OUTPUT_FOLDERS = ("disparity", "distance", "mask")
 RANGES_FILE = STEREO_RANGES.file
@@ -105,6 +106,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
     # helper threads are one pool for the whole run (a frame still uses only the cores
     # free at that moment; a pool per frame cost ~0.5 ms to start and join)
     helpers = thread_setting() - 1
+    workspace = SgmWorkspace()  # SGM's cost volumes, one buffer for the run
     with ThreadPoolExecutor(max_workers=1) as io_pool, \
             ThreadPoolExecutor(max_workers=helpers) if helpers > 0 else nullcontext() as pool:
         reads = deque(io_pool.submit(next, frames, None) for _ in range(2))
@@ -114,7 +116,7 @@ def _match_all(src: FrameSource, rig: Rig, p: StereoParams, out: Path, batch: Fr
             reads.append(io_pool.submit(next, frames, None))
             batch.clear_skipped(frame.index)
             res = process_stereo_pair(frame.left_bgr, frame.right_bgr, rig, p, geometry=geometry,
-                                      pool=pool)
+                                      pool=pool, workspace=workspace)
             writes.append(io_pool.submit(_write_frame, out, batch, src.info[frame.index], res))
             while len(writes) > 1:
                 writes.popleft().result()
