@@ -250,3 +250,30 @@ def test_cost_subpixel_changes_no_validity_and_spares_fills(seed):
     # elsewhere the refit does change offsets (the test could fail)
     kept = unfilled & valid["cost"]
     assert (res["cost"].disparity_px[kept] != res["sums"].disparity_px[kept]).mean() > 0.5
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_weak_windows_take_the_aggregated_disparity(seed):
+    """A plane with a uniform patch under 0.5 DN of noise (windows whose energy lies
+    below the local matcher's texture test, as on Middlebury's plain surfaces): without
+    SGM's own texture test (the default) the paths carry the plane's disparity into the
+    patch and uniqueness and left-right on the aggregated costs judge it; with
+    ``sgm_texture_min_dn`` 1 DN the texture test rejects those windows."""
+    d_true = 6.3
+    left, right = plane_pair(d_true, width=120, height=60, noise_dn=0.5, seed=seed,
+                             plain_cols=(50, 70))
+    patch = (slice(15, 45), slice(54, 66))  # inside the patch, clear of its edges
+    on = compute_disparity(left, right, MatcherParams(num_disparities=16, aggregation="sgm"))
+    off = compute_disparity(left, right, MatcherParams(num_disparities=16, aggregation="sgm",
+                                                       sgm_texture_min_dn=1.0))
+    assert (off.invalid_reason[patch] == Reason.TEXTURE).mean() > 0.3
+    assert not (on.invalid_reason == Reason.TEXTURE).any()
+    gained = np.isfinite(on.disparity_px[patch]) & (off.invalid_reason[patch] == Reason.TEXTURE)
+    assert gained.sum() >= 30
+    err = np.abs(on.disparity_px[patch][gained] - d_true)
+    assert np.median(err) < 0.5 and err.max() < 2.0
+
+
+def test_sgm_texture_threshold_is_checked():
+    with pytest.raises(SlitcliError, match="sgm_texture_min_dn"):
+        MatcherParams(aggregation="sgm", sgm_texture_min_dn=-1.0)

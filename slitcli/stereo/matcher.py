@@ -167,6 +167,7 @@ class MatcherParams:
     sgm_p2: float = 3.0
     sgm_p2_edge_dn: float = 16.0
     sgm_window_px: int = 7
+    sgm_texture_min_dn: float = 0.0
     sgm_subpixel: str = "cost"
     sgm_bracket_px: int = 32
     sgm_bracket_tol_px: float = 1.0
@@ -232,6 +233,10 @@ def _check_sgm(p: MatcherParams) -> None:
         raise SlitcliError(f"sgm_window_px {p.sgm_window_px} must be 0 (the window_w_px x "
                            "window_h_px window) or an odd number of pixels, e.g. 5",
                            param="sgm_window_px")
+    if not p.sgm_texture_min_dn >= 0:
+        raise SlitcliError(f"sgm_texture_min_dn {p.sgm_texture_min_dn} must be >= 0 DN "
+                           "(0 = no window texture test under SGM)",
+                           param="sgm_texture_min_dn")
     if p.sgm_subpixel not in SGM_SUBPIXEL:
         raise SlitcliError(f"sgm_subpixel {p.sgm_subpixel!r} is unknown; use one of "
                            f"{', '.join(SGM_SUBPIXEL)}", param="sgm_subpixel")

@@ -415,6 +415,10 @@ def match_sgm(left_grey: np.ndarray, right_grey: np.ndarray,
             # SGM's own window for the cost and for the filters that read the window size
             params = replace(params, window_w_px=params.sgm_window_px,
                              window_h_px=params.sgm_window_px)
+        # SGM's own window texture test (default none): the paths carry a disparity
+        # into windows without texture of their own, and uniqueness and left-right on
+        # the aggregated costs judge it there
+        params = replace(params, texture_min_dn=params.sgm_texture_min_dn)
         right_job = pool.submit(prefilter_image, right_grey, params) if pool else None
         pl = prefilter_image(left_grey, params)
         pr = right_job.result() if right_job else prefilter_image(right_grey, params)
