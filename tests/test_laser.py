@@ -434,6 +434,33 @@ def test_white_clipped_dash_is_centred_on_its_plateau(seed):
 
 
 @pytest.mark.parametrize("seed", range(5))
+def test_white_core_with_white_bloom_is_centred_on_its_plateau(seed):
+    # an overexposed laser as real sensors show it (a scanner's photograph): a core of
+    # 7 rows clipped in every channel, 2-3 rows of white bloom beside it (every channel
+    # high, the red no higher than the others), and only beyond those the laser's red
+    # tails; the red light lies farther from the clipped run than two rows, within the
+    # run's own length: one stripe, at the plateau's centre
+    h, w = RIG.height_px, RIG.width_px
+    rng = np.random.default_rng(seed)
+    rows = 140.3 + 0.03 * np.arange(w) + rng.uniform(-0.3, 0.3)
+    d = np.abs(np.arange(h, dtype=float)[:, None] - rows[None, :])
+    base = np.array([60.0, 62.0, 66.0])  # a grey wall, a little warm
+    img = np.broadcast_to(base, (h, w, 3)).copy()
+    bloom = np.clip(1.0 - (d - 3.5) / 2.5, 0.0, 1.0)        # white, to 6 rows out
+    tail = np.exp(-0.5 * ((d - 6.0) / 2.0) ** 2) * (d > 4.0)  # red, peaking 6 rows out
+    img += 200.0 * bloom[..., None]
+    img[..., 2] += 90.0 * tail
+    img[..., 1] += 8.0 * tail
+    img += rng.normal(scale=2.0, size=img.shape)
+    img[d <= 3.5] = 255.0  # (the sensor clips after its noise)
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    res = extract_stripe(img, LaserParams(search="full"))
+    found = np.isfinite(res.v_px)
+    assert found.mean() >= 0.95
+    assert np.mean(np.abs(res.v_px[found] - rows[found]) <= 1.0) >= 0.98
+
+
+@pytest.mark.parametrize("seed", range(5))
 def test_flat_topped_stripe_is_centred_by_its_upper_half(seed):
     # a top-hat profile 7 rows wide with one-row edges (a wide beam; a compressive tone
     # curve): no Gaussian, centred by the centre of gravity of its upper half

@@ -144,23 +144,30 @@ def test_webcam_plain_wall_rows_on_the_luma(seed):
     assert rms["luma"] < rms["ev"]
 
 
-@pytest.mark.parametrize("seed", [21, 22, 23, 24, 25])
-def test_webcam_corridor_sheet_test_keeps_the_blurred_stripe(seed):
-    # the corridor through the webcam preset, three frames: with the chain's blur in the
-    # sheet test more of the stripe's columns are found within 2 px than without it
-    # (measured 80-88 % against 55-77 %), and at least 70 %
-    d = yaml.safe_load((ROOT / "sample_data" / "corridor.yaml").read_text())
-    d = {**d, "seed": seed, "image": {**d.get("image", {}), "camera": "webcam"}}
-    scene = scene_from_dict(d)
-    found = {"on": 0, "off": 0}
-    n_vis = 0
-    for i, pose in enumerate(scene.poses(3)):
-        r = render_frame(scene, RIG, pose, frame_index=i)
-        t = r.truth.stripe_v_px
-        vis = np.isfinite(t)
-        n_vis += int(vis.sum())
-        for name, p in (("on", LaserParams()), ("off", LaserParams(chroma_smoothness_max=0.0))):
-            e = np.abs(_detect(r, p).v_px - t)
-            found[name] += int((vis & (e <= 2)).sum())
-    assert found["on"] >= 0.7 * n_vis
-    assert found["on"] > found["off"]
+def test_webcam_corridor_sheet_test_keeps_the_blurred_stripe():
+    # the corridor through the webcam preset, seeds 21-25, three frames each: with the
+    # chain's blur in the sheet test at least as many of the stripe's columns are found
+    # within 2 px as without it on every seed (at least 70 %), and over the five seeds
+    # more by a tenth of the visible columns (measured 80-88 % against 55-80 %)
+    pooled = {"on": 0, "off": 0, "vis": 0}
+    for seed in (21, 22, 23, 24, 25):
+        d = yaml.safe_load((ROOT / "sample_data" / "corridor.yaml").read_text())
+        d = {**d, "seed": seed, "image": {**d.get("image", {}), "camera": "webcam"}}
+        scene = scene_from_dict(d)
+        found = {"on": 0, "off": 0}
+        n_vis = 0
+        for i, pose in enumerate(scene.poses(3)):
+            r = render_frame(scene, RIG, pose, frame_index=i)
+            t = r.truth.stripe_v_px
+            vis = np.isfinite(t)
+            n_vis += int(vis.sum())
+            for name, p in (("on", LaserParams()),
+                            ("off", LaserParams(chroma_smoothness_max=0.0))):
+                e = np.abs(_detect(r, p).v_px - t)
+                found[name] += int((vis & (e <= 2)).sum())
+        assert found["on"] >= 0.7 * n_vis, seed
+        assert found["on"] >= found["off"], seed
+        for k in ("on", "off"):
+            pooled[k] += found[k]
+        pooled["vis"] += n_vis
+    assert pooled["on"] >= pooled["off"] + 0.1 * pooled["vis"]

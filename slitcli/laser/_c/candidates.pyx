@@ -310,6 +310,10 @@ cdef inline void _plateau(const unsigned char[:, :, ::1] img, const unsigned cha
         res[4] = 0.25
         res[5] = 0.0
         res[1] = pr.sat_dn - bg[3 * i + 2, jc]
+    else:
+        # the flanks of a clipped core fit a width the clip and the bloom around it set,
+        # not the stripe's: at most the plateau's
+        res[2] = pmin(res[2], s0)
     res[3] = pmax(res[3] if ok else 0.0, (pr.sat_dn - bg[3 * i + 2, jc]) / sig)
 
 
@@ -387,7 +391,11 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
         o[F_Z] = res[3]
         o[F_SE_POS] = res[4]
         o[F_CHI2] = res[5]
-        o[F_SAT] = 1.0 if sat else 0.0
+        # 2: a white core (every channel clipped at the run's middle row), laser light
+        # only by its red flanks (choose: never strong on its own)
+        o[F_SAT] = 0.0 if not sat else (2.0 if img[i, (a + b - 1) // 2, 1] >= pr.sat_dn
+                                        and img[i, (a + b - 1) // 2, 0] >= pr.sat_dn
+                                        else 1.0)
         o[F_NOISE] = sig
         o[F_GNOISE] = gsig
         o[F_FLAT] = 1.0 if flat else 0.0

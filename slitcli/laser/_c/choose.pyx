@@ -269,7 +269,8 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
         z2 = 0.0
         for r in range(cnt):
             z = _fit(t, idx[r], pick[idx[r]])[F_Z]
-            strong = strong and z >= strong_z
+            # a white core's colour is unknown: its clip says nothing of laser light
+            strong = strong and z >= strong_z and _fit(t, idx[r], pick[idx[r]])[F_SAT] != 2
             z2 += z * z
         # the segment's evidence is summed along it: sqrt(z2) is its significance as one
         # fit of a straight stripe of constant peak (the columns' noise independent), and

@@ -12,7 +12,7 @@ cdef enum:
     F_Z = 3
     F_SE_POS = 4
     F_CHI2 = 5
-    F_SAT = 6
+    F_SAT = 6       # 0 unclipped, 1 a clipped core, 2 a white one (every channel)
     F_NOISE = 7
     F_TR = 8
     F_TG = 9

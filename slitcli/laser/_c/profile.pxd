@@ -335,7 +335,10 @@ cdef inline bint flat_top(const float* y, const unsigned char* use, Py_ssize_t m
         var += dv * dv
     out[0] = j0 + v0
     out[1] = height
-    out[2] = (b - a + 1) / 2.355
+    # the full width at half height between the interpolated crossings (the rows above
+    # half height overstate it by up to a row)
+    out[2] = ((b + (y[b] - level) / pmax(y[b] - y[b + 1], 1e-9))
+              - (a - 1 + (level - y[a - 1]) / pmax(y[a] - y[a - 1], 1e-9))) / 2.355
     out[3] = height / sigma
     out[4] = sigma * sqrt(var) / sw
     out[5] = 0.0

@@ -19,9 +19,13 @@ cdef extern from *:
     #include <math.h>
     #define SLITCLI_CLIP_SIGMAS 5.0
     #define SLITCLI_MEAN_TO_SIGMA (sqrt(3.141592653589793 / 2.0) / sqrt(1.5))
+    #define SLITCLI_FLANK_RED_SHARE 0.25
     """
     const double CLIP_SIGMAS "SLITCLI_CLIP_SIGMAS"
     const double MEAN_TO_SIGMA "SLITCLI_MEAN_TO_SIGMA"
+    # the least red excess, as a share of the red contrast, of a white core's far
+    # flanks (_red_flanks)
+    const double FLANK_RED_SHARE "SLITCLI_FLANK_RED_SHARE"
 
 
 cdef inline double _local_sigma(const float* yi, const unsigned char* mi, Py_ssize_t n,
@@ -47,30 +51,39 @@ cdef inline double _local_sigma(const float* yi, const unsigned char* mi, Py_ssi
 
 cdef inline double _red_excess(const unsigned char[:, :, ::1] img,
                                const unsigned char[:, ::1] bg, Py_ssize_t i,
-                               Py_ssize_t j) noexcept nogil:
-    """Red excess ``t_r - max(t_g, t_b)`` of the contrast of pixel ``j`` of column ``i``."""
+                               Py_ssize_t j, double share) noexcept nogil:
+    """Red excess ``t_r - max(t_g, t_b)`` of the contrast of pixel ``j`` of column ``i``;
+    -1e300 where it is below ``share`` of ``t_r`` (the light is not red enough)."""
     cdef double tr = <double>img[i, j, 2] - bg[3 * i + 2, j]
     cdef double tg = <double>img[i, j, 1] - bg[3 * i + 1, j]
     cdef double tb = <double>img[i, j, 0] - bg[3 * i, j]
-    return tr - pmax(tg, tb)
+    cdef double e = tr - pmax(tg, tb)
+    return e if e >= share * tr else -1e300
 
 
 cdef inline bint _red_flanks(const unsigned char[:, :, ::1] img,
                              const unsigned char[:, ::1] bg, Py_ssize_t i, Py_ssize_t a,
                              Py_ssize_t b, double seed_dn) noexcept nogil:
     """Whether the clipped run ``[a, b)`` of column ``i`` has red light on both flanks:
-    the largest red excess within ``FLANK_ROWS`` rows beyond each end (an image border
-    counts as ``seed_dn``) positive on both sides and ``2 seed_dn`` together (a laser
-    core's flanks are both red; a white highlight's fringe is white on both sides)."""
+    the largest red excess beyond each end (an image border counts as ``seed_dn``)
+    positive on both sides and ``2 seed_dn`` together (a laser core's flanks are both
+    red; a white highlight's fringe is white on both sides). Within ``FLANK_ROWS`` rows
+    any red excess counts; up to the run's length farther only light whose red excess
+    is at least ``FLANK_RED_SHARE`` of its red contrast: a laser bright enough to clip
+    green and blue too (a white core) leaves them clipped or near it for a few rows
+    beyond the red's clip, about as far as the light stays above the clip level, before
+    its red tails show; a white highlight's glow on a warm surface is a little red too,
+    but only by the surface's tint."""
     cdef Py_ssize_t n = img.shape[1], d
     cdef double up = seed_dn if a == 0 else -1e300
     cdef double dn = seed_dn if b == n else -1e300
-    for d in range(1, FLANK_ROWS + 1):
+    cdef double share
+    for d in range(1, FLANK_ROWS + (b - a) + 1):
+        share = -1e300 if d <= FLANK_ROWS else FLANK_RED_SHARE
         if a - d >= 0:
-            up = pmax(up, _red_excess(img, bg, i, a - d))
-    for d in range(FLANK_ROWS):
-        if b + d < n:
-            dn = pmax(dn, _red_excess(img, bg, i, b + d))
+            up = pmax(up, _red_excess(img, bg, i, a - d, share))
+        if b + d - 1 < n:
+            dn = pmax(dn, _red_excess(img, bg, i, b + d - 1, share))
     return up > 0.0 and dn > 0.0 and up + dn >= 2.0 * seed_dn
 
 
