@@ -513,3 +513,38 @@ def test_stripe_absence_says_why():
     f_off = detect_laser(off.bgr, RIG, PARAMS, geometry=GEOM)
     r = stripe_absence([int(f_off.found.sum())] * 3, [f_off.grey_image] * 3)
     assert r is not None and r.grey == 0
+
+
+def test_clip_levels_find_a_channel_that_clips_below_saturation():
+    # green piles up at 236 (a camera whose white balance clips it there), red and blue
+    # run out smoothly below 250: only green's level is lowered; a plain surface that
+    # piles up below CLIP_MIN_DN is no clip
+    rng = np.random.default_rng(3)
+    img = rng.integers(20, 200, (240, 320, 3)).astype(np.uint8)
+    img[100:110, :, 1] = 236
+    b, g, r = evidence.clip_levels(img, 250)
+    assert (b, r) == (250, 250) and g == 236 - evidence.CLIP_TOP_DN + 1
+    img[100:110, :, 1] = 150
+    img[150:200, :, 2] = 180
+    assert evidence.clip_levels(img, 250) == (250, 250, 250)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_core_white_where_green_clips_low_is_one_stripe(seed):
+    # a camera whose green clips at 236: the laser's core is red-clipped on two rows with
+    # a white row between them (every channel near 236, red below saturation); that row
+    # is clipped too (green at its level), so the core is one clipped run, centred on it
+    h, w = RIG.height_px, RIG.width_px
+    rows = 120.0 + 0.02 * np.arange(w)
+    img = _plain_frame(h, w, rows, 1.0, laser_dn=100.0, seed=seed)
+    img = np.minimum(img, np.array([255, 236, 255], np.uint8))
+    # some of the wall clips in green too (a lamp's highlight): the level is measurable
+    img[10:40, 10:60] = (200, 236, 200)
+    c = np.rint(rows).astype(int)
+    cols = np.arange(w)
+    for dv, px in ((-1, (200, 210, 255)), (0, (236, 235, 236)), (1, (200, 210, 255))):
+        img[c + dv, cols] = px
+    res = extract_stripe(img, LaserParams(search="full"))
+    found = np.isfinite(res.v_px)
+    assert found.mean() >= 0.95
+    assert np.mean(np.abs(res.v_px[found] - c[found]) <= 1.0) >= 0.98

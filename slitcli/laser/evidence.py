@@ -28,6 +28,11 @@ JPEG's subsampled chroma leaves: there it reads low, so candidates are judged ag
 the larger of it and the evidence's spread over the image), floored by
 ``noise_floor_dn`` (quantisation and compression).
 
+A pixel is clipped where any channel reaches its clipping level (its colour, and so its
+evidence, is then wrong): ``saturation_dn``, or lower where the image shows a channel
+clipping below it (:func:`clip_levels`: white balance and tone curves clip green or blue
+at 230-240 on some cameras, and render a clipped laser core white there).
+
 Images come transposed, ``(W, H, 3)`` BGR uint8 (one image column per array row).
 
 The kernels are compiled ahead of time (Cython, :mod:`slitcli.laser._c.evidence`) and
@@ -36,6 +41,9 @@ re-exported here; that module also holds the constants the kernels use
 """
 
 from __future__ import annotations
+
+import cv2
+import numpy as np
 
 from slitcli.laser._c.evidence import (
     CHI2_2_MEDIAN,
@@ -52,7 +60,45 @@ from slitcli.laser._c.evidence import (
 
 #: every NOISE_STEP-th column enters the noise estimates
 NOISE_STEP = 4
+#: a channel's values pile up at its clipping level: at least CLIP_PILE_PX
+#: pixels within CLIP_TOP_DN of its largest value, twice as many as in the CLIP_TOP_DN
+#: below those (a smooth histogram tail thins out towards its end)
+CLIP_TOP_DN = 3
+CLIP_PILE_PX = 10
+#: clipping levels below this are not looked for (a plain surface piles up too)
+CLIP_MIN_DN = 200
+
+
+def clip_levels(img_bgr: np.ndarray, saturation_dn: int) -> tuple[int, int, int]:
+    """The level at which each channel of an image clips, (b, g, r) DN.
+
+    ``saturation_dn``, or the lowest value of a pile-up at the top of the channel's
+    histogram where that lies between ``CLIP_MIN_DN`` and ``saturation_dn``.
+
+    Parameters
+    ----------
+    img_bgr : ndarray, uint8, shape (H, W, 3)
+        The image (BGR).
+    saturation_dn : int
+        The clipping level when the image shows none lower, DN.
+    """
+    x = np.ascontiguousarray(img_bgr)
+    tops = cv2.reduce(cv2.reduce(x, 0, cv2.REDUCE_MAX), 1, cv2.REDUCE_MAX).ravel()
+    levels = []
+    for c in range(3):
+        top = int(tops[c])
+        lo = top - CLIP_TOP_DN + 1
+        if not CLIP_MIN_DN <= lo < saturation_dn:
+            # at saturation_dn or above, or too low to be a clip: no histogram needed
+            levels.append(int(saturation_dn))
+            continue
+        hist = cv2.calcHist([x], [c], None, [256], [0, 256]).ravel()
+        n_top = float(hist[max(lo, 0):top + 1].sum())
+        n_below = float(hist[max(lo - CLIP_TOP_DN, 0):max(lo, 0)].sum())
+        pile = n_top >= CLIP_PILE_PX and n_top >= 2 * n_below
+        levels.append(lo if pile else int(saturation_dn))
+    return levels[0], levels[1], levels[2]
 
 __all__ = ["CHI2_2_MEDIAN", "MAD_TO_SIGMA", "MEDIAN_BINS", "NOISE_STEP", "_median",
-           "channel_sigma", "laser_evidence", "robust_sigma", "spread_sigma",
+           "channel_sigma", "clip_levels", "laser_evidence", "robust_sigma", "spread_sigma",
            "texture_share", "vertical_opening"]

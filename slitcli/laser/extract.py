@@ -22,7 +22,7 @@ each image, in the paper's steps:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import cv2
@@ -118,10 +118,12 @@ class _Evidence(NamedTuple):
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
-              win: int, params: LaserParams, sheet_test: bool) -> _Evidence:
+              win: int, params: LaserParams, sheet_test: bool,
+              clip_gb: tuple[int, int]) -> _Evidence:
     """Background (vertical opening of ``win`` rows), laser evidence and its noise for
     the searched rows ``sub`` (h, W, 3) BGR; ``img_t``, ``mask_t`` their transposes,
-    ``chan`` the per-channel noise (module notes of :mod:`~slitcli.laser.evidence`)."""
+    ``chan`` the per-channel noise (module notes of :mod:`~slitcli.laser.evidence`),
+    ``clip_gb`` the green and blue clipping levels (red: ``params.saturation_dn``)."""
     w = sub.shape[1]
     # the opening along the columns: on the (rows, 3 W) one-channel view a vertical
     # window mixes no channels; its transpose holds each column's channels as runs
@@ -135,7 +137,8 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
     lo, hi = params.texture_share_range()
     lam = hi if lo >= hi else max(lo, evidence.texture_share(
         img_t, bg_t, mask_t, params.saturation_dn, 2 * evidence.NOISE_STEP, hi))
-    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, lam, y, clipped)
+    # a pixel with any channel at its clipping level (measured on the image) is clipped
+    evidence.laser_evidence(img_t, bg_t, params.saturation_dn, lam, y, clipped, *clip_gb)
     # the stripe runs along the image rows: the evidence averaged over five columns
     # (1, 4, 6, 4, 1) / 16 has about half the noise (its own is measured below)
     y_avg = cv2.filter2D(y, -1, AVG_KERNEL, borderType=cv2.BORDER_REPLICATE)
@@ -192,6 +195,11 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     rows = np.flatnonzero(mask.any(axis=1))
     if rows.size == 0:
         return StripeColumns(nan, nan.copy(), np.zeros(w, bool), 0.0, 0.0, np.zeros(3))
+    # each channel's clipping level as this image shows it (white balance and tone
+    # curves clip some channels below saturation_dn); red's sets saturation_dn
+    clip_b, clip_g, clip_r = evidence.clip_levels(img, params.saturation_dn)
+    if clip_r != params.saturation_dn:
+        params = replace(params, saturation_dn=clip_r)
     max_w = params.max_width_px(h)
     win = background_window_px(params, h)
     # rows above the search region, beyond the reach of the opening, are left out
@@ -207,7 +215,7 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                             params.beta, params.gamma, params.continuity_px, max_w, v, amp)
         return StripeColumns(v + r0, amp, np.zeros(w, bool), float(np.median(chan)), 0.0, chan)
     ev = _evidence(sub, img_t, mask_t, chan, win, params,
-                   px_per_m is not None and params.sheet_sigma_mm > 0)
+                   px_per_m is not None and params.sheet_sigma_mm > 0, (clip_g, clip_b))
     y, y_avg, clipped = ev.y, ev.y_avg, ev.clipped
     sigma_y, sigma_avg = ev.sigma_y, ev.sigma_avg
     seed = params.seed_z * ev.noise_avg

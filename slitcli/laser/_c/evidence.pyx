@@ -380,9 +380,11 @@ def texture_share(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg,
 
 
 def laser_evidence(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg, int64_t sat_dn,
-                   double lam, float[:, ::1] y, uint8_t[:, ::1] clipped) -> None:
+                   double lam, float[:, ::1] y, uint8_t[:, ::1] clipped,
+                   int64_t sat_g=256, int64_t sat_b=256) -> None:
     """Laser evidence ``y`` (W, H) float32 of every pixel (module notes) and its clipped
-    flag (red at or above ``sat_dn``).
+    flag (red at or above ``sat_dn``, green at or above ``sat_g`` or blue at or above
+    ``sat_b``: 256, the default, never).
 
     ``img`` (W, H, 3) BGR, ``bg`` the opening per channel as (3 W, H): row ``3 i + c``
     holds channel ``c`` (b, g, r) of column ``i``; ``lam`` the share of the surface
@@ -422,7 +424,8 @@ def laser_evidence(const uint8_t[:, :, ::1] img, const uint8_t[:, ::1] bg, int64
                 tb = <double> xi[3 * j] - b_b[j]
                 yi[j] = <float> (((k2 - lam * kr * kr) * tr - lam * kr * (kg * tg + kb * tb))
                                  * inv)
-                ci[j] = xi[3 * j + 2] >= sat_dn
+                ci[j] = (xi[3 * j + 2] >= sat_dn) | (xi[3 * j + 1] >= sat_g) | \
+                    (xi[3 * j] >= sat_b)
 
 
 # ---------------------------------------------------------------------------------------
