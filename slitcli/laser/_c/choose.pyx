@@ -236,6 +236,7 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
     do not (``idx`` scratch (W,)); returns the longest kept segment's span in columns."""
     cdef Py_ssize_t w_cols = t.w, longest = 0, u = 0, cnt, last, x, r, quarter
     cdef double dv, z, z2, slope
+    cdef const double* fit
     cdef bint strong, good
     for u in range(w_cols):
         keep[u] = 0
@@ -268,9 +269,10 @@ cdef Py_ssize_t _segments(const Table* t, const Py_ssize_t* pick, const double* 
         strong = cnt >= (quarter if quarter > 2 else 2)
         z2 = 0.0
         for r in range(cnt):
-            z = _fit(t, idx[r], pick[idx[r]])[F_Z]
+            fit = _fit(t, idx[r], pick[idx[r]])
+            z = fit[F_Z]
             # a white core's colour is unknown: its clip says nothing of laser light
-            strong = strong and z >= strong_z and _fit(t, idx[r], pick[idx[r]])[F_SAT] != 2
+            strong = strong and z >= strong_z and fit[F_SAT] != 2
             z2 += z * z
         # the segment's evidence is summed along it: sqrt(z2) is its significance as one
         # fit of a straight stripe of constant peak (the columns' noise independent), and

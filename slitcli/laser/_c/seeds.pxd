@@ -53,12 +53,13 @@ cdef inline double _red_excess(const unsigned char[:, :, ::1] img,
                                const unsigned char[:, ::1] bg, Py_ssize_t i,
                                Py_ssize_t j, double share) noexcept nogil:
     """Red excess ``t_r - max(t_g, t_b)`` of the contrast of pixel ``j`` of column ``i``;
-    -1e300 where it is below ``share`` of ``t_r`` (the light is not red enough)."""
+    with ``share`` > 0, -1e300 where it is below ``share`` of ``t_r`` (the light is not
+    red enough); ``share`` 0 takes any excess."""
     cdef double tr = <double>img[i, j, 2] - bg[3 * i + 2, j]
     cdef double tg = <double>img[i, j, 1] - bg[3 * i + 1, j]
     cdef double tb = <double>img[i, j, 0] - bg[3 * i, j]
     cdef double e = tr - pmax(tg, tb)
-    return e if e >= share * tr else -1e300
+    return e if share <= 0.0 or e >= share * tr else -1e300
 
 
 cdef inline bint _red_flanks(const unsigned char[:, :, ::1] img,
@@ -79,7 +80,7 @@ cdef inline bint _red_flanks(const unsigned char[:, :, ::1] img,
     cdef double dn = seed_dn if b == n else -1e300
     cdef double share
     for d in range(1, FLANK_ROWS + (b - a) + 1):
-        share = -1e300 if d <= FLANK_ROWS else FLANK_RED_SHARE
+        share = 0.0 if d <= FLANK_ROWS else FLANK_RED_SHARE
         if a - d >= 0:
             up = pmax(up, _red_excess(img, bg, i, a - d, share))
         if b + d - 1 < n:
