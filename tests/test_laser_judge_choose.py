@@ -178,6 +178,15 @@ def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
     ok = np.ones((n, 1), bool)
     c_judge.colour_tests(c, laser, lu, chan, colour_error, 0.0, ok)
     assert np.array_equal(ok[:, 0], share < 1.0)
+    # colour_error 1 (the default): no plane test, whatever the residual
+    far = c.copy()
+    far[:, 0, [F_TR, F_TG, F_TB]] = t + (4.0 * np.linalg.norm(t, axis=1))[:, None] * across
+    ok = np.ones((n, 1), bool)
+    c_judge.colour_tests(far, laser, lu, chan, 1.0, 0.0, ok)
+    assert ok.all()
+    ok = np.ones((n, 1), bool)
+    c_judge.colour_tests(far, laser, lu, chan, 0.5, 0.0, ok)
+    assert not ok.any()
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -76,7 +76,8 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      None),
     ("colour_error",
      "Share by which a candidate's colour may leave the plane of the laser's colour "
-     "(measured on the frame) and the surface's (unitless).",
+     "(measured on the frame) and the surface's (unitless); 1 = no such test (the "
+     "default: camera tone curves whiten bright cores).",
      None),
     ("min_texture_ratio",
      "Least texture-to-noise ratio along the surface colour that the laser evidence assumes "

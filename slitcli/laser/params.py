@@ -53,9 +53,12 @@ class LaserParams:
     max_chi2 : float
         Largest reduced chi-square of the profile fit under that variance.
     colour_error : float
-        Relative error of the laser colour: the light a candidate adds may differ from
-        the laser's colour (estimated on the frame) across it and the surface colour by
-        this share of its size plus three noise sigmas.
+        Relative error of the laser colour: with ``colour_error`` < 1, the light a
+        candidate adds may differ from the laser's colour (estimated on the frame)
+        across it and the surface colour by this share of its size plus three noise
+        sigmas; 1 (the default): no such test. Mixing the two colours linearly holds
+        for a linear sensor only: the tone curve's shoulder whitens bright cores, and
+        on real photographs the test rejected true stripe columns (docs/laser.md).
     min_texture_ratio, max_texture_ratio : float
         Range of the texture-to-noise ratio ``r = tau / sigma`` along the surface colour
         that the evidence assumes (unitless); it removes the share ``r^2 / (r^2 + 1)`` of
@@ -123,7 +126,7 @@ class LaserParams:
     weak_z: float = 3.0
     shape_error: float = 0.25
     max_chi2: float = 4.0
-    colour_error: float = 0.2
+    colour_error: float = 1.0
     min_texture_ratio: float = 2.0
     max_texture_ratio: float = 5.0
     noise_floor_dn: float = 0.5
@@ -153,7 +156,7 @@ class LaserParams:
             "weak_z": 0.0 < self.weak_z <= self.min_z,
             "shape_error": 0.0 <= self.shape_error < 1.0,
             "max_chi2": self.max_chi2 > 0.0,
-            "colour_error": 0.0 <= self.colour_error < 1.0,
+            "colour_error": 0.0 <= self.colour_error <= 1.0,
             # the maximum first: a bad maximum is named, not the minimum it bounds
             "max_texture_ratio": 0.0 <= self.max_texture_ratio <= 100.0,
             "min_texture_ratio": 0.0 <= self.min_texture_ratio <= self.max_texture_ratio,
@@ -208,7 +211,7 @@ _RANGES = {
     "weak_z": "give a significance in (0, min_z]",
     "shape_error": "give a relative error in [0, 1)",
     "max_chi2": "give a reduced chi-square > 0",
-    "colour_error": "give a relative error in [0, 1)",
+    "colour_error": "give a relative error in [0, 1] (1: no colour-plane test)",
     "min_texture_ratio": "give a ratio from 0 up to the maximum texture ratio",
     "max_texture_ratio": "give a ratio in [0, 100]",
     "noise_floor_dn": "give a noise level > 0 DN",

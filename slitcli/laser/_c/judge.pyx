@@ -371,7 +371,8 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
     channel_sigma_dn : float
         Noise sigma of one channel, DN.
     colour_error : float
-        The colour residual allowed beyond the noise, as a share of the contrast.
+        The colour residual allowed beyond the noise, as a share of the contrast; 1:
+        no residual test (the laser-share test still runs).
     share_z : float
         Significance of the laser's share (:func:`laser_share`); 0 skips that test.
     ok : ndarray, shape (W, K), bool, C-contiguous
@@ -400,9 +401,12 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
                 kc[0] = c[F_KR]
                 kc[1] = c[F_KG]
                 kc[2] = c[F_KB]
-                lim = COLOUR_SIGMAS * channel_sigma_dn / sqrt(pmax(c[F_NCORE], 1.0)) + \
-                    colour_error * _norm3(t[0], t[1], t[2])
-                ok[u, q] = _colour_residual(t, kc, &lu[0]) <= lim
+                if colour_error < 1.0:
+                    # (at 1 every contrast passes: its part off the plane is at most
+                    # its size)
+                    lim = COLOUR_SIGMAS * channel_sigma_dn / sqrt(pmax(c[F_NCORE], 1.0)) \
+                        + colour_error * _norm3(t[0], t[1], t[2])
+                    ok[u, q] = _colour_residual(t, kc, &lu[0]) <= lim
                 if ok[u, q] and share_z > 0 and not c[F_SAT] > 0:
                     ok[u, q] = _laser_share(t, kc, &laser[0], &lu[0], c[F_NCORE],
                                             channel_sigma_dn, share_z)
