@@ -227,6 +227,7 @@ ABLATIONS = {
     "no segment length (min_segment_share 0)": {"min_segment_share": 0.0},
     "no shape test / flat tops (max_chi2 1e9)": {"max_chi2": 1e9},
     "laser-colour plane test on (colour_error 0.2)": {"colour_error": 0.2},
+    "no hue test (max_hue_deg 90)": {"max_hue_deg": 90.0},
     "no frame width test (WIDTH_SPREAD inf)": {"WIDTH_SPREAD": float("inf")},
     "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
     "no own-light test (OWN_Z inf)": {"OWN_Z": float("inf")},

@@ -155,6 +155,7 @@ def test_calibrate_cli_names_its_flags(tmp_path):
 
 @pytest.mark.parametrize("args,expected", [
     (["--colour-error", "2"], "laser parameter --colour-error = 2.0 is out of range"),
+    (["--max-hue-deg", "0"], "laser parameter --max-hue-deg = 0.0 is out of range"),
     (["--max-texture-ratio", "nan"], "laser parameter --max-texture-ratio = nan is out of range"),
     (["--min-texture-ratio", "7"], "laser parameter --min-texture-ratio = 7.0 is out of range"),
 ])

@@ -154,6 +154,39 @@ def test_sheet_test_bounds_the_width_by_the_sheet(seed):
     assert np.array_equal(ok, want)
 
 
+def _with_hue(hue_deg: np.ndarray, blue: np.ndarray) -> np.ndarray:
+    """(n, 3) RGB over red 1 with blue ``blue`` and the hue ``atan2(sqrt 3 (g - b),
+    2 r - g - b)`` of ``hue_deg``: green solved from the hue's tangent."""
+    t = np.tan(np.radians(hue_deg))
+    g = (t * (2.0 - blue) + math.sqrt(3.0) * blue) / (math.sqrt(3.0) + t)
+    return np.stack([np.ones_like(g), g, blue], axis=1)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_hue_test_keeps_red_light_and_drops_yellow(seed):
+    """An unclipped core's light whose hue lies beyond max_hue_deg towards yellow by
+    more than COLOUR_SIGMAS noise sigmas fails; red, magenta and orange light within it
+    passes, as does yellow light too faint to tell (a 1 DN core), a clipped core, and
+    everything at max_hue_deg 90."""
+    rng = np.random.default_rng(seed)
+    n, h, sigma, limit = 60, 240, 2.0, 40.0
+    hue = np.tile([-30.0, 0.0, 25.0, 60.0, 75.0, 60.0], n // 6)
+    size = np.tile([40.0, 40.0, 40.0, 40.0, 40.0, 1.0], n // 6) * rng.uniform(1, 2, n)
+    c = np.zeros((n, 1, N_FIELDS))
+    c[:, 0, [F_TR, F_TG, F_TB]] = size[:, None] * _with_hue(hue, rng.uniform(0, 0.2, n))
+    c[:, 0, F_POS] = rng.uniform(20, 200, n)
+    c[:, 0, F_WIDTH] = rng.uniform(1.0, 2.0, n)
+    c[:, 0, F_NCORE] = rng.integers(2, 6, n)
+    # (Eq. 2 passes everything: min_th 0, min_delta_th -1)
+    args = (None, h, 4.0, 1e9, 3.0, 0.0, -1.0, 1.5, 0, judge.WIDTH_SPREAD, 0.0)
+    ok, _ = c_judge.shape_tests(c, *args, limit, sigma)
+    yellow = (hue > limit) & (size > 10.0)
+    assert np.array_equal(ok[:, 0], ~yellow)
+    assert c_judge.shape_tests(c, *args, 90.0, sigma)[0].all()
+    c[:, 0, F_SAT] = 1.0
+    assert c_judge.shape_tests(c, *args, limit, sigma)[0].all()
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
     """A core contrast in the plane of the laser's and the surface's colours passes; one

@@ -79,6 +79,10 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "(measured on the frame) and the surface's (unitless); 1 = no such test (the "
      "default: camera tone curves whiten bright cores).",
      None),
+    ("max_hue_deg",
+     "Largest hue of the light a stripe adds, towards yellow, degrees from red, at three "
+     "noise sigmas (a red laser stays near red; 90 = no test).",
+     None),
     ("min_texture_ratio",
      "Least texture-to-noise ratio along the surface colour that the laser evidence assumes "
      "(unitless); between it and --max-texture-ratio the ratio is measured on each image.",

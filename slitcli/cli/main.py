@@ -80,6 +80,7 @@ PARAM_FLAGS: dict[str, str] = {
     "method": "--method", "min_th": "--min-th", "min_delta_th": "--min-delta-th",
     "max_width_share": "--max-width-share", "seed_z": "--seed-z", "min_z": "--min-z",
     "weak_z": "--weak-z", "shape_error": "--shape-error", "colour_error": "--colour-error",
+    "max_hue_deg": "--max-hue-deg",
     "min_texture_ratio": "--min-texture-ratio", "max_texture_ratio": "--max-texture-ratio",
     "noise_floor_dn": "--noise-floor-dn", "saturation_dn": "--saturation-dn",
     "continuity_px": "--continuity-px", "max_jump_px": "--max-jump-px",

@@ -302,7 +302,8 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
         min_th=params.min_th, min_delta_th=params.min_delta_th,
         colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
-        sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var)
+        sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var,
+        max_hue_deg=params.max_hue_deg)
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)

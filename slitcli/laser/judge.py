@@ -42,15 +42,18 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
                      max_chi2: float, min_th: float, min_delta_th: float,
                      colour_error: float, channel_sigma_dn: float,
                      sheet_px: np.ndarray | None, sheet_tolerance: float,
-                     sheet_support: int = 0, blur_var_px2: float = 0.0
+                     sheet_support: int = 0, blur_var_px2: float = 0.0,
+                     max_hue_deg: float = 90.0
                      ) -> tuple[np.ndarray, np.ndarray | None]:
     """Which candidates (W, K) can be the laser, and the laser colour used.
 
     Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
     unclipped one a Gaussian within the model error (reduced chi-square ``max_chi2``);
-    the light its core adds passes Eq. 2 (red chromaticity ``min_th``, ``min_delta_th``)
-    and, where the frame shows the laser's colour (the median of its strong unclipped
-    candidates' core contrast over its red, from at least ``COLOUR_SUPPORT`` of them),
+    the light its core adds passes Eq. 2 (red chromaticity ``min_th``, ``min_delta_th``),
+    an unclipped core's light is at most ``max_hue_deg`` from red towards yellow (at
+    ``COLOUR_SIGMAS`` noise sigmas; 90: no test) and, where the frame shows the laser's
+    colour (the median of its strong unclipped candidates' core contrast over its red,
+    from at least ``COLOUR_SUPPORT`` of them),
     shows the laser's share (:func:`laser_share`) and, with ``colour_error`` < 1, lies
     in the plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas
     plus ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
@@ -70,7 +73,7 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     cand = np.ascontiguousarray(cand, dtype=np.float64)
     ok, laser = shape_tests(cand, sheet_px, height_px, s_max, min_z, max_chi2, min_th,
                             min_delta_th, sheet_tolerance, sheet_support, WIDTH_SPREAD,
-                            blur_var_px2)
+                            blur_var_px2, max_hue_deg, channel_sigma_dn)
     if laser is None:
         return ok, None
     # (the unit vector of the laser colour as numpy's norm gives it: the tests below

@@ -59,6 +59,14 @@ class LaserParams:
         sigmas; 1 (the default): no such test. Mixing the two colours linearly holds
         for a linear sensor only: the tone curve's shoulder whitens bright cores, and
         on real photographs the test rejected true stripe columns (docs/laser.md).
+    max_hue_deg : float
+        Largest hue of the light a candidate adds, towards yellow, degrees from red
+        (``atan2(sqrt 3 (g - b), 2 r - g - b)``; tested at three noise sigmas of its
+        core's mean; 90: no test). A red diode laser reaches a camera's green and blue
+        filters through their tails alone, so its light stays near red (-22 to +9
+        degrees on the real photographs measured, magenta where blue leaks more); light
+        whose green exceeds its blue by far is broadband (a warm, yellow surface), not
+        the laser's.
     min_texture_ratio, max_texture_ratio : float
         Range of the texture-to-noise ratio ``r = tau / sigma`` along the surface colour
         that the evidence assumes (unitless); it removes the share ``r^2 / (r^2 + 1)`` of
@@ -127,6 +135,7 @@ class LaserParams:
     shape_error: float = 0.25
     max_chi2: float = 4.0
     colour_error: float = 1.0
+    max_hue_deg: float = 40.0
     min_texture_ratio: float = 2.0
     max_texture_ratio: float = 5.0
     noise_floor_dn: float = 0.5
@@ -157,6 +166,7 @@ class LaserParams:
             "shape_error": 0.0 <= self.shape_error < 1.0,
             "max_chi2": self.max_chi2 > 0.0,
             "colour_error": 0.0 <= self.colour_error <= 1.0,
+            "max_hue_deg": 0.0 < self.max_hue_deg <= 90.0,
             # the maximum first: a bad maximum is named, not the minimum it bounds
             "max_texture_ratio": 0.0 <= self.max_texture_ratio <= 100.0,
             "min_texture_ratio": 0.0 <= self.min_texture_ratio <= self.max_texture_ratio,
@@ -212,6 +222,7 @@ _RANGES = {
     "shape_error": "give a relative error in [0, 1)",
     "max_chi2": "give a reduced chi-square > 0",
     "colour_error": "give a relative error in [0, 1] (1: no colour-plane test)",
+    "max_hue_deg": "give an angle in (0, 90] degrees (90: no hue test)",
     "min_texture_ratio": "give a ratio from 0 up to the maximum texture ratio",
     "max_texture_ratio": "give a ratio in [0, 100]",
     "noise_floor_dn": "give a noise level > 0 DN",

@@ -12,7 +12,7 @@ is spelled out with ``fma``.
 
 import numpy as np
 
-from libc.math cimport ceil, fabs, fma, isfinite, isnan, rint, sqrt
+from libc.math cimport INFINITY, M_PI, ceil, fabs, fma, isfinite, isnan, rint, sqrt, tan
 
 from slitcli.laser._c.fields cimport (
     F_AMP,
@@ -76,11 +76,25 @@ def constants() -> dict:
             "F_FLAT": F_FLAT}
 
 
+cdef inline bint _yellow(const double* c, double hue_tan, double sigma_dn) noexcept nogil:
+    """Whether the light an unclipped core adds (``F_T*``) has a hue beyond ``atan
+    hue_tan`` towards yellow by more than ``COLOUR_SIGMAS`` noise sigmas of its
+    linear form ``sqrt 3 (g - b) - hue_tan (2 r - g - b)`` (each channel's mean over
+    the core: ``sigma_dn / sqrt(F_NCORE)``)."""
+    cdef double se, d
+    if not c[F_NCORE] > 0 or c[F_SAT] > 0 or not isfinite(hue_tan):
+        return False
+    se = sigma_dn / sqrt(pmax(c[F_NCORE], 1.0))
+    d = sqrt(3.0) * (c[F_TG] - c[F_TB]) - hue_tan * (2.0 * c[F_TR] - c[F_TG] - c[F_TB])
+    return d > COLOUR_SIGMAS * se * sqrt(6.0 + 6.0 * hue_tan * hue_tan)
+
+
 cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, double s_max,
                        double max_chi2, double min_th, double min_delta_th,
-                       unsigned char* ok) noexcept nogil:
-    """The tests of one fit on its own (place, width, shape, Eq. 2 on the light its core
-    adds) of the ``n`` fits of ``cand`` (n, N_FIELDS) into ``ok`` (n,)."""
+                       double hue_tan, double sigma_dn, unsigned char* ok) noexcept nogil:
+    """The tests of one fit on its own (place, width, shape, Eq. 2 and the hue of the
+    light its core adds) of the ``n`` fits of ``cand`` (n, N_FIELDS) into ``ok``
+    (n,)."""
     cdef Py_ssize_t i
     cdef const double* c
     cdef double pos, s, tr, tg, tb, tot
@@ -99,7 +113,8 @@ cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, d
         tot = tr + tg + tb
         eq2 = tot > 0 and tr / tot > min_th and \
             tr / tot - pmax(tg, tb) / tot > min_delta_th
-        ok[i] = good and (eq2 or (sat and not c[F_NCORE] > 0))
+        ok[i] = good and (eq2 or (sat and not c[F_NCORE] > 0)) and \
+            not _yellow(c, hue_tan, sigma_dn)
 
 
 cdef bint _fits_sheet(double s, double se_pos, double sheet_px, double ref,
@@ -183,14 +198,16 @@ cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
                        Py_ssize_t height_px, double s_max, double min_z, double max_chi2,
                        double min_th, double min_delta_th, double sheet_tolerance,
                        Py_ssize_t sheet_support, double width_spread, double blur_var,
-                       unsigned char* ok, double* work, double* laser) noexcept nogil:
+                       double hue_tan, double sigma_dn, unsigned char* ok, double* work,
+                       double* laser) noexcept nogil:
     """:func:`shape_tests` of the ``n`` fits of ``cand`` (``sheet_px`` (n,) or NULL;
     ``work`` scratch of 3 n entries); returns whether the frame shows the laser's
     colour."""
     cdef Py_ssize_t i, m = 0
     cdef const double* c
     cdef double strong_z = COLOUR_Z * min_z, widest
-    _model_tests(cand, n, height_px, s_max, max_chi2, min_th, min_delta_th, ok)
+    _model_tests(cand, n, height_px, s_max, max_chi2, min_th, min_delta_th, hue_tan,
+                 sigma_dn, ok)
     if sheet_px != NULL:
         _sheet_tests(cand, n, sheet_px, strong_z, sheet_tolerance, sheet_support, blur_var,
                      ok, work)
@@ -212,7 +229,8 @@ cdef bint _shape_tests(const double* cand, Py_ssize_t n, const double* sheet_px,
 def shape_tests(const double[:, :, ::1] cand, sheet_px, Py_ssize_t height_px, double s_max,
                 double min_z, double max_chi2, double min_th, double min_delta_th,
                 double sheet_tolerance, Py_ssize_t sheet_support, double width_spread,
-                double blur_var_px2=0.0):
+                double blur_var_px2=0.0, double max_hue_deg=90.0,
+                double channel_sigma_dn=0.0):
     """:func:`slitcli.laser.judge.valid_candidates` up to the colour tests.
 
     Parameters
@@ -230,6 +248,9 @@ width_spread
     blur_var_px2 : float
         Variance the image processing adds to the stripe's profile across rows, px^2
         (the sheet's test; :data:`slitcli.laser.luma.CHAIN_VAR_PX2` under 4:2:0 chroma).
+    max_hue_deg, channel_sigma_dn : float
+        The hue test of an unclipped core's light (``LaserParams.max_hue_deg``; 90: none)
+        and the noise of one channel, DN.
 
     Returns
     -------
@@ -258,11 +279,13 @@ width_spread
     work_arr = np.empty(3 * n + 3)
     cdef double[::1] work = work_arr
     cdef bint found
+    cdef double hue_tan = tan(max_hue_deg * (M_PI / 180.0)) if max_hue_deg < 90.0 \
+        else INFINITY
     with nogil:
         found = _shape_tests(&cand[0, 0, 0], n, sheet_ptr, height_px, s_max, min_z,
                              max_chi2, min_th, min_delta_th, sheet_tolerance, sheet_support,
-                             width_spread, blur_var_px2, &ok[0, 0], &work[0],
-                             &work[3 * n])
+                             width_spread, blur_var_px2, hue_tan, channel_sigma_dn,
+                             &ok[0, 0], &work[0], &work[3 * n])
     return ok_arr, (work_arr[3 * n:].copy() if found else None)
 
 
