@@ -53,10 +53,10 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     an unclipped core's light is at most ``max_hue_deg`` from red towards yellow (at
     ``COLOUR_SIGMAS`` noise sigmas; 90: no test) and, where the frame shows the laser's
     colour (the median of its strong unclipped candidates' core contrast over its red,
-    from at least ``COLOUR_SUPPORT`` of them),
-    shows the laser's share (:func:`laser_share`) and, with ``colour_error`` < 1, lies
-    in the plane of that colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas
-    plus ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
+    from at least ``COLOUR_SUPPORT`` of them), shows the laser's share
+    (:func:`laser_share`) and, with ``colour_error`` < 1, lies in the plane of that
+    colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
+    ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
     candidate's row, px, NaN unknown) a width that implies a sheet at most
     ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
     strong columns do (when at least ``sheet_support`` of them show it, else the
