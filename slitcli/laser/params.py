@@ -63,7 +63,7 @@ class LaserParams:
         Largest hue of the light a candidate adds, towards yellow, degrees from red
         (``atan2(sqrt 3 (g - b), 2 r - g - b)``; tested at three noise sigmas of its
         core's mean; 90: no test). A red diode laser reaches a camera's green and blue
-        filters through their tails alone, so its light stays near red (-22 to +9
+        filters through their tails alone, so its light stays near red (-26 to +8
         degrees on the real photographs measured, magenta where blue leaks more); light
         whose green exceeds its blue by far is broadband (a warm, yellow surface), not
         the laser's.
