@@ -225,3 +225,31 @@ def test_grey_image_test_counts_the_sampled_share(seed):
     img[rows[-1], cols[-1], 2] = img[rows[-1], cols[-1], 1] + GREY_DN + 1
     wider[:, 3:] = img
     assert not is_grey(img) and not is_grey(wider[:, 3:])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_white_core_is_judged_against_each_channels_clipping_level(seed):
+    # a clipped run with red flanks whose green and blue sit at 234 in its middle: a
+    # white core (F_SAT 2) where 234 is their clipping level, a red one (F_SAT 1) where
+    # they clip at the red's level (the default)
+    rng = np.random.default_rng(seed)
+    w, h = 4, 60
+    v0 = int(rng.integers(20, 40))
+    img = np.full((w, h, 3), 40, np.uint8)
+    img[:, v0 - 3] = img[:, v0 + 3] = (60, 60, 150)      # red flanks (BGR)
+    img[:, v0 - 2] = img[:, v0 + 2] = (120, 120, 230)
+    img[:, v0 - 1:v0 + 2] = (234, 234, 255)               # the clipped core
+    bg = np.full((3 * w, h), 40, np.uint8)
+    y = np.ascontiguousarray(img[..., 2].astype(np.float32) - 40.0)
+    clipped = np.ascontiguousarray(img[..., 2] >= 250)
+    mask = np.ones((w, h), bool)
+    sat = {}
+    for levels in ((-1.0, -1.0), (234.0, 234.0)):
+        out = np.empty((w, 3, profile.N_FIELDS))
+        compiled.column_candidates(img, bg, y, y, clipped, mask, 1.0, 0.6, 3.0, 10.0, 250,
+                                   4.0, 0.1, 4.0, 3.0, out, 0, -1, *levels)
+        core = np.abs(out[..., profile.F_POS] - v0) < 1.0
+        assert core.any(axis=1).all()
+        sat[levels] = out[..., profile.F_SAT][core]
+    assert np.all(sat[(-1.0, -1.0)] == 1.0)
+    assert np.all(sat[(234.0, 234.0)] == 2.0)

@@ -69,19 +69,22 @@ def column_candidates(img: np.ndarray, bg: np.ndarray, y: np.ndarray, y_avg: np.
                       clipped: np.ndarray, mask: np.ndarray, sigma_y: float,
                       sigma_avg: float, seed_dn: float, strong_z: float, sat_dn: float,
                       s_max: float, shape_error: float, max_chi2: float, weak_z: float,
-                      out: np.ndarray) -> None:
+                      out: np.ndarray, sat_gb: tuple[float, float] | None = None) -> None:
     """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none.
 
     The compiled kernel's (``slitcli/laser/_c/candidates.pyx``; its docstring names the
     arguments), over bands of columns on up to ``SLITCLI_THREADS`` threads, and only on
     cores that no other task holds (:func:`~slitcli.stereo.bands.kernel_threads`: one in
     a process pool's workers). Columns are independent, so the result is the same on
-    any number of threads.
+    any number of threads. ``sat_gb``: green's and blue's clipping levels (a white
+    core reaches both), DN; None: ``sat_dn``.
     """
+    sat_g, sat_b = (-1.0, -1.0) if sat_gb is None else sat_gb
+
     def band(c0: int, c1: int) -> None:
         _kernels.column_candidates(img, bg, y, y_avg, clipped, mask, sigma_y, sigma_avg,
                                    seed_dn, strong_z, sat_dn, s_max, shape_error, max_chi2,
-                                   weak_z, out, c0, c1)
+                                   weak_z, out, c0, c1, sat_g, sat_b)
 
     threads = kernel_threads()
     run_column_bands(band, out.shape[0], threads)

@@ -115,6 +115,7 @@ class _Evidence(NamedTuple):
     noise_avg: float       # pixel noise of y_avg (seeds candidates), DN
     chan: np.ndarray       # noise per channel (b, g, r), floored, DN
     blur_var: float        # variance the chroma's processing adds to a profile, px^2
+    clip_gb: tuple[int, int]  # green's and blue's clipping levels, DN
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
@@ -161,7 +162,8 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
     subsampled = (sheet_test or params.luma_rows) and params.chroma_smoothness_max > 0 and \
         luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
-                     float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0)
+                     float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0,
+                     clip_gb)
 
 
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
@@ -289,7 +291,7 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     candidates.column_candidates(img_t, ev.bg_t, y, y_avg, clipped, mask_t, ev.sigma_y,
                                  ev.sigma_avg, seed, STRONG_SHARE * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
-                                 params.max_chi2, params.weak_z, cand)
+                                 params.max_chi2, params.weak_z, cand, ev.clip_gb)
     cand[..., F_POS] += r0
     sheet_px = None
     if px_per_m is not None and params.sheet_sigma_mm > 0:

@@ -189,6 +189,8 @@ cdef struct _Params:
     double screen_z      # SEED_EFFICIENCY x weak_z
     double eff           # SEED_EFFICIENCY
     double sat_dn        # (integer DN: the sums below are exact, as numba's int64 ones)
+    double sat_g         # green's and blue's clipping levels (a white core: both reached)
+    double sat_b
     double s_max
     double shape_error
     double max_chi2
@@ -391,10 +393,11 @@ cdef void _column(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
         o[F_Z] = res[3]
         o[F_SE_POS] = res[4]
         o[F_CHI2] = res[5]
-        # 2: a white core (every channel clipped at the run's middle row), laser light
+        # 2: a white core (every channel at its clipping level at the run's middle row:
+        # ``sat_g``, ``sat_b``), laser light
         # only by its red flanks (choose: never strong on its own)
-        o[F_SAT] = 0.0 if not sat else (2.0 if img[i, (a + b - 1) // 2, 1] >= pr.sat_dn
-                                        and img[i, (a + b - 1) // 2, 0] >= pr.sat_dn
+        o[F_SAT] = 0.0 if not sat else (2.0 if img[i, (a + b - 1) // 2, 1] >= pr.sat_g
+                                        and img[i, (a + b - 1) // 2, 0] >= pr.sat_b
                                         else 1.0)
         o[F_NOISE] = sig
         o[F_GNOISE] = gsig
@@ -408,7 +411,7 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
                       double sigma_y, double sigma_avg, double seed_dn, double strong_z,
                       double sat_dn, double s_max, double shape_error, double max_chi2,
                       double weak_z, double[:, :, ::1] out, Py_ssize_t col0=0,
-                      Py_ssize_t col1=-1):
+                      Py_ssize_t col1=-1, double sat_g=-1.0, double sat_b=-1.0):
     """Fitted candidates of every column into ``out`` (W, K, N_FIELDS), NaN where none;
     with ``col0``, ``col1`` of the columns ``col0 .. col1 - 1`` only (``col1`` -1: to the
     last), the rest of ``out`` untouched: columns are independent, and bands of them may
@@ -418,8 +421,9 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     ``clipped`` (W, H) float32 and bool from :func:`~slitcli.laser.evidence.laser_evidence`,
     ``y_avg`` (W, H) float32 the evidence averaged along the stripe over five columns
     (weights 1, 4, 6, 4, 1), ``mask`` (W, H) bool the searched pixels, ``sigma_y`` and
-    ``sigma_avg`` the image's noise of the two (DN), ``sat_dn`` the saturation level,
-    ``s_max`` the widest stripe's sigma, px. Seeds come from the averaged evidence (at
+    ``sigma_avg`` the image's noise of the two (DN), ``sat_dn`` the saturation level
+    (red's; ``sat_g``, ``sat_b`` green's and blue's, -1: ``sat_dn``), ``s_max`` the
+    widest stripe's sigma, px. Seeds come from the averaged evidence (at
     least ``seed_dn``); each is fitted on the column's own evidence and on the averaged
     one (noise about half, at the cost of resolution along the stripe), the more
     significant fit kept: the evidence whose screen (below) is the larger first, the
@@ -466,6 +470,8 @@ def column_candidates(const unsigned char[:, :, ::1] img, const unsigned char[:,
     pr.seed_dn = seed_dn
     pr.strong_z = strong_z
     pr.sat_dn = sat_dn
+    pr.sat_g = sat_dn if sat_g < 0 else sat_g
+    pr.sat_b = sat_dn if sat_b < 0 else sat_b
     pr.s_max = s_max
     pr.shape_error = shape_error
     pr.max_chi2 = max_chi2
