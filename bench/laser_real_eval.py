@@ -234,6 +234,8 @@ ABLATIONS = {
     "no laser-share test (LASER_SHARE_Z 0)": {"LASER_SHARE_Z": 0.0},
     "overlapping fits both kept (no judge.one_crossing)":
         {"judge.one_crossing": lambda cand, ok: ok},
+    "no surface test (no judge.surface_continues)":
+        {"judge.surface_continues": lambda cand, *a, **k: np.ones(cand.shape[:2], bool)},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
     "paper method": {"method": "paper"},

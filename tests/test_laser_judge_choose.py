@@ -110,10 +110,13 @@ def test_shape_tests_width_spread_and_laser_colour_by_numpys_median(seed):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_model_tests_follow_eq2_and_the_width_range(seed):
     """A fit passes alone only inside the image, with a width in [MIN_SIGMA_PX, s_max],
-    a shape within max_chi2 (unless clipped or flat) and Eq. 2 on its core's light."""
+    a shape within max_chi2 (unless clipped or flat) and Eq. 2 on its core's light,
+    unless its core is clipped (red, F_SAT 1, or white, F_SAT 2: the unclipped rows of
+    the core are the clip's shoulders, whose colour is the tone curve's)."""
     rng = np.random.default_rng(seed)
     w, k, h = 200, 3, 240
     c = _table(rng, w, k, h)
+    c[..., F_SAT][rng.random((w, k)) < 0.1] = 2.0
     c[..., F_WIDTH] = rng.uniform(0.1, 6.0, (w, k))
     c[..., F_POS] = rng.uniform(-5, h + 5, (w, k))
     c[..., F_TG] = c[..., F_TR] * rng.uniform(0.0, 1.5, (w, k))
@@ -126,9 +129,12 @@ def test_model_tests_follow_eq2_and_the_width_range(seed):
     r = c[..., F_TR] / tot
     eq2 = (tot > 0) & (r > min_th) & (r - np.maximum(c[..., F_TG], c[..., F_TB]) / tot > min_dth)
     want = (pos >= -0.5) & (pos <= h - 0.5) & (s >= profile.MIN_SIGMA_PX) & (s <= s_max) & \
-        (sat | (c[..., F_CHI2] <= max_chi2)) & eq2
+        (sat | (c[..., F_CHI2] <= max_chi2)) & (eq2 | sat)
     assert np.array_equal(ok, want)
     assert 0.1 < want.mean() < 0.9
+    # clipped cores, red and white, that pass only because Eq. 2 is not asked of them
+    for level in (1.0, 2.0):
+        assert (want & ~eq2 & (c[..., F_SAT] == level)).any()
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -220,6 +226,11 @@ def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
     ok = np.ones((n, 1), bool)
     c_judge.colour_tests(far, laser, lu, chan, 0.5, 0.0, ok)
     assert not ok.any()
+    # a white core's (F_SAT 2) light is the clip's: not judged
+    far[::2, 0, F_SAT] = 2.0
+    ok = np.ones((n, 1), bool)
+    c_judge.colour_tests(far, laser, lu, chan, 0.5, judge.LASER_SHARE_Z, ok)
+    assert np.array_equal(ok[:, 0], far[:, 0, F_SAT] == 2)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

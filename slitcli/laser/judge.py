@@ -49,7 +49,9 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
 
     Valid: a fitted sigma in ``[MIN_SIGMA_PX, s_max]``; an
     unclipped one a Gaussian within the model error (reduced chi-square ``max_chi2``);
-    the light its core adds passes Eq. 2 (red chromaticity ``min_th``, ``min_delta_th``),
+    the light an unclipped core adds passes Eq. 2 (red chromaticity ``min_th``,
+    ``min_delta_th``; a clipped core's unclipped rows are the clip's whitened
+    shoulders, and its red flanks stood for the laser's colour when it was seeded),
     an unclipped core's light is at most ``max_hue_deg`` from red towards yellow (at
     ``COLOUR_SIGMAS`` noise sigmas; 90: no test) and, where the frame shows the laser's
     colour (the median of its strong unclipped candidates' core contrast over its red,

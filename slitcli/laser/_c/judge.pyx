@@ -113,7 +113,10 @@ cdef void _model_tests(const double* cand, Py_ssize_t n, Py_ssize_t height_px, d
         tot = tr + tg + tb
         eq2 = tot > 0 and tr / tot > min_th and \
             tr / tot - pmax(tg, tb) / tot > min_delta_th
-        ok[i] = good and (eq2 or (sat and not c[F_NCORE] > 0)) and \
+        # the unclipped rows of a clipped core are the clip's shoulders, which a tone
+        # curve whitens: their colour is not the laser's (the red flanks that seeded the
+        # core were)
+        ok[i] = good and (eq2 or sat) and \
             not _yellow(c, hue_tan, sigma_dn)
 
 
@@ -416,7 +419,7 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
         for u in range(ok.shape[0]):
             for q in range(ok.shape[1]):
                 c = &cand[u, q, 0]
-                if not ok[u, q] or not c[F_NCORE] > 0:
+                if not ok[u, q] or not c[F_NCORE] > 0 or c[F_SAT] >= 2:
                     continue
                 t[0] = c[F_TR]
                 t[1] = c[F_TG]
