@@ -256,7 +256,7 @@ def test_laser_share_tells_the_surfaces_own_light(seed):
 def test_surface_continues_sees_two_surfaces(seed):
     """A candidate on a border between a grey and a red surface (running along the
     stripe) is not the laser; one on a single surface, or near the image's edge (a side
-    outside), is."""
+    outside), is; a clipped core is not judged."""
     rng = np.random.default_rng(seed)
     w, h = 40, 60
     img_t = np.empty((w, h, 3), np.uint8)
@@ -278,6 +278,11 @@ def test_surface_continues_sees_two_surfaces(seed):
     assert judge.surface_continues(c, img_t, 0, 2.0)[:, 1].all()
     need = np.zeros((w, 2), bool)
     assert judge.surface_continues(c, img_t, 0, 2.0, need).all()
+    # a clipped core (red or white) is not judged: its bloom lights the rows beside it
+    for level in (1.0, 2.0):
+        clipped = c.copy()
+        clipped[:, 0, F_SAT] = level
+        assert judge.surface_continues(clipped, img_t, 0, 2.0)[:, 0].all()
 
 
 def test_links_by_jump_or_slope():

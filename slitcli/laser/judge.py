@@ -121,9 +121,11 @@ def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
     Sides too dark to show a colour (below ``SURFACE_MIN_DN`` per channel on average)
     are not judged. An edge along the stripe runs on, so the break must show in both
     neighbouring columns too (at the same rows): where an object's side crosses the
-    stripe, its end column sees two surfaces alone. Returns (W, K) bool, True where the
-    surface continues or where it cannot be told, and where ``need`` (W, K), when
-    given, is False (candidates that are out already are not judged).
+    stripe, its end column sees two surfaces alone. A clipped core is not judged: its
+    light (the bloom and halo beyond the clip) reaches past its fitted width, unevenly
+    above and below. Returns (W, K) bool, True where the surface continues or where it
+    cannot be told, and where ``need`` (W, K), when given, is False (candidates that
+    are out already are not judged).
     """
     need = np.ones(cand.shape[:2], np.bool_) if need is None else \
         np.ascontiguousarray(need, dtype=np.bool_)

@@ -541,7 +541,10 @@ def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] i
             c = &cand[0, 0, 0] + i * N_FIELDS
             pos = c[F_POS] - row0
             o[i] = True
-            if not nd[i] or not isfinite(pos):
+            # a clipped core's light reaches far past its fitted width (bloom, the
+            # halo beyond the clip), unevenly above and below: the rows beside it show
+            # its own light, not the bare surface
+            if not nd[i] or not isfinite(pos) or c[F_SAT] > 0:
                 continue
             wid = c[F_WIDTH]
             # (an integer number of rows, as numba's math.ceil gave)
