@@ -61,3 +61,67 @@ def test_linear_z_needs_six_rows():
     use = np.ones(6, bool)
     use[0] = False
     assert _linear_z(y, use, 0, 2.0, 1.0, 1.0, np.empty(6)) == 0.0
+
+
+def _clipped_gap_scene(rng: np.random.Generator, rows_up: list[int]):
+    """Six columns of a 60-row transposed image (W, H', 3) on a flat 50 DN surface; the
+    stripe found at the outer columns, clipped (red 255) at rows 28-32 of columns 1-4
+    with red flanks ``rows_up`` (rows 26, 27) above and 200, 120 below."""
+    w, n = 6, 60
+    img = np.full((w, n, 3), 50, np.uint8)
+    img[1:5, 28:33, 2] = 255
+    img[1:5, 26, 2], img[1:5, 27, 2] = rows_up
+    img[1:5, 33, 2], img[1:5, 34, 2] = 200, 120
+    bg = np.full((3 * w, n), 50, np.uint8)
+    clipped = img[..., 2] >= 255
+    mask = np.ones((w, n), bool)
+    zeros = np.zeros((w, n), np.float32)
+    cand = np.full((w, 3, 17), np.nan)
+    cand[:, 0, 0] = 30.0
+    cand[:, 0, 2] = 1.5
+    lift = float(rng.uniform(-0.4, 0.4))
+    v = np.array([30.0, np.nan, np.nan, np.nan, np.nan, 30.0 + lift])
+    return img, bg, clipped, mask, zeros, cand, v, lift
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_gap_through_a_clipped_core_takes_its_plateau(seed):
+    """A gap column clipped where the stripe must pass takes the clipped core's plateau
+    centre (the level half way from the surface to the clip, crossed by linear
+    interpolation: hand-derived below) and is marked saturated; without the image, or
+    where the run is too long or its centre more than a pixel from the interpolated row,
+    it is not filled (the evidence here is flat: no fit holds)."""
+    from slitcli.laser.candidates import fill_gaps
+
+    rng = np.random.default_rng(seed)
+    up = int(rng.integers(121, 200))
+    img, bg, clipped, mask, zeros, cand, v0, lift = _clipped_gap_scene(rng, [120, up])
+    level = 0.5 * (50 + 255)
+    # the crossings: above between rows 26 and 27, below between 33 and 34
+    top = 26 + (level - 120) / (up - 120) if up > level else 27 + (level - up) / (255 - up)
+    bottom = 33 + (200 - level) / (200 - 120)
+    want = 0.5 * (top + bottom)
+
+    def run(v, clip=clipped, **kw):
+        v = v.copy()
+        amp = np.full(6, 40.0)
+        sat = np.zeros(6, bool)
+        fill_gaps(v, amp, cand, zeros, zeros, clip, mask, 1.0, 1.0, 0, 4, 3.0, 2.0, 0.1,
+                  2.0, 3.0, **kw, sat=sat.view(np.uint8))
+        return v, sat
+
+    # max_gap 4: columns 1-4 lie between the found 0 and 5
+    v, sat = run(v0, img=img, bg=bg, sat_dn=255.0)
+    assert np.allclose(v[1:5], want, atol=1e-9), (v, want)
+    assert sat[1:5].all() and not sat[[0, 5]].any()
+    v, sat = run(v0)
+    assert np.isnan(v[1:5]).all() and not sat.any()
+    # a run longer than a clipped seed's (5 s_max = 10 rows) is no core
+    long_img = img.copy()
+    long_img[1:5, 20:40, 2] = 255
+    v, _ = run(v0, long_img[..., 2] >= 255, img=long_img, bg=bg, sat_dn=255.0)
+    assert np.isnan(v[1:5]).all()
+    # the stripe passing through the core's edge, 1.4-2 px off its centre: not its core
+    far = v0 + 1.8
+    v, _ = run(far, img=img, bg=bg, sat_dn=255.0)
+    assert np.isnan(v[1:5]).all()

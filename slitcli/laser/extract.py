@@ -234,7 +234,8 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     # columns without a stripe inside a segment, where the stripe must pass
     candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
-                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z)
+                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z,
+                         img_t, ev.bg_t, float(params.saturation_dn), sat.view(np.uint8))
     if params.luma_rows and ev.blur_var > 0.0 and np.isfinite(v).any():
         v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
