@@ -226,11 +226,12 @@ def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
     ok = np.ones((n, 1), bool)
     c_judge.colour_tests(far, laser, lu, chan, 0.5, 0.0, ok)
     assert not ok.any()
-    # a white core's (F_SAT 2) light is the clip's: not judged
-    far[::2, 0, F_SAT] = 2.0
+    # a clipped core's (red, F_SAT 1, or white, 2) light is the clip's: not judged
+    far[::4, 0, F_SAT] = 1.0
+    far[1::4, 0, F_SAT] = 2.0
     ok = np.ones((n, 1), bool)
     c_judge.colour_tests(far, laser, lu, chan, 0.5, judge.LASER_SHARE_Z, ok)
-    assert np.array_equal(ok[:, 0], far[:, 0, F_SAT] == 2)
+    assert np.array_equal(ok[:, 0], far[:, 0, F_SAT] > 0)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

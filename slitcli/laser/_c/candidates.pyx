@@ -18,8 +18,8 @@ from slitcli.laser._c.fields cimport (F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB, F_K
                                       F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS, F_TB, F_TG,
                                       F_TR, F_WIDTH, F_Z, N_FIELDS)
 from slitcli.laser._c.profile cimport (CONVERGED_PX, MAX_ITER, MIN_ROWS, MIN_SIGMA_PX, N_PAR,
-                                       fit_gaussian, flat_top, gaussian_rows, imax, imin,
-                                       plateau_centre, pmax, pmin)
+                                       clip_plateau, fit_gaussian, flat_top, gaussian_rows,
+                                       imax, imin, pmax, pmin)
 from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
                                      NOISE_HALF, _local_sigma, _seeds)
 
@@ -298,13 +298,8 @@ cdef inline void _plateau(const unsigned char[:, :, ::1] img, const unsigned cha
     """A clipped core ``[a, b)`` of column ``i`` centred on its plateau
     (:func:`plateau_centre`) unless its flank fit (``ok``, ``res``) agrees with it;
     its significance at least the clip's over the background."""
-    cdef Py_ssize_t n = img.shape[1], jj
     cdef Py_ssize_t jc = <Py_ssize_t>centre
-    cdef double lvl, pc
-    for jj in range(n):
-        red[jj] = img[i, jj, 2]
-    lvl = 0.5 * (bg[3 * i + 2, jc] + pr.sat_dn)
-    pc = plateau_centre(red, n, a, b, lvl)
+    cdef double pc = clip_plateau(img, bg, i, a, b, pr.sat_dn, red)
     # the flank fit refines the plateau's centre where it agrees with it
     if not ok or fabs(res[0] - pc) > 0.5 or res[2] < 0.5:
         res[0] = pc

@@ -12,7 +12,7 @@ from libc.math cimport INFINITY, NAN, ceil, fabs, isfinite, isnan
 
 from slitcli.laser._c.fields cimport N_FIELDS
 from slitcli.laser._c.light cimport own_light
-from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, plateau_centre, pmax, pmin
+from slitcli.laser._c.profile cimport clip_plateau, fit_gaussian, imax, imin, pmax, pmin
 
 
 cdef inline double _fit_gap(const float[:, ::1] y_avg, const unsigned char[:, ::1] ci,
@@ -47,11 +47,10 @@ cdef inline double _clipped_gap(const unsigned char[:, ::1] ci,
                                 double sat_dn, Py_ssize_t max_run,
                                 double* red) noexcept nogil:
     """The clipped core of column ``i`` through ``row`` (rows of ``ci``), centred on its
-    plateau (:func:`plateau_centre` on the red profile of ``img`` (W, H', 3) BGR at half
-    way from the opening ``bg`` (3 W, H') to ``sat_dn``): NaN where ``row`` is not
-    clipped, the run is longer than ``max_run`` or its centre more than a pixel from
-    ``row``. ``red`` (H',) is scratch."""
-    cdef Py_ssize_t n = ci.shape[1], c = <Py_ssize_t>(row + 0.5), a, b, jj
+    plateau (:func:`clip_plateau`): NaN where ``row`` is not clipped, the run is longer
+    than ``max_run`` or its centre more than a pixel from ``row``. ``red`` (H',) is
+    scratch."""
+    cdef Py_ssize_t n = ci.shape[1], c = <Py_ssize_t>(row + 0.5), a, b
     cdef double pc
     if c < 0 or c >= n or not ci[i, c] or not mi[i, c]:
         return NAN
@@ -63,9 +62,7 @@ cdef inline double _clipped_gap(const unsigned char[:, ::1] ci,
         b += 1
     if b - a > max_run:
         return NAN
-    for jj in range(n):
-        red[jj] = img[i, jj, 2]
-    pc = plateau_centre(red, n, a, b, 0.5 * (bg[3 * i + 2, (a + b - 1) // 2] + sat_dn))
+    pc = clip_plateau(img, bg, i, a, b, sat_dn, red)
     return pc if fabs(pc - row) <= 1.0 else NAN
 
 

@@ -419,7 +419,9 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
         for u in range(ok.shape[0]):
             for q in range(ok.shape[1]):
                 c = &cand[u, q, 0]
-                if not ok[u, q] or not c[F_NCORE] > 0 or c[F_SAT] >= 2:
+                # (a clipped core's unclipped rows are the clip's whitened shoulders:
+                # their colour is not judged, as in the model tests)
+                if not ok[u, q] or not c[F_NCORE] > 0 or c[F_SAT] > 0:
                     continue
                 t[0] = c[F_TR]
                 t[1] = c[F_TG]
@@ -433,7 +435,7 @@ def colour_tests(const double[:, :, ::1] cand, const double[::1] laser,
                     lim = COLOUR_SIGMAS * channel_sigma_dn / sqrt(pmax(c[F_NCORE], 1.0)) \
                         + colour_error * _norm3(t[0], t[1], t[2])
                     ok[u, q] = _colour_residual(t, kc, &lu[0]) <= lim
-                if ok[u, q] and share_z > 0 and not c[F_SAT] > 0:
+                if ok[u, q] and share_z > 0:
                     ok[u, q] = _laser_share(t, kc, &laser[0], &lu[0], c[F_NCORE],
                                             channel_sigma_dn, share_z)
 

@@ -297,6 +297,19 @@ cdef inline double plateau_centre(const double* red, Py_ssize_t n, Py_ssize_t a,
     return 0.5 * (up + dn)
 
 
+cdef inline double clip_plateau(const unsigned char[:, :, ::1] img,
+                                const unsigned char[:, ::1] bg, Py_ssize_t i, Py_ssize_t a,
+                                Py_ssize_t b, double sat_dn, double* red) noexcept nogil:
+    """Centre of the clipped run ``a .. b - 1`` of column ``i`` of ``img`` (W, H', 3) BGR:
+    :func:`plateau_centre` of its red profile at half way from the opening ``bg``
+    (3 W, H') at the run's middle row to the clip ``sat_dn``. ``red`` (H',) is
+    scratch."""
+    cdef Py_ssize_t n = img.shape[1], jj
+    for jj in range(n):
+        red[jj] = img[i, jj, 2]
+    return plateau_centre(red, n, a, b, 0.5 * (bg[3 * i + 2, (a + b - 1) // 2] + sat_dn))
+
+
 cdef inline bint flat_top(const float* y, const unsigned char* use, Py_ssize_t m,
                           Py_ssize_t j0, double v_start, double base, double sigma,
                           double* out) noexcept nogil:
