@@ -238,6 +238,7 @@ ABLATIONS = {
         {"judge.surface_continues": lambda cand, *a, **k: np.ones(cand.shape[:2], bool)},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
+    "no luma test under 4:2:0 (luma_min_z 0)": {"luma_min_z": 0.0},
     "paper method": {"method": "paper"},
 }
 

@@ -130,6 +130,10 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "Under JPEG 4:2:0 chroma, refit the rows on the luma and combine (helps on plain "
      "surfaces, hurts on fine texture).",
      None),
+    ("luma_min_z",
+     "Under JPEG 4:2:0 chroma, drop a piece of stripe whose luma shows no light at its rows: "
+     "least combined significance of the luma there (unitless); 0 = off.",
+     None),
 )
 
 

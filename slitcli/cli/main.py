@@ -87,6 +87,7 @@ PARAM_FLAGS: dict[str, str] = {
     "min_segment_share": "--min-segment-share", "min_stripe_share": "--min-stripe-share",
     "sheet_sigma_mm": "--sheet-sigma-mm", "sheet_tolerance": "--sheet-tolerance",
     "chroma_smoothness_max": "--chroma-smoothness-max", "luma_rows": "--luma-rows",
+    "luma_min_z": "--luma-min-z",
 }
 
 

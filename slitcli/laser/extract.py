@@ -158,8 +158,9 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
     sigma_avg = max(noise_avg, evidence.spread_sigma(y_avg, live, evidence.NOISE_STEP))
     chan = np.maximum(chan, params.noise_floor_dn)
     # subsampled chroma (JPEG 4:2:0) blurs the evidence, which is chroma, across rows;
-    # told from the image where it matters (the sheet test, the luma's rows)
-    subsampled = (sheet_test or params.luma_rows) and params.chroma_smoothness_max > 0 and \
+    # told from the image where it matters (the sheet test, the luma's test and rows)
+    subsampled = (sheet_test or params.luma_rows or params.luma_min_z > 0) and \
+        params.chroma_smoothness_max > 0 and \
         luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
                      float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0,
@@ -236,9 +237,28 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
                          GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z,
                          img_t, ev.bg_t, float(params.saturation_dn), sat.view(np.uint8))
+    if params.luma_min_z > 0 and ev.blur_var > 0.0 and np.isfinite(v).any():
+        _luma_checked(v, amp, sat, cand, img_t, r0, ev, s_max, params)
     if params.luma_rows and ev.blur_var > 0.0 and np.isfinite(v).any():
         v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
+
+
+def _luma_checked(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, cand: np.ndarray,
+                  img_t: np.ndarray, r0: int, ev: _Evidence, s_max: float,
+                  params: LaserParams) -> None:
+    """The pieces of stripe ``v`` (W,) found on the evidence of an image with
+    subsampled chroma whose luma shows no light at their rows
+    (:func:`slitcli.laser.luma.luma_segments`) taken out of ``v``, ``amp`` and ``sat``,
+    in place."""
+    sigma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
+    keep = luma.luma_segments(
+        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma, blur_var_px2=ev.blur_var,
+        s_max=s_max, saturation_dn=params.saturation_dn, max_gap=choose.MAX_GAP,
+        max_jump_px=params.max_jump_px, min_z=params.luma_min_z)
+    v[~keep] = np.nan
+    amp[~keep] = np.nan
+    sat[~keep] = False
 
 
 def _luma_refined(v: np.ndarray, sat: np.ndarray, cand: np.ndarray, img_t: np.ndarray,

@@ -18,6 +18,13 @@ rough in chroma as in luma, so the ratio of short-lag to long-lag differences is
 the same in both; after subsampling and chroma quantisation, chroma's short-lag
 differences nearly vanish. :func:`luma_rows` fits the stripe's row again on the luma's
 contrast where the evidence has found it.
+
+The decoder makes a stripe's colour from chroma that also carries its surroundings:
+on a textured, colourful surface the quantised, interpolated chroma forms red bumps of
+a few pixels with no light behind them, which the evidence cannot tell from a faint
+stripe. Laser light adds to the luma too (a red laser at least ``0.299`` of its red),
+and the luma is kept at full resolution: :func:`luma_segments` keeps a piece of stripe
+only where the luma shows light at its rows.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import math
 import numpy as np
 
 from slitcli.laser._c.luma import lag_medians as _lag_medians
+from slitcli.laser._c.luma import luma_column_z as _luma_column_z
 from slitcli.laser._c.luma import luma_rows as _luma_rows
 
 #: variance the 4:2:0 chain adds to a profile across rows: the two-row mean (1/4 px^2)
@@ -75,7 +83,12 @@ def luma_sigma(img_t: np.ndarray, step: int) -> float:
     down every ``step``-th column of ``img_t`` (W, H, 3) BGR."""
     from slitcli.laser.evidence import robust_sigma
 
-    sub = np.ascontiguousarray(np.asarray(img_t[::step], dtype=np.float32) @ _Y_BGR)
+    # (channel by channel, not ``@ _Y_BGR``: numpy hands that product to BLAS, which
+    # wakes its threads beside the extractor's; the sums are the same to the bit)
+    px = np.asarray(img_t[::step], dtype=np.float32)
+    sub = px[..., 0] * _Y_BGR[0]
+    sub += px[..., 1] * _Y_BGR[1]
+    sub += px[..., 2] * _Y_BGR[2]
     if sub.shape[1] < 5:
         return 0.0
     return robust_sigma(sub, np.ones(sub.shape, np.uint8), 1)
@@ -150,3 +163,74 @@ def combined_rows(v_ev: np.ndarray, se_ev: np.ndarray, v_luma: np.ndarray,
     out[both] = (w_ev * v_ev[both] + w_l * v_luma[both]) / (w_ev + w_l)
     return out
 
+
+#: the luma's matched filter looks for the light within this many rows of the
+#: evidence's, in half rows: twice the 4:2:0 chain's blur (its sigma,
+#: sqrt(CHAIN_VAR_PX2) = 0.96 px), rounded up to the half pixel; under a tone curve on a
+#: surface of the laser's own colour the evidence's rows lie up to 2 px off (docs/laser.md)
+LUMA_REACH_PX = math.ceil(2.0 * math.sqrt(CHAIN_VAR_PX2) * 2.0) / 2.0
+#: the offsets tried, px
+LUMA_OFFSETS_PX = np.arange(-LUMA_REACH_PX, LUMA_REACH_PX + 0.25, 0.5)
+
+
+def luma_segments(img_t: np.ndarray, bg_t: np.ndarray, v_px: np.ndarray,
+                  saturated: np.ndarray, cand: np.ndarray, row0: int, *, sigma_dn: float,
+                  blur_var_px2: float, s_max: float, saturation_dn: int, max_gap: int,
+                  max_jump_px: float, min_z: float) -> np.ndarray:
+    """Which found columns lie on a piece of stripe whose luma shows the laser's light.
+
+    The stripe's columns ``v_px`` (W,) (image rows, NaN none) fall into pieces: found
+    columns at most ``max_gap`` columns apart whose rows step by at most ``max_jump_px``
+    per column. In each unclipped column the luma's matched filter at the stripe's row
+    (shifted by each of :data:`LUMA_OFFSETS_PX`) and width gives a significance ``z``
+    (:func:`slitcli.laser._c.luma.luma_column_z`: against the luma's local noise,
+    texture included). A piece is kept where, at its best offset (one for the whole
+    piece), its unclipped columns' combined significance ``sum(z) / sqrt(n)`` reaches
+    ``min_z``, or where it holds a clipped core (the clip is light; a codec's chroma
+    bump never reaches it, and the unclipped columns beside a core carry its bloom,
+    not the stripe's profile). Under light, the luma rises at the stripe in every
+    column and the combined significance grows with the piece's length; a chroma bump
+    of the codec has no light behind it, and its luma is the surface's texture, as
+    often darker as brighter: its combined significance is N(0, 1) at each offset, and
+    the best of the nine reaches 2 with a chance of about 4 % (tests/test_laser_luma.py).
+
+    Arguments as :func:`luma_rows`' (``img_t`` (W, H', 3) BGR and ``bg_t`` (3 W, H')
+    from ``row0``; ``cand`` (W, K, N_FIELDS) gives the evidence's width, less
+    ``blur_var_px2``).
+
+    Returns
+    -------
+    keep : ndarray, shape (W,), bool
+        False in the found columns of the pieces whose luma shows no light (and where
+        nothing was found).
+    """
+    w = v_px.shape[0]
+    v = np.ascontiguousarray(v_px, dtype=np.float64)
+    z = np.empty((LUMA_OFFSETS_PX.size, w))
+    _luma_column_z(img_t, bg_t, v, np.ascontiguousarray(saturated, dtype=np.bool_).view(
+                   np.uint8), np.ascontiguousarray(cand, dtype=np.float64), row0,
+                   max(sigma_dn, 1e-3), blur_var_px2, s_max, saturation_dn, LUMA_OFFSETS_PX,
+                   z)
+    cols = np.flatnonzero(np.isfinite(v))
+    keep = np.zeros(w, bool)
+    if cols.size == 0:
+        return keep
+    step = np.diff(cols)
+    new = np.concatenate(([True], (step > max_gap + 1) |
+                          (np.abs(np.diff(v[cols])) > max_jump_px * step)))
+    piece = np.cumsum(new) - 1
+    n_pieces = int(piece[-1]) + 1
+    zc = z[:, cols]
+    judged = np.isfinite(zc)
+    # (offset, piece) sums in one pass: each offset's pieces get their own bins
+    bins = (np.arange(zc.shape[0])[:, None] * n_pieces + piece).ravel()
+    n = np.bincount(bins, weights=judged.ravel(), minlength=zc.shape[0] * n_pieces)
+    total = np.bincount(bins, weights=np.where(judged, zc, 0.0).ravel(),
+                        minlength=zc.shape[0] * n_pieces)
+    combined = np.where(n > 0, total / np.sqrt(np.maximum(n, 1.0)), -np.inf)
+    best = combined.reshape(zc.shape[0], n_pieces).max(axis=0)
+    clipped = np.bincount(piece, weights=np.asarray(saturated, bool)[cols],
+                          minlength=n_pieces)
+    ok = (clipped > 0) | (best >= min_z)
+    keep[cols] = ok[piece]
+    return keep

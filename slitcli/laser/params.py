@@ -119,6 +119,13 @@ class LaserParams:
         (full resolution) and combine it with the evidence's row by their variances
         (:func:`slitcli.laser.luma.combined_rows`). Off by default: it helps where the
         surface under the stripe is plain and hurts on fine texture (docs/laser.md).
+    luma_min_z : float
+        Under subsampled chroma (above), a piece of stripe whose luma does not show the
+        laser's light is dropped: the luma's matched filter at the stripe's rows, over
+        the piece's unclipped columns, must reach this combined significance
+        (``sum(z) / sqrt(n)``, :func:`slitcli.laser.luma.luma_segments`; unitless). The
+        codec's chroma makes red bumps on colourful texture with no light behind them
+        (docs/laser.md). 0 turns the test off.
     """
 
     method: str = "model"
@@ -149,6 +156,7 @@ class LaserParams:
     sheet_tolerance: float = 1.6
     chroma_smoothness_max: float = 0.85
     luma_rows: bool = False
+    luma_min_z: float = 2.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -181,6 +189,7 @@ class LaserParams:
             "sheet_tolerance": self.sheet_tolerance > 1.0,
             "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
             "luma_rows": isinstance(self.luma_rows, bool),
+            "luma_min_z": 0.0 <= self.luma_min_z <= 10.0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -236,4 +245,5 @@ _RANGES = {
     "sheet_tolerance": "give a factor > 1",
     "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
     "luma_rows": "give true or false",
+    "luma_min_z": "give a significance in [0, 10] (0: off)",
 }

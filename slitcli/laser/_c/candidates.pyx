@@ -19,13 +19,10 @@ from slitcli.laser._c.fields cimport (F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB, F_K
                                       F_TR, F_WIDTH, F_Z, N_FIELDS)
 from slitcli.laser._c.profile cimport (CONVERGED_PX, MAX_ITER, MIN_ROWS, MIN_SIGMA_PX, N_PAR,
                                        clip_plateau, fit_gaussian, flat_top, gaussian_rows,
-                                       imax, imin, pmax, pmin)
+                                       imax, imin, linear_z, pmax, pmin, real,
+                                       screen_sums)
 from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
                                      NOISE_HALF, _local_sigma, _seeds)
-
-ctypedef fused real:
-    float
-    double
 
 # (slitcli.laser.candidates' constants, as seeds.pxd's; tests/test_laser_kernels.py checks
 # that they agree)
@@ -47,68 +44,6 @@ def constants():
             "F_SE_POS": F_SE_POS, "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_NOISE": F_NOISE,
             "F_TR": F_TR, "F_TG": F_TG, "F_TB": F_TB, "F_KR": F_KR, "F_KG": F_KG,
             "F_KB": F_KB, "F_NCORE": F_NCORE, "F_FLAT": F_FLAT, "F_GNOISE": F_GNOISE}
-
-
-cdef inline bint _screen_sums(const real* yi, const real* ya, const unsigned char* use,
-                              Py_ssize_t m, Py_ssize_t j0, double v, double s, double* e,
-                              double* num) noexcept nogil:
-    """The seed screen of a window on two evidences at once (the Gaussian's samples ``e``
-    (m,), written here, and the line's sums are shared): the significance of a Gaussian
-    of fixed centre ``v`` and width ``s`` on a straight background over the used rows of
-    ``yi`` (m rows from image row ``j0``) is ``num[0] / (sigma num[2])``, on ``ya``
-    ``num[1] / (sigma num[2])``; False where it is 0 on any evidence (fewer than six
-    rows, or a Gaussian the line explains)."""
-    cdef double n = 0.0, s2 = 0.0, se = 0.0, sd = 0.0, sdd = 0.0, sde = 0.0, sy = 0.0
-    cdef double sdy = 0.0, sey = 0.0, ty = 0.0, tdy = 0.0, tey = 0.0
-    cdef double w, d, ej, yj, det, ae, be, ee
-    cdef Py_ssize_t jj
-    gaussian_rows(j0, v, s, e, m)
-    for jj in range(m):
-        w = 1.0 if use[jj] else 0.0
-        d = j0 + jj - v
-        ej = e[jj] * w
-        n += w
-        sd += d * w
-        sdd += d * d * w
-        se += ej
-        sde += d * ej
-        s2 += ej * e[jj]
-        yj = yi[jj] * w
-        sy += yj
-        sdy += d * yj
-        sey += ej * yi[jj]
-        yj = ya[jj] * w
-        ty += yj
-        tdy += d * yj
-        tey += ej * ya[jj]
-    if n < 6.0:
-        return False
-    # the line's normal equations (n, sd; sd, sdd) give the projections of the
-    # Gaussian onto the line, which leave e_perp . e_perp and e_perp . y
-    det = n * sdd - sd * sd
-    if not det > 0.0:
-        return False
-    ae = (sdd * se - sd * sde) / det
-    be = (n * sde - sd * se) / det
-    ee = s2 - (ae * se + be * sde)
-    if not ee > 1e-12 * s2:
-        return False
-    num[0] = sey - (ae * sy + be * sdy)
-    num[1] = tey - (ae * ty + be * tdy)
-    num[2] = sqrt(ee)
-    return True
-
-
-cdef inline double _linear_z_c(const real* y, const unsigned char* use, Py_ssize_t m,
-                               Py_ssize_t j0, double v, double s, double sigma,
-                               double* e) noexcept nogil:
-    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
-    background over the used rows of ``y`` (m rows from image row ``j0``): the linear
-    least-squares amplitude over its standard error; 0 with fewer than six rows."""
-    cdef double num[3]
-    if not _screen_sums(y, y, use, m, j0, v, s, e, num):
-        return 0.0
-    return num[0] / (sigma * num[2])
 
 
 def _linear_z(const real[::1] y, use, Py_ssize_t j0, double v, double s, double sigma,
@@ -142,7 +77,7 @@ def _linear_z(const real[::1] y, use, Py_ssize_t j0, double v, double s, double 
     if m == 0:
         return 0.0
     with nogil:
-        z = _linear_z_c(&y[0], &u[0], m, j0, v, s, sigma, &e[0])
+        z = linear_z(&y[0], &u[0], m, j0, v, s, sigma, &e[0])
     return z
 
 
@@ -223,7 +158,7 @@ cdef inline bint _fit_seed(const float* yi, const float* ya, const unsigned char
         return fit_gaussian(yi + j0, use, m, j0, centre, s0, sig[0], pr.shape_error,
                             pr.s_max, res, ebuf, NULL)
     # one Gaussian's samples serve both screens and both fits' first steps
-    screened = _screen_sums(yi + j0, ya + j0, use, m, j0, centre, s0, escr, num)
+    screened = screen_sums(yi + j0, ya + j0, use, m, j0, centre, s0, escr, num)
     # the local noise is at least the image's: a seed that fails the screen against the
     # image's noise fails it against the local one too (IEEE division and product are
     # monotonic), and needs no local noise

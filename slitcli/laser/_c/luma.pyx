@@ -1,14 +1,16 @@
 """Subsampled chroma, compiled: the lag medians that tell it
-(:func:`slitcli.laser.luma.chroma_smoothness` calls :func:`lag_medians`) and the stripe's
+(:func:`slitcli.laser.luma.chroma_smoothness` calls :func:`lag_medians`), the stripe's
 row on the luma (:func:`slitcli.laser.luma.luma_rows` calls :func:`luma_rows`; the fit
-is ``profile.pxd``'s :func:`fit_gaussian`)."""
+is ``profile.pxd``'s :func:`fit_gaussian`) and the luma's light at the stripe's rows
+(:func:`slitcli.laser.luma.luma_segments` calls :func:`luma_column_z`; the matched
+filter is ``profile.pxd``'s :func:`linear_z`)."""
 
 import numpy as np
 
 from libc.math cimport NAN, ceil, fabs, isfinite, rint, sqrt
 
 from slitcli.laser._c.fields cimport F_POS, F_SE_POS, F_WIDTH
-from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, pmax, pmin
+from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, linear_z, pmax, pmin
 
 #: rows either side whose luma gives a fit's local noise; residuals beyond CLIP_SIGMAS
 #: global sigmas count as that many (an edge); the mean absolute lag-2 residual over
@@ -168,6 +170,82 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
     return n_kept
 
 
+
+
+def luma_column_z(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
+                  const double[::1] v, const unsigned char[::1] sat,
+                  const double[:, :, ::1] cand, Py_ssize_t row0, double sigma_dn,
+                  double blur_var_px2, double s_max, int sat_dn,
+                  const double[::1] offsets_px, double[:, ::1] z_out) -> None:
+    """The luma's light near each found column's row: the significance of a Gaussian of
+    the stripe's width at ``v + offset`` on the luma's contrast, over a straight
+    background, for each of ``offsets_px``.
+
+    The matched filter of :func:`luma_rows`' window (three widths and three rows either
+    side of ``v``, rows with a channel at ``sat_dn`` left out) at a fixed row and
+    width: its least-squares amplitude over its standard error against the luma's local
+    noise (the larger of ``sigma_dn`` and the robust lag-2 residual within 24 rows, the
+    window left out; texture counts as noise). The width is the evidence's (the fit of
+    ``cand`` nearest ``v``) less ``blur_var_px2``, at least 0.6 px. Arguments as
+    :func:`luma_rows`'; ``z_out`` (len(offsets_px), W) float64 gets the significance at
+    each offset (px, down), NaN where ``v`` is NaN, the core is clipped (``sat``) or the
+    window holds fewer than six rows.
+    """
+    cdef Py_ssize_t w = img.shape[0], h = img.shape[1], k = cand.shape[1]
+    cdef Py_ssize_t n_off = offsets_px.shape[0], reach = 0
+    cdef Py_ssize_t i, q, best, j, a, b, m, jj, o
+    cdef double s_ev, s0, d, dmin, sig, num
+    cdef const unsigned char* px
+    if bg.shape[0] != 3 * w or bg.shape[1] != h or v.shape[0] != w or sat.shape[0] != w \
+            or cand.shape[0] != w or z_out.shape[0] != n_off or z_out.shape[1] != w:
+        raise ValueError("luma_column_z: img (W, H, 3), bg (3 W, H), v, sat, cand (W, ...) "
+                         "and z_out (len(offsets_px), W) disagree in shape")
+    for o in range(n_off):
+        if not isfinite(offsets_px[o]) or fabs(offsets_px[o]) > 8.0:
+            raise ValueError("luma_column_z: offsets_px must be finite, at most 8 px")
+        reach = imax(reach, <Py_ssize_t>ceil(fabs(offsets_px[o])))
+    # the window spans the row's reach either side of every offset
+    cdef Py_ssize_t max_m = 2 * (<Py_ssize_t>ceil(3.0 * s_max) + 4 + reach) + 1
+    cdef float[::1] yl = np.empty(max_m, np.float32)
+    cdef unsigned char[::1] use = np.empty(max_m, np.uint8)
+    cdef double[::1] ebuf = np.empty(max_m)
+    with nogil:
+        for i in range(w):
+            for o in range(n_off):
+                z_out[o, i] = NAN
+            if not isfinite(v[i]) or sat[i]:
+                continue
+            best = -1
+            dmin = 1e300
+            for q in range(k):
+                d = fabs(cand[i, q, F_POS] - v[i])
+                if isfinite(d) and d < dmin:
+                    dmin = d
+                    best = q
+            s_ev = pmin(cand[i, best, F_WIDTH] if best >= 0 else 1.0, s_max)
+            s0 = sqrt(pmax(s_ev * s_ev - blur_var_px2, 0.36))
+            j = <Py_ssize_t>rint(v[i]) - row0
+            if j < 0 or j >= h:
+                continue
+            # one window for every offset; the noise from the rows beyond it
+            a = imax(j - <Py_ssize_t>ceil(3.0 * s_ev) - 3 - reach, 0)
+            b = imin(j + <Py_ssize_t>ceil(3.0 * s_ev) + 4 + reach, h)
+            m = b - a
+            if m < 6:
+                continue
+            sig = _local_sigma(img, i, j, j - a, sigma_dn)
+            for jj in range(m):
+                px = &img[i, a + jj, 0]
+                yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
+                                 W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
+                                 W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
+                use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
+            for o in range(n_off):
+                num = linear_z(&yl[0], &use[0], m, row0 + a, v[i] + offsets_px[o], s0, sig,
+                               &ebuf[0])
+                # (0 from linear_z: fewer than six rows, or a Gaussian the line explains)
+                if num != 0.0:
+                    z_out[o, i] = num
 
 
 cdef enum:

@@ -356,3 +356,72 @@ cdef inline bint flat_top(const float* y, const unsigned char* use, Py_ssize_t m
     out[4] = sigma * sqrt(var) / sw
     out[5] = 0.0
     return True
+
+
+# the evidence's type in the matched filter below (float32 in the kernels; float64 for
+# tests)
+ctypedef fused real:
+    float
+    double
+
+
+cdef inline bint screen_sums(const real* yi, const real* ya, const unsigned char* use,
+                             Py_ssize_t m, Py_ssize_t j0, double v, double s, double* e,
+                             double* num) noexcept nogil:
+    """The seed screen of a window on two evidences at once (the Gaussian's samples ``e``
+    (m,), written here, and the line's sums are shared): the significance of a Gaussian
+    of fixed centre ``v`` and width ``s`` on a straight background over the used rows of
+    ``yi`` (m rows from image row ``j0``) is ``num[0] / (sigma num[2])``, on ``ya``
+    ``num[1] / (sigma num[2])``; False where it is 0 on any evidence (fewer than six
+    rows, or a Gaussian the line explains)."""
+    cdef double n = 0.0, s2 = 0.0, se = 0.0, sd = 0.0, sdd = 0.0, sde = 0.0, sy = 0.0
+    cdef double sdy = 0.0, sey = 0.0, ty = 0.0, tdy = 0.0, tey = 0.0
+    cdef double w, d, ej, yj, det, ae, be, ee
+    cdef Py_ssize_t jj
+    gaussian_rows(j0, v, s, e, m)
+    for jj in range(m):
+        w = 1.0 if use[jj] else 0.0
+        d = j0 + jj - v
+        ej = e[jj] * w
+        n += w
+        sd += d * w
+        sdd += d * d * w
+        se += ej
+        sde += d * ej
+        s2 += ej * e[jj]
+        yj = yi[jj] * w
+        sy += yj
+        sdy += d * yj
+        sey += ej * yi[jj]
+        yj = ya[jj] * w
+        ty += yj
+        tdy += d * yj
+        tey += ej * ya[jj]
+    if n < 6.0:
+        return False
+    # the line's normal equations (n, sd; sd, sdd) give the projections of the
+    # Gaussian onto the line, which leave e_perp . e_perp and e_perp . y
+    det = n * sdd - sd * sd
+    if not det > 0.0:
+        return False
+    ae = (sdd * se - sd * sde) / det
+    be = (n * sde - sd * se) / det
+    ee = s2 - (ae * se + be * sde)
+    if not ee > 1e-12 * s2:
+        return False
+    num[0] = sey - (ae * sy + be * sdy)
+    num[1] = tey - (ae * ty + be * tdy)
+    num[2] = sqrt(ee)
+    return True
+
+
+cdef inline double linear_z(const real* y, const unsigned char* use, Py_ssize_t m,
+                            Py_ssize_t j0, double v, double s, double sigma,
+                            double* e) noexcept nogil:
+    """Significance of a Gaussian of fixed centre ``v`` and width ``s`` on a straight
+    background over the used rows of ``y`` (m rows from image row ``j0``): the linear
+    least-squares amplitude over its standard error; 0 with fewer than six rows."""
+    cdef double num[3]
+    if not screen_sums(y, y, use, m, j0, v, s, e, num):
+        return 0.0
+    return num[0] / (sigma * num[2])
