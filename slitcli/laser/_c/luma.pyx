@@ -181,8 +181,8 @@ def luma_column_z(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
     the stripe's width at ``v + offset`` on the luma's contrast, over a straight
     background, for each of ``offsets_px``.
 
-    The matched filter of :func:`luma_rows`' window (three widths and three rows either
-    side of ``v``, rows with a channel at ``sat_dn`` left out) at a fixed row and
+    The matched filter over a window of three widths, three rows and the largest offset
+    either side of ``v`` (rows with a channel at ``sat_dn`` left out) at a fixed row and
     width: its least-squares amplitude over its standard error against the luma's local
     noise (the larger of ``sigma_dn`` and the robust lag-2 residual within 24 rows, the
     window left out; texture counts as noise). The width is the evidence's (the fit of
