@@ -52,6 +52,35 @@ cdef inline double _local_sigma(const unsigned char[:, :, ::1] img, Py_ssize_t i
     return pmax(sigma_dn, MEAN_TO_SIGMA * acc / n)
 
 
+cdef inline Py_ssize_t _nearest_fit(const double[:, :, ::1] cand, Py_ssize_t i,
+                                    double v) noexcept nogil:
+    """The fit of column ``i`` of the candidate table nearest row ``v``; -1 none."""
+    cdef Py_ssize_t q, best = -1
+    cdef double d, dmin = 1e300
+    for q in range(cand.shape[1]):
+        d = fabs(cand[i, q, F_POS] - v)
+        if isfinite(d) and d < dmin:
+            dmin = d
+            best = q
+    return best
+
+
+cdef inline void _luma_window(const unsigned char[:, :, ::1] img,
+                              const unsigned char[:, ::1] bg, Py_ssize_t i, Py_ssize_t a,
+                              Py_ssize_t m, int sat_dn, float* yl,
+                              unsigned char* use) noexcept nogil:
+    """The luma's contrast over its opening in rows ``a .. a + m - 1`` of column ``i``
+    into ``yl``, and in ``use`` whether no channel of the row reaches ``sat_dn``."""
+    cdef Py_ssize_t jj
+    cdef const unsigned char* px
+    for jj in range(m):
+        px = &img[i, a + jj, 0]
+        yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
+                         W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
+                         W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
+        use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
+
+
 cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
                            const unsigned char[:, ::1] bg, Py_ssize_t i, double v,
                            double s_ev, Py_ssize_t row0, double sigma_dn, double blur_var_px2,
@@ -61,8 +90,7 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
     """The luma's fit of column ``i`` near row ``v`` (image rows) from the evidence's
     width ``s_ev`` (module function :func:`luma_rows`); ``out`` (6,) as
     :func:`fit_gaussian`'s; False where none is kept."""
-    cdef Py_ssize_t h = img.shape[1], j, jj, a, b, m
-    cdef const unsigned char* px
+    cdef Py_ssize_t h = img.shape[1], j, a, b, m
     cdef double s0
     s_ev = pmin(s_ev if isfinite(s_ev) else 1.0, s_max)
     s0 = sqrt(pmax(s_ev * s_ev - blur_var_px2, 0.36))
@@ -73,12 +101,7 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
     if m < 7:
         return False
     sigma_dn = _local_sigma(img, i, j, j - a, sigma_dn)
-    for jj in range(m):
-        px = &img[i, a + jj, 0]
-        yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
-                         W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
-                         W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
-        use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
+    _luma_window(img, bg, i, a, m, sat_dn, yl, use)
     if not fit_gaussian(yl, use, m, row0 + a, v, s0, sigma_dn, shape_error, s_max, out,
                         ebuf, NULL):
         return False
@@ -127,9 +150,9 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
     se_ev_out : ndarray, shape (W,), float64
         Out: the standard error of the evidence's fit nearest ``v``, px (NaN none).
     """
-    cdef Py_ssize_t w = img.shape[0], h = img.shape[1], k = cand.shape[1]
-    cdef Py_ssize_t i, q, best, n_kept = 0
-    cdef double s_ev, d, dmin
+    cdef Py_ssize_t w = img.shape[0], h = img.shape[1]
+    cdef Py_ssize_t i, best, n_kept = 0
+    cdef double s_ev
     cdef double out[6]
     if bg.shape[0] != 3 * w or bg.shape[1] != h or v.shape[0] != w or sat.shape[0] != w \
             or cand.shape[0] != w or v_out.shape[0] != w or se_out.shape[0] != w \
@@ -149,13 +172,7 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
             if not isfinite(v[i]) or sat[i]:
                 continue
             # the evidence's width: the fit of this column nearest the row
-            best = -1
-            dmin = 1e300
-            for q in range(k):
-                d = fabs(cand[i, q, F_POS] - v[i])
-                if isfinite(d) and d < dmin:
-                    dmin = d
-                    best = q
+            best = _nearest_fit(cand, i, v[i])
             s_ev = cand[i, best, F_WIDTH] if best >= 0 else 1.0
             if best >= 0:
                 se_ev_out[i] = cand[i, best, F_SE_POS]
@@ -191,11 +208,10 @@ def luma_column_z(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
     each offset (px, down), NaN where ``v`` is NaN, the core is clipped (``sat``) or the
     window holds fewer than six rows.
     """
-    cdef Py_ssize_t w = img.shape[0], h = img.shape[1], k = cand.shape[1]
+    cdef Py_ssize_t w = img.shape[0], h = img.shape[1]
     cdef Py_ssize_t n_off = offsets_px.shape[0], reach = 0
-    cdef Py_ssize_t i, q, best, j, a, b, m, jj, o
-    cdef double s_ev, s0, d, dmin, sig, num
-    cdef const unsigned char* px
+    cdef Py_ssize_t i, best, j, a, b, m, o
+    cdef double s_ev, s0, sig, num
     if bg.shape[0] != 3 * w or bg.shape[1] != h or v.shape[0] != w or sat.shape[0] != w \
             or cand.shape[0] != w or z_out.shape[0] != n_off or z_out.shape[1] != w:
         raise ValueError("luma_column_z: img (W, H, 3), bg (3 W, H), v, sat, cand (W, ...) "
@@ -215,13 +231,7 @@ def luma_column_z(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
                 z_out[o, i] = NAN
             if not isfinite(v[i]) or sat[i]:
                 continue
-            best = -1
-            dmin = 1e300
-            for q in range(k):
-                d = fabs(cand[i, q, F_POS] - v[i])
-                if isfinite(d) and d < dmin:
-                    dmin = d
-                    best = q
+            best = _nearest_fit(cand, i, v[i])
             s_ev = pmin(cand[i, best, F_WIDTH] if best >= 0 else 1.0, s_max)
             s0 = sqrt(pmax(s_ev * s_ev - blur_var_px2, 0.36))
             j = <Py_ssize_t>rint(v[i]) - row0
@@ -234,12 +244,7 @@ def luma_column_z(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1
             if m < 6:
                 continue
             sig = _local_sigma(img, i, j, j - a, sigma_dn)
-            for jj in range(m):
-                px = &img[i, a + jj, 0]
-                yl[jj] = <float>(W_B * (<double>px[0] - bg[3 * i, a + jj]) +
-                                 W_G * (<double>px[1] - bg[3 * i + 1, a + jj]) +
-                                 W_R * (<double>px[2] - bg[3 * i + 2, a + jj]))
-                use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
+            _luma_window(img, bg, i, a, m, sat_dn, &yl[0], &use[0])
             for o in range(n_off):
                 num = linear_z(&yl[0], &use[0], m, row0 + a, v[i] + offsets_px[o], s0, sig,
                                &ebuf[0])
