@@ -30,7 +30,13 @@ if TYPE_CHECKING:
 from slitcli.calibrate.rectify import RectificationMaps, rectify_pair
 from slitcli.colour_order import blue_line_z, check_colour_order
 from slitcli.errors import SlitcliError
-from slitcli.fusion import FusedRanges, FusionParams, fuse, laser_reach_m
+from slitcli.fusion import (
+    FusedRanges,
+    FusionParams,
+    fuse,
+    laser_reach_m,
+    stripe_depth_agrees,
+)
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
 from slitcli.io.batch import (
     FrameBatch,
@@ -51,6 +57,7 @@ from slitcli.io.frames import (
 )
 from slitcli.io.png import encode_depth_png, encode_disparity_png, encode_mask_png, png_bytes
 from slitcli.io.progress import Progress, RunSummary
+from slitcli.laser.choose import MAX_GAP, stripe_pieces
 from slitcli.laser.diagnose import absence_notes
 from slitcli.laser.frame import (
     EdgeParams,
@@ -88,6 +95,9 @@ class DetectParams:
 
     ``bin_deg`` is the bearing bin width of the range table; it overrides the stereo
     obstacle parameters' own bin width so both sensors share the bins.
+    ``laser_depth_check``: pieces of stripe whose pixels stereo sees clearly farther
+    than the laser plane are dropped before the bins
+    (:func:`slitcli.fusion.stripe_depth_agrees`).
     """
 
     laser: LaserParams = field(default_factory=LaserParams)
@@ -95,12 +105,16 @@ class DetectParams:
     stereo: StereoParams = field(default_factory=StereoParams)
     fusion_mode: str = "paper"
     bin_deg: float = 1.0
+    laser_depth_check: bool = True
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.bin_deg <= 10.0:
             raise SlitcliError(f"`bin_deg` {self.bin_deg} is out of range; give 0.05-10 degrees",
                                param="bin_deg")
         FusionParams(mode=self.fusion_mode)  # validates the mode
+        if not isinstance(self.laser_depth_check, bool):
+            raise SlitcliError(f"`laser_depth_check` is {self.laser_depth_check!r}; give "
+                               "true or false", param="laser_depth_check")
 
 
 @dataclass(frozen=True)
@@ -198,7 +212,8 @@ class Detector:
         self.fusion = FusionParams(
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
-            focal_baseline_px_m=self.rectified_rig.left.fx_px * rig.baseline_m)
+            focal_baseline_px_m=self.rectified_rig.left.fx_px * rig.baseline_m,
+            depth_check=p.laser_depth_check)
         self.bins = BearingBins.for_rig(self.rectified_rig, self.params.bin_deg)
         self._laser_geometry = LaserGeometry.from_rig(self.rectified_rig, self.params.laser)
         self._laser_sight_m = laser_sight_range_m(self.rectified_rig, self.bins.centres_deg)
@@ -249,6 +264,11 @@ class Detector:
         st = process_stereo_pair(left, right, self.rectified_rig, self.params.stereo,
                                  geometry=self._stereo_geometry, pool=pool,
                                  workspace=workspace)
+        if self.fusion.depth_check:
+            cols, piece = stripe_pieces(las.v_px, MAX_GAP, self.params.laser.max_jump_px)
+            keep = stripe_depth_agrees(las.v_px, st.disparity_px, self.rectified_rig, cols,
+                                       piece, self.fusion)
+            las = las.without(las.found & ~keep)
         edges = segment_edges(las, self.rectified_rig, self.params.edges)
         lb = nearest_range_per_bin(las, self.rectified_rig, bin_deg=self.params.bin_deg,
                                    edges=edges)

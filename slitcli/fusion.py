@@ -58,16 +58,26 @@ Two more cases where the paper's reading does not hold, and what this module doe
   resolution, not of reach, and the stereo range is kept.
 
 Conservative mode: the plain minimum of the two returns.
+
+Before the bins, the stripe's own columns are checked against stereo
+(:func:`stripe_depth_agrees`, both modes): laser light lies on the surface it lights,
+so where stereo sees that pixel's surface clearly farther than the laser plane (a red
+blob of texture on the floor below the sheet, through a codec's chroma), the piece of
+stripe is not the laser's.
 """
 
 from __future__ import annotations
 
 from dataclasses import KW_ONLY, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from slitcli.errors import SlitcliError
 from slitcli.ranges import bin_min
+
+if TYPE_CHECKING:
+    from slitcli.rig import Rig
 
 FUSION_MODES = ("paper", "conservative")
 SOURCE_NONE, SOURCE_LASER, SOURCE_STEREO = "none", "laser", "stereo"
@@ -90,6 +100,12 @@ class FusionParams:
     fall-off of the stripe's peak with range assumed (peak ~ range**-p; unitless),
     ``certain_z`` how many noise sigmas above the extractor's seed level a stripe's
     peak must be to be found with near certainty (unitless; 3: one miss in 740).
+
+    The stripe's depth check (:func:`stripe_depth_agrees`; ``depth_check`` False: none):
+    a piece of stripe is dropped where, over at least ``depth_columns`` of its columns
+    with a stereo disparity, stereo's disparity is the median ``depth_share`` (unitless,
+    of the laser plane's) and ``depth_px`` (pixels) smaller than the laser plane's at
+    those pixels, taken relative to the frame's longest piece.
     """
 
     mode: str = "paper"
@@ -100,6 +116,10 @@ class FusionParams:
     focal_baseline_px_m: float = 22.0
     falloff_exponent: float = 4.0
     certain_z: float = 3.0
+    depth_check: bool = True
+    depth_share: float = 0.05
+    depth_px: float = 0.5
+    depth_columns: int = 3
 
     def __post_init__(self) -> None:
         if self.mode not in FUSION_MODES:
@@ -111,6 +131,12 @@ class FusionParams:
         if not self.same_surface_px >= 0 or not self.focal_baseline_px_m > 0:
             raise SlitcliError("fusion needs same_surface_px >= 0 and a positive focal "
                                "length x baseline; check the rig's left.fx_px and baseline_m")
+        if not (0.0 < self.depth_share < 1.0 and self.depth_px >= 0.0
+                and self.depth_columns >= 1):
+            raise SlitcliError(f"fusion needs 0 < depth_share < 1, depth_px >= 0 and "
+                               f"depth_columns >= 1, got {self.depth_share}, "
+                               f"{self.depth_px} and {self.depth_columns}",
+                               param=("depth_share", "depth_px", "depth_columns"))
         if not self.falloff_exponent > 0 or not self.certain_z >= 0:
             raise SlitcliError(f"fusion needs falloff_exponent > 0 and certain_z >= 0, got "
                                f"{self.falloff_exponent} and {self.certain_z}",
@@ -169,6 +195,102 @@ def laser_reach_m(column_bin: np.ndarray, column_range_m: np.ndarray,
     from_below = np.fmax.accumulate(own)
     from_above = np.fmax.accumulate(own[::-1])[::-1]
     return np.fmin(from_below, from_above)
+
+
+def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
+                        cols: np.ndarray, piece: np.ndarray,
+                        params: FusionParams) -> np.ndarray:
+    """Which stripe columns lie on a piece whose light is where stereo sees the surface.
+
+    Laser light lies on the surface it lights: at a stripe pixel, the surface stereo
+    sees is at the laser plane's depth, and its disparity is the plane's,
+    ``d_laser = f B / Z``, ``Z`` the depth where the pixel's ray meets the plane (left
+    camera frame). Light on a surface farther than the plane is not the laser's: in
+    practice reddish texture on the floor below the sheet, which a codec's chroma
+    makes into a short red stripe. Per column, stereo's disparity is the median of the
+    valid ones in the stripe's row and two rows either side (the surface just above and
+    below the light); per piece, over its columns with one, the median ratio
+    ``d_stereo / d_laser``. The longest piece with at least ``params.depth_columns``
+    such columns gives the frame's reference ratio ``r`` (1 on a rig whose stereo and
+    laser plane agree; a calibration's scale error moves every piece alike). A piece
+    with at least ``depth_columns`` such columns whose ratio is below
+    ``r - depth_share`` and whose median ``d_stereo - r d_laser`` is below
+    ``-depth_px`` is dropped. Stereo nearer than the plane drops nothing (a
+    foreground's disparity spreads past its edge by a window), nor does a piece stereo
+    cannot see (plain surfaces), nor the reference piece itself.
+
+    Parameters
+    ----------
+    v_px : ndarray, shape (W,)
+        Stripe row per column of the rectified left image, px (NaN none).
+    disparity_px : ndarray, shape (H, W), float
+        Stereo disparity of the same image, px (NaN invalid).
+    rig : Rig
+        The rectified rig (intrinsics, baseline, laser plane).
+    cols, piece : ndarray, shape (N,), int
+        The found columns and their pieces (:func:`slitcli.laser.choose.stripe_pieces`).
+    params : FusionParams
+
+    Returns
+    -------
+    keep : ndarray, shape (W,), bool
+        False in the columns of the pieces stereo contradicts and where nothing was
+        found.
+    """
+    w = np.asarray(v_px).shape[0]
+    keep = np.zeros(w, bool)
+    if cols.size == 0:
+        return keep
+    v = np.asarray(v_px, dtype=float)[cols]
+    z = rig.intersect_laser_plane(rig.pixel_rays_cam(cols, v))[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d_laser = rig.left.fx_px * rig.baseline_m / z
+    disp = np.asarray(disparity_px)
+    rows = np.clip(np.rint(v).astype(np.intp)[None, :] + np.arange(-2, 3)[:, None], 0,
+                   disp.shape[0] - 1)
+    d_stereo = _finite_median(disp[rows, cols[None, :]].astype(float))
+    n_pieces = int(piece[-1]) + 1
+    ratio, n = _piece_median(d_stereo / d_laser, piece, n_pieces)
+    seen = n >= params.depth_columns
+    keep[cols] = True
+    if not seen.any():
+        return keep
+    diff, _ = _piece_median(d_stereo - d_laser, piece, n_pieces)
+    with np.errstate(invalid="ignore"):
+        wrong = seen & (ratio < 1.0 - params.depth_share) & (diff < -params.depth_px)
+    # the frame's longest piece (the laser's, as a rule) stays: where stereo and the
+    # laser plane disagree on the whole stripe, the rig's calibration is in question
+    length = np.bincount(piece, minlength=n_pieces)
+    wrong[np.argmax(length)] = False
+    keep[cols] = ~wrong[piece]
+    return keep
+
+
+def _finite_median(values: np.ndarray) -> np.ndarray:
+    """Median of the finite entries of each column of ``values`` (K, N); NaN where none
+    (as ``np.nanmedian``, without its warning per empty column)."""
+    k = np.isfinite(values).sum(axis=0)
+    srt = np.sort(np.where(np.isfinite(values), values, np.inf), axis=0)
+    idx = np.arange(values.shape[1])
+    lo = srt[np.maximum((k - 1) // 2, 0), idx]
+    hi = srt[np.maximum(k // 2, 0), idx]
+    return np.where(k > 0, 0.5 * (lo + hi), np.nan)
+
+
+def _piece_median(values: np.ndarray, piece: np.ndarray,
+                  n_pieces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Median of the finite ``values`` (N,) of each piece (``piece`` (N,), 0 ..
+    ``n_pieces - 1``) and how many there are; NaN where none."""
+    ok = np.isfinite(values)
+    p, x = piece[ok], values[ok]
+    order = np.lexsort((x, p))
+    p, x = p[order], x[order]
+    count = np.bincount(p, minlength=n_pieces)
+    start = np.concatenate(([0], np.cumsum(count)[:-1]))
+    med = np.full(n_pieces, np.nan)
+    has = count > 0
+    med[has] = 0.5 * (x[start[has] + (count[has] - 1) // 2] + x[start[has] + count[has] // 2])
+    return med, count
 
 
 def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,

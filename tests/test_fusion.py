@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from slitcli.errors import SlitcliError
-from slitcli.fusion import FusionParams, fuse, laser_reach_m
+from slitcli.fusion import FusionParams, fuse, laser_reach_m, stripe_depth_agrees
 
 NAN = np.nan
 # bins: (laser, stereo, has_features)
@@ -187,3 +187,63 @@ def test_reach_parameters_are_checked():
         FusionParams(falloff_exponent=0.0)
     with pytest.raises(SlitcliError, match="certain_z"):
         FusionParams(certain_z=-1.0)
+
+
+def _stripe_and_disparity(rng, pieces):
+    """Stripe rows on the paper rig's laser plane and a disparity image whose values
+    in the stripe's row and two rows either side are the plane's disparity times each
+    piece's ratio, with 0.1 px of noise (NaN: stereo sees nothing there; NaN
+    elsewhere); ``pieces`` is a list of (first column, last column, ratio)."""
+    from slitcli.rig import paper_rig
+
+    rig = paper_rig()
+    w, h = rig.image_size_px
+    v = np.full(w, np.nan)
+    disp = np.full((h, w), np.nan, np.float32)
+    for c0, c1, ratio in pieces:
+        cols = np.arange(c0, c1 + 1)
+        row = float(rng.uniform(150.0, 200.0))
+        v[cols] = row + 0.02 * (cols - c0)
+        z = rig.intersect_laser_plane(rig.pixel_rays_cam(cols, v[cols]))[:, 2]
+        d = rig.left.fx_px * rig.baseline_m / z
+        for k in range(-2, 3):
+            disp[np.rint(v[cols]).astype(int) + k, cols] = d * ratio + rng.normal(0, 0.1,
+                                                                                   cols.size)
+    return rig, v, disp
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_stripe_depth_check_drops_light_on_farther_surfaces(seed):
+    # the paper rig's stripe at rows 150-200 lies at 10-30 px of disparity: a piece on
+    # a surface 10 % farther than the plane (floor texture below the sheet) is 1-3 px
+    # off and dropped; a piece on the plane, one stereo sees nearer (a foreground's
+    # disparity spread past its edge), one stereo cannot see and the longest piece stay
+    from slitcli.laser.choose import stripe_pieces
+
+    rng = np.random.default_rng(seed)
+    rig, v, disp = _stripe_and_disparity(rng, [(10, 99, 0.9), (120, 139, 1.0),
+                                               (160, 175, 0.9), (200, 215, 1.25),
+                                               (240, 255, np.nan), (280, 289, 0.9)])
+    cols, piece = stripe_pieces(v, 2, 3.0)
+    keep = stripe_depth_agrees(v, disp, rig, cols, piece, FusionParams())
+    assert keep[10:100].all()                     # the longest piece
+    assert keep[120:140].all() and keep[200:216].all() and keep[240:256].all()
+    assert not keep[160:176].any() and not keep[280:290].any()
+    assert not keep[np.isnan(v)].any()
+    # within the tolerances (5 % and 0.5 px) a piece stays: a rig whose stereo and laser
+    # plane disagree by a few per cent loses nothing
+    rig, v, disp = _stripe_and_disparity(rng, [(10, 99, 1.0), (160, 175, 0.97)])
+    cols, piece = stripe_pieces(v, 2, 3.0)
+    assert stripe_depth_agrees(v, disp, rig, cols, piece, FusionParams())[160:176].all()
+    # too few columns that stereo sees: nothing to judge
+    rig, v2, disp2 = _stripe_and_disparity(rng, [(10, 99, 1.0), (160, 175, 0.8)])
+    disp2[:, 162:176] = np.nan
+    cols, piece = stripe_pieces(v2, 2, 3.0)
+    assert stripe_depth_agrees(v2, disp2, rig, cols, piece, FusionParams())[160:176].all()
+
+
+def test_stripe_depth_check_parameters_are_checked():
+    for bad in ({"depth_share": 0.0}, {"depth_share": 1.0}, {"depth_px": -1.0},
+                {"depth_columns": 0}):
+        with pytest.raises(SlitcliError):
+            FusionParams(**bad)

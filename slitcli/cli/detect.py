@@ -38,6 +38,10 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               "same surface, within 2 px); conservative = the nearer of laser and stereo.")
 @click.option("--bin-deg", type=click.FloatRange(0.05, 10.0), default=1.0, show_default=True,
               help="Bearing bin width, degrees (0.05-10).")
+@click.option("--laser-depth-check/--no-laser-depth-check", default=True, show_default=True,
+              help="Drop pieces of laser stripe whose pixels stereo sees more than 5 % and "
+              "0.5 px of disparity farther than the laser plane (reddish texture below the "
+              "sheet; the frame's longest piece always stays).")
 @click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Worker processes, 1-64, about 250 MB each (the table is byte-identical "
                    "for any number).")
@@ -50,7 +54,7 @@ from slitcli.cli.stereo import matcher_options, stereo_params
 @click.option("--overwrite", is_flag=True, help="Replace results made with other settings.")
 def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
                cluster: str | None, chunk_frames: int | None, rig_path: Path | None,
-               fusion: str, bin_deg: float,
+               fusion: str, bin_deg: float, laser_depth_check: bool,
                jobs: int, save_images: bool, left_topic: str, right_topic: str, max_dt: float,
                on_bad_frame: str, overwrite: bool, **tuning: object) -> None:
     """Range obstacles per bearing bin: laser stripe (Eqs. 1-7), Eq. 10 stereo (Eqs. 8-10)
@@ -82,7 +86,8 @@ def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
 
     laser = {k: tuning.pop(k) for k in LASER_OPTION_NAMES}
     params = DetectParams(stereo=stereo_params(**tuning), laser=LaserParams(**laser),
-                          fusion_mode=fusion, bin_deg=bin_deg)
+                          fusion_mode=fusion, bin_deg=bin_deg,
+                          laser_depth_check=laser_depth_check)
     srcs = list(sources)
     if inputs_file is not None:
         from slitcli.multi import read_inputs_file

@@ -28,6 +28,7 @@ PARAM_FLAGS: dict[str, str] = {
     "bin_deg": "--bin-deg", "rig_path": "--rig", "rig": "--rig", "jobs": "--jobs",
     "overwrite": "--overwrite", "max_dt_s": "--max-dt", "left_topic": "--left-topic",
     "right_topic": "--right-topic", "fusion_mode": "--fusion",
+    "laser_depth_check": "--laser-depth-check",
     "range_column": "--range-column", "memory_s": "--memory-s", "period_s": "--period-s",
     "memory_cell_m": "--memory-cell-m", "goal_xy_m": "--goal",
     "sensing_range_m": "--sensing-range",

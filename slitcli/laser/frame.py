@@ -9,7 +9,7 @@ importable from here.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,6 +86,17 @@ class LaserFrame:
     def found(self) -> np.ndarray:
         """Columns with a stripe (bool, shape (W,))."""
         return np.isfinite(self.v_px)
+
+    def without(self, drop: np.ndarray) -> LaserFrame:
+        """This frame with the columns ``drop`` (W,) bool cleared (no stripe there)."""
+        drop = np.asarray(drop, dtype=bool)
+        if not drop.any():
+            return self
+        cleared = {name: np.where(drop, np.nan, getattr(self, name))
+                   for name in ("v_px", "strength_dn", "x_m", "y_m", "range_m",
+                                "bearing_deg")}
+        return replace(self, **cleared, saturated=self.saturated & ~drop,
+                       in_band=self.in_band & ~drop)
 
 
 def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = None, *,

@@ -36,6 +36,7 @@ import numpy as np
 from slitcli.laser._c.luma import lag_medians as _lag_medians
 from slitcli.laser._c.luma import luma_column_z as _luma_column_z
 from slitcli.laser._c.luma import luma_rows as _luma_rows
+from slitcli.laser.choose import stripe_pieces
 
 #: variance the 4:2:0 chain adds to a profile across rows: the two-row mean (1/4 px^2)
 #: and the decoder's linear interpolation between samples two rows apart (a triangle of
@@ -211,14 +212,10 @@ def luma_segments(img_t: np.ndarray, bg_t: np.ndarray, v_px: np.ndarray,
                    np.uint8), np.ascontiguousarray(cand, dtype=np.float64), row0,
                    max(sigma_dn, 1e-3), blur_var_px2, s_max, saturation_dn, LUMA_OFFSETS_PX,
                    z)
-    cols = np.flatnonzero(np.isfinite(v))
+    cols, piece = stripe_pieces(v, max_gap, max_jump_px)
     keep = np.zeros(w, bool)
     if cols.size == 0:
         return keep
-    step = np.diff(cols)
-    new = np.concatenate(([True], (step > max_gap + 1) |
-                          (np.abs(np.diff(v[cols])) > max_jump_px * step)))
-    piece = np.cumsum(new) - 1
     n_pieces = int(piece[-1]) + 1
     zc = z[:, cols]
     judged = np.isfinite(zc)
