@@ -105,7 +105,7 @@ class FusionParams:
     a piece of stripe is dropped where, over at least ``depth_columns`` of its columns
     with a stereo disparity, stereo's disparity is the median ``depth_share`` (unitless,
     of the laser plane's) and ``depth_px`` (pixels) smaller than the laser plane's at
-    those pixels, taken relative to the frame's longest piece.
+    those pixels; the frame's longest piece always stays.
     """
 
     mode: str = "paper"
@@ -209,15 +209,15 @@ def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
     practice reddish texture on the floor below the sheet, which a codec's chroma
     makes into a short red stripe. Per column, stereo's disparity is the median of the
     valid ones in the stripe's row and two rows either side (the surface just above and
-    below the light); per piece, over its columns with one, the median ratio
-    ``d_stereo / d_laser``. The longest piece with at least ``params.depth_columns``
-    such columns gives the frame's reference ratio ``r`` (1 on a rig whose stereo and
-    laser plane agree; a calibration's scale error moves every piece alike). A piece
-    with at least ``depth_columns`` such columns whose ratio is below
-    ``r - depth_share`` and whose median ``d_stereo - r d_laser`` is below
-    ``-depth_px`` is dropped. Stereo nearer than the plane drops nothing (a
-    foreground's disparity spreads past its edge by a window), nor does a piece stereo
-    cannot see (plain surfaces), nor the reference piece itself.
+    below the light); per piece, over its columns with one, the medians of
+    ``d_stereo / d_laser`` and ``d_stereo - d_laser``. A piece with at least
+    ``params.depth_columns`` such columns whose ratio is below ``1 - depth_share`` and
+    whose difference is below ``-depth_px`` is dropped. Stereo nearer than the plane
+    drops nothing (a foreground's disparity spreads past its edge by a window), nor
+    does a piece stereo cannot see (plain surfaces). The frame's longest piece (most
+    found columns; the laser's, as a rule) always stays: where stereo and the laser
+    plane disagree on the whole stripe the rig's calibration is in question, and a
+    false piece kept errs towards an obstacle, a true one dropped towards free space.
 
     Parameters
     ----------
@@ -237,8 +237,7 @@ def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
         False in the columns of the pieces stereo contradicts and where nothing was
         found.
     """
-    w = np.asarray(v_px).shape[0]
-    keep = np.zeros(w, bool)
+    keep = np.zeros(np.asarray(v_px).shape[0], bool)
     if cols.size == 0:
         return keep
     v = np.asarray(v_px, dtype=float)[cols]
@@ -258,8 +257,6 @@ def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
     diff, _ = _piece_median(d_stereo - d_laser, piece, n_pieces)
     with np.errstate(invalid="ignore"):
         wrong = seen & (ratio < 1.0 - params.depth_share) & (diff < -params.depth_px)
-    # the frame's longest piece (the laser's, as a rule) stays: where stereo and the
-    # laser plane disagree on the whole stripe, the rig's calibration is in question
     length = np.bincount(piece, minlength=n_pieces)
     wrong[np.argmax(length)] = False
     keep[cols] = ~wrong[piece]

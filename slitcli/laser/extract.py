@@ -237,23 +237,25 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
                          GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z,
                          img_t, ev.bg_t, float(params.saturation_dn), sat.view(np.uint8))
-    if params.luma_min_z > 0 and ev.blur_var > 0.0 and np.isfinite(v).any():
-        _luma_checked(v, amp, sat, cand, img_t, r0, ev, s_max, params)
-    if params.luma_rows and ev.blur_var > 0.0 and np.isfinite(v).any():
-        v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, params)
+    if ev.blur_var > 0.0 and (params.luma_min_z > 0 or params.luma_rows) and \
+            np.isfinite(v).any():
+        sigma_luma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
+        if params.luma_min_z > 0:
+            _luma_checked(v, amp, sat, cand, img_t, r0, ev, s_max, sigma_luma, params)
+        if params.luma_rows and np.isfinite(v).any():
+            v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, sigma_luma, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
 
 
 def _luma_checked(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, cand: np.ndarray,
                   img_t: np.ndarray, r0: int, ev: _Evidence, s_max: float,
-                  params: LaserParams) -> None:
+                  sigma_luma: float, params: LaserParams) -> None:
     """The pieces of stripe ``v`` (W,) found on the evidence of an image with
-    subsampled chroma whose luma shows no light at their rows
-    (:func:`slitcli.laser.luma.luma_segments`) taken out of ``v``, ``amp`` and ``sat``,
-    in place."""
-    sigma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
+    subsampled chroma whose luma (noise ``sigma_luma``, DN) shows no light at their
+    rows (:func:`slitcli.laser.luma.luma_segments`) taken out of ``v``, ``amp`` and
+    ``sat``, in place."""
     keep = luma.luma_segments(
-        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma, blur_var_px2=ev.blur_var,
+        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma_luma, blur_var_px2=ev.blur_var,
         s_max=s_max, saturation_dn=params.saturation_dn, max_gap=choose.MAX_GAP,
         max_jump_px=params.max_jump_px, min_z=params.luma_min_z)
     v[~keep] = np.nan
@@ -262,14 +264,15 @@ def _luma_checked(v: np.ndarray, amp: np.ndarray, sat: np.ndarray, cand: np.ndar
 
 
 def _luma_refined(v: np.ndarray, sat: np.ndarray, cand: np.ndarray, img_t: np.ndarray,
-                  r0: int, ev: _Evidence, s_max: float, params: LaserParams) -> np.ndarray:
+                  r0: int, ev: _Evidence, s_max: float, sigma_luma: float,
+                  params: LaserParams) -> np.ndarray:
     """The rows ``v`` (W,) found on the evidence of an image with subsampled chroma, fitted
-    again on the luma where it shows the stripe (:func:`slitcli.laser.luma.luma_rows`),
-    smoothed along the segments as the evidence's rows are, and combined with them by
-    their variances (:func:`slitcli.laser.luma.combined_rows`)."""
-    sigma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
+    again on the luma (noise ``sigma_luma``, DN) where it shows the stripe
+    (:func:`slitcli.laser.luma.luma_rows`), smoothed along the segments as the evidence's
+    rows are, and combined with them by their variances
+    (:func:`slitcli.laser.luma.combined_rows`)."""
     v_l, se_l, w_l, se_ev = luma.luma_rows(
-        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma, blur_var_px2=ev.blur_var,
+        img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma_luma, blur_var_px2=ev.blur_var,
         shape_error=params.shape_error, max_chi2=params.max_chi2, s_max=s_max,
         min_z=params.weak_z, saturation_dn=params.saturation_dn)
     keep = np.isfinite(v_l)
