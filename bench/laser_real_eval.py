@@ -216,9 +216,8 @@ def report(res: dict) -> dict:
     return out
 
 
-#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides, a
-#: module constant of slitcli.laser.judge or .choose (upper case) or a function of
-#: slitcli.laser.judge replaced (``judge.<name>``)
+#: rules switched off one at a time (``--ablate``): name -> LaserParams overrides
+#: (``max_width_share`` None: 8 px at any image height)
 ABLATIONS = {
     "default": {},
     "texture ratio fixed at 5 (min_texture_ratio 5)": {"min_texture_ratio": 5.0},
@@ -228,14 +227,12 @@ ABLATIONS = {
     "no shape test / flat tops (max_chi2 1e9)": {"max_chi2": 1e9},
     "laser-colour plane test on (colour_error 0.2)": {"colour_error": 0.2},
     "no hue test (max_hue_deg 90)": {"max_hue_deg": 90.0},
-    "no frame width test (WIDTH_SPREAD inf)": {"WIDTH_SPREAD": float("inf")},
-    "one choice, no re-choice (CHOICE_ROUNDS 1)": {"CHOICE_ROUNDS": 1},
-    "no own-light test (OWN_Z inf)": {"OWN_Z": float("inf")},
-    "no laser-share test (LASER_SHARE_Z 0)": {"LASER_SHARE_Z": 0.0},
-    "overlapping fits both kept (no judge.one_crossing)":
-        {"judge.one_crossing": lambda cand, ok: ok},
-    "no surface test (no judge.surface_continues)":
-        {"judge.surface_continues": lambda cand, *a, **k: np.ones(cand.shape[:2], bool)},
+    "no frame width test (width_spread inf)": {"width_spread": float("inf")},
+    "one choice, no re-choice (choice_rounds 1)": {"choice_rounds": 1},
+    "no own-light test (own_z inf)": {"own_z": float("inf")},
+    "no laser-share test (laser_share_z 0)": {"laser_share_z": 0.0},
+    "overlapping fits both kept (one_crossing false)": {"one_crossing": False},
+    "no surface test (surface_test false)": {"surface_test": False},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
     "no luma test under 4:2:0 (luma_min_z 0)": {"luma_min_z": 0.0},
@@ -244,41 +241,21 @@ ABLATIONS = {
 
 
 def ablation_extractors(search: str = "full", rig=None) -> dict:
-    """One extractor per entry of ``ABLATIONS`` (each sets its switch while it runs):
-    ``extract_stripe`` over the whole image, or with ``rig`` ``detect_laser`` with that
-    rig's geometry (``search`` 'rig': its laser band and sheet test)."""
-    from slitcli.laser import (
-        LaserGeometry,
-        LaserParams,
-        choose,
-        detect_laser,
-        extract_stripe,
-        judge,
-    )
+    """One extractor per entry of ``ABLATIONS``: ``extract_stripe`` over the whole
+    image, or with ``rig`` ``detect_laser`` with that rig's geometry (``search`` 'rig':
+    its laser band and sheet test)."""
+    from slitcli.laser import LaserGeometry, LaserParams, detect_laser, extract_stripe
 
     ex = {}
     for name, over in ABLATIONS.items():
         def run(bgr, over=over):
-            consts = {k.split(".")[-1]: v for k, v in over.items()
-                      if k.isupper() or k.startswith("judge.")}
-            kw = {k: v for k, v in over.items()
-                  if not (k.isupper() or k.startswith("judge."))}
+            kw = dict(over)
             if "max_width_share" in kw:
                 kw["max_width_share"] = 8.0 / bgr.shape[0]
-            # each constant lives in the module whose step it tunes
-            home = {k: judge if hasattr(judge, k) else choose for k in consts}
-            keep = {k: getattr(home[k], k) for k in consts}
-            for k, v in consts.items():
-                setattr(home[k], k, v)
-            try:
-                p = LaserParams(search=search, **kw)
-                if rig is None:
-                    return extract_stripe(bgr, p).v_px
-                return detect_laser(bgr, rig, p,
-                                    geometry=LaserGeometry.from_rig(rig, p)).v_px
-            finally:
-                for k, v in keep.items():
-                    setattr(home[k], k, v)
+            p = LaserParams(search=search, **kw)
+            if rig is None:
+                return extract_stripe(bgr, p).v_px
+            return detect_laser(bgr, rig, p, geometry=LaserGeometry.from_rig(rig, p)).v_px
         ex[name] = run
     return ex
 

@@ -15,6 +15,7 @@ import pytest
 from slitcli.laser import choose, judge, profile
 from slitcli.laser._c import choose as c_choose
 from slitcli.laser._c import judge as c_judge
+from slitcli.laser.params import LaserParams
 from slitcli.laser.profile import (
     F_AMP,
     F_CHI2,
@@ -37,6 +38,8 @@ from slitcli.laser.profile import (
 )
 
 SEEDS = range(6)
+#: the default levels of the tests and the choice (LaserParams)
+DEFAULTS = LaserParams()
 
 
 def test_compiled_constants_are_the_python_ones():
@@ -76,7 +79,7 @@ def _table(rng: np.random.Generator, w: int, k: int, h: int) -> np.ndarray:
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_shape_tests_width_spread_and_laser_colour_by_numpys_median(seed):
-    """Unclipped candidates wider than WIDTH_SPREAD x the median width of the strong
+    """Unclipped candidates wider than width_spread x the median width of the strong
     unclipped ones that pass fail; the laser colour is numpy's median (to the bit) of
     green and blue over red of the strong unclipped candidates left; none with fewer
     than COLOUR_SUPPORT of them."""
@@ -88,10 +91,10 @@ def test_shape_tests_width_spread_and_laser_colour_by_numpys_median(seed):
     min_z, s_max = 2.0, 10.0
     args = (h, s_max, min_z, 3.0, 0.4, 0.1, 1.5, 0)
     ok_all, _ = c_judge.shape_tests(c, None, *args, math.inf)
-    ok, laser = c_judge.shape_tests(c, None, *args, judge.WIDTH_SPREAD)
+    ok, laser = c_judge.shape_tests(c, None, *args, DEFAULTS.width_spread)
     unclipped = c[..., F_SAT] == 0
     strong = unclipped & (c[..., F_Z] >= judge.COLOUR_Z * min_z)
-    widest = judge.WIDTH_SPREAD * np.median(c[..., F_WIDTH][ok_all & strong])
+    widest = DEFAULTS.width_spread * np.median(c[..., F_WIDTH][ok_all & strong])
     assert np.array_equal(ok, ok_all & ~(unclipped & (c[..., F_WIDTH] > widest)))
     assert (ok_all & ~ok).any()
     strong &= ok
@@ -103,7 +106,7 @@ def test_shape_tests_width_spread_and_laser_colour_by_numpys_median(seed):
         laser[2] == min(b, judge.MAX_LASER_GB)
     # too few strong columns: no colour
     few = c[: judge.COLOUR_SUPPORT - 1, :1].copy()
-    _, none = c_judge.shape_tests(few, None, *args, judge.WIDTH_SPREAD)
+    _, none = c_judge.shape_tests(few, None, *args, DEFAULTS.width_spread)
     assert none is None
 
 
@@ -123,7 +126,7 @@ def test_model_tests_follow_eq2_and_the_width_range(seed):
     c[..., F_CHI2] = rng.uniform(0, 6, (w, k))
     s_max, max_chi2, min_th, min_dth = 4.0, 3.0, 0.4, 0.1
     ok, _ = c_judge.shape_tests(c, None, h, s_max, 1e9, max_chi2, min_th, min_dth, 1.5, 0,
-                                judge.WIDTH_SPREAD)  # (min_z huge: no width spread test)
+                                DEFAULTS.width_spread)  # (min_z huge: no width spread test)
     pos, s, sat = c[..., F_POS], c[..., F_WIDTH], c[..., F_SAT] > 0
     tot = c[..., F_TR] + c[..., F_TG] + c[..., F_TB]
     r = c[..., F_TR] / tot
@@ -153,7 +156,7 @@ def test_sheet_test_bounds_the_width_by_the_sheet(seed):
     tol = 1.5
     # (sheet_support beyond the table: the parameter's sheet is the only reference)
     ok, _ = c_judge.shape_tests(c, sheet, h, 4.0, 1e9, 3.0, 0.0, -1.0, tol, 10 ** 6,
-                                judge.WIDTH_SPREAD)
+                                DEFAULTS.width_spread)
     lo, hi = math.sqrt(1 / tol ** 2 + 1 / 12), math.sqrt(tol ** 2 + 1 / 12)
     s = c[..., F_WIDTH]
     want = np.isnan(sheet) | ((s >= lo) & (s <= hi))
@@ -184,7 +187,7 @@ def test_hue_test_keeps_red_light_and_drops_yellow(seed):
     c[:, 0, F_WIDTH] = rng.uniform(1.0, 2.0, n)
     c[:, 0, F_NCORE] = rng.integers(2, 6, n)
     # (Eq. 2 passes everything: min_th 0, min_delta_th -1)
-    args = (None, h, 4.0, 1e9, 3.0, 0.0, -1.0, 1.5, 0, judge.WIDTH_SPREAD, 0.0)
+    args = (None, h, 4.0, 1e9, 3.0, 0.0, -1.0, 1.5, 0, DEFAULTS.width_spread, 0.0)
     ok, _ = c_judge.shape_tests(c, *args, limit, sigma)
     yellow = (hue > limit) & (size > 10.0)
     assert np.array_equal(ok[:, 0], ~yellow)
@@ -230,7 +233,7 @@ def test_colour_tests_keep_light_in_the_plane_of_laser_and_surface(seed):
     far[::4, 0, F_SAT] = 1.0
     far[1::4, 0, F_SAT] = 2.0
     ok = np.ones((n, 1), bool)
-    c_judge.colour_tests(far, laser, lu, chan, 0.5, judge.LASER_SHARE_Z, ok)
+    c_judge.colour_tests(far, laser, lu, chan, 0.5, DEFAULTS.laser_share_z, ok)
     assert np.array_equal(ok[:, 0], far[:, 0, F_SAT] > 0)
 
 
@@ -246,11 +249,11 @@ def test_laser_share_tells_the_surfaces_own_light(seed):
     size = rng.uniform(30, 80)
     own = size * grey / np.linalg.norm(grey)
     red = size * lu
-    assert not judge.laser_share(own, grey, laser, lu, 3.0, 2.0, judge.LASER_SHARE_Z)
-    assert judge.laser_share(red, grey, laser, lu, 3.0, 2.0, judge.LASER_SHARE_Z)
+    assert not judge.laser_share(own, grey, laser, lu, 3.0, 2.0, DEFAULTS.laser_share_z)
+    assert judge.laser_share(red, grey, laser, lu, 3.0, 2.0, DEFAULTS.laser_share_z)
     # a surface within 0.03 rad of the laser's colour: L . e too small to judge
     red_surface = 100.0 * laser + np.array([0.0, 3.0, 0.0])
-    assert judge.laser_share(own, red_surface, laser, lu, 3.0, 2.0, judge.LASER_SHARE_Z)
+    assert judge.laser_share(own, red_surface, laser, lu, 3.0, 2.0, DEFAULTS.laser_share_z)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -360,7 +363,7 @@ def test_choose_stripe_keeps_the_stripe_and_drops_short_clutter(seed):
     ok[90:100, 0] = False  # the stripe is hidden here
     v, amp, sat = np.empty(w), np.empty(w), np.empty(w, bool)
     choose.choose_stripe(c, ok, np.empty(0), 0.5, 1.5, 2.0, 3.0, 10, 3.0, 25.0, 20,
-                         choose.CHOICE_ROUNDS, v, amp, sat)
+                         DEFAULTS.choice_rounds, v, amp, sat)
     on = np.isfinite(v)
     assert np.array_equal(on, ok[:, 0])
     assert np.max(np.abs(v[on] - c[on, 0, F_POS])) < 0.2
@@ -368,7 +371,7 @@ def test_choose_stripe_keeps_the_stripe_and_drops_short_clutter(seed):
     assert not sat.any()
     # a frame whose longest segment is shorter than min_stripe_cols shows no stripe
     choose.choose_stripe(c, ok, np.empty(0), 0.5, 1.5, 2.0, 3.0, 10, 3.0, 25.0, w,
-                         choose.CHOICE_ROUNDS, v, amp, sat)
+                         DEFAULTS.choice_rounds, v, amp, sat)
     assert np.isnan(v).all() and np.isnan(amp).all()
 
 
@@ -424,6 +427,6 @@ def test_choose_stripe_sums_a_long_faint_stripe(seed):
         ok[20:20 + n, 0] = True
         v, amp, sat = np.empty(w), np.empty(w), np.empty(w, bool)
         choose.choose_stripe(c, ok, np.empty(0), 0.5, z_weak, 2.0, 3.0, min_seg, min_z,
-                             4 * min_z, 0, choose.CHOICE_ROUNDS, v, amp, sat)
+                             4 * min_z, 0, DEFAULTS.choice_rounds, v, amp, sat)
         kept = np.sum(z[20:20 + n] ** 2) >= min_seg * min_z ** 2 and n >= min_seg
         assert np.array_equal(np.isfinite(v), ok[:, 0] & kept), n

@@ -134,6 +134,40 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "Under JPEG 4:2:0 chroma, drop a piece of stripe whose luma shows no light at its rows: "
      "least combined significance of the luma there (unitless); 0 = off.",
      None),
+    ("strong_share",
+     "A column this many times --min-z significant is strong: a short segment of strong "
+     "columns is kept, and such a fit on its own column is kept without the averaged one "
+     "(unitless, >= 1).",
+     None),
+    ("gap_z_share",
+     "A column inside a segment without a chosen stripe is fitted where the segment "
+     "passes; that fit needs this share of --weak-z (unitless).",
+     None),
+    ("width_spread",
+     "Frame width test: an unclipped candidate at most this many times wider than the "
+     "median width of the frame's strong columns (unitless); inf = no test.",
+     None),
+    ("laser_share_z",
+     "Laser-share test: the light a candidate adds must show the frame's laser colour "
+     "across the surface colour at this significance (unitless); 0 = no test.",
+     None),
+    ("own_z",
+     "Own-light test: a fit on the evidence averaged along the stripe must show in its "
+     "column's own evidence, short of it by at most this many standard errors "
+     "(unitless); inf = no test.",
+     None),
+    ("choice_rounds",
+     "The choice along the stripe is made again without the segments that fail, at most "
+     "this many times (1 = one choice).",
+     None),
+    ("surface_test",
+     "Surface test: the surface just above and below a candidate must have one colour "
+     "(false = no test).",
+     None),
+    ("one_crossing",
+     "One crossing per column: of two overlapping fits of a column the wider, fainter one "
+     "is out (false = both kept).",
+     None),
 )
 
 

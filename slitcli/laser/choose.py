@@ -11,14 +11,11 @@ import numpy as np
 
 from slitcli.laser._c.choose import best_path, choose_stripe, links, smooth_rows
 
-__all__ = ["CHOICE_ROUNDS", "MAX_GAP", "SMOOTH_CORNER_PX", "SMOOTH_HALF", "best_path",
+__all__ = ["MAX_GAP", "SMOOTH_CORNER_PX", "SMOOTH_HALF", "best_path",
            "choose_stripe", "links", "smooth_rows", "stripe_pieces"]
 
 #: found columns of one segment may be this many columns apart
 MAX_GAP = 2
-#: the choice along the stripe is made again, without the candidates of segments that
-#: did not stay, at most this many times
-CHOICE_ROUNDS = 6
 #: rows are smoothed along a segment over this many columns either side
 SMOOTH_HALF = 4
 #: a second difference of the rows beyond this (and four times its noise) is a corner

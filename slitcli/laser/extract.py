@@ -34,12 +34,6 @@ from slitcli.laser.profile import F_POS, F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
-#: a short segment's columns need this multiple of min_z each; a fit this significant
-#: on its own column is not replaced by one on the averaged columns
-STRONG_SHARE = 2.0
-#: a gap column's fit, where the segment says the stripe passes (one place tried, not
-#: every row), needs this share of weak_z
-GAP_Z_SHARE = 2.0 / 3.0
 #: weights of the average along the stripe (over columns; the transposed evidence's
 #: rows), and the noise it leaves of white noise: sqrt(70) / 16
 AVG_KERNEL = (np.array([1.0, 4.0, 6.0, 4.0, 1.0], np.float32) / 16.0)[:, None]
@@ -229,14 +223,15 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
     sat = np.empty(w, bool)
     choose.choose_stripe(cand, ok, prev, params.beta, params.weak_z, params.continuity_px,
                          params.max_jump_px, params.min_segment_cols(w), params.min_z,
-                         STRONG_SHARE * params.min_z,
+                         params.strong_share * params.min_z,
                          round(params.min_stripe_share * int(mask.any(axis=0).sum())),
-                         choose.CHOICE_ROUNDS, v, amp, sat)
+                         params.choice_rounds, v, amp, sat)
     # columns without a stripe inside a segment, where the stripe must pass
     candidates.fill_gaps(v, amp, cand, y, y_avg, clipped, mask_t, float(sigma_y),
                          float(sigma_avg), r0, choose.MAX_GAP, params.max_jump_px,
-                         GAP_Z_SHARE * params.weak_z, params.shape_error, s_max, judge.OWN_Z,
-                         img_t, ev.bg_t, float(params.saturation_dn), sat.view(np.uint8))
+                         params.gap_z_share * params.weak_z, params.shape_error, s_max,
+                         params.own_z, img_t, ev.bg_t, float(params.saturation_dn),
+                         sat.view(np.uint8))
     if ev.blur_var > 0.0 and (params.luma_min_z > 0 or params.luma_rows) and \
             np.isfinite(v).any():
         sigma_luma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
@@ -313,7 +308,7 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     chan_sigma = float(np.sort(chan)[1])  # (the median of three)
     cand = np.empty((w, K_BEST, N_FIELDS))
     candidates.column_candidates(img_t, ev.bg_t, y, y_avg, clipped, mask_t, ev.sigma_y,
-                                 ev.sigma_avg, seed, STRONG_SHARE * params.min_z,
+                                 ev.sigma_avg, seed, params.strong_share * params.min_z,
                                  params.saturation_dn, s_max, params.shape_error,
                                  params.max_chi2, params.weak_z, cand, ev.clip_gb)
     cand[..., F_POS] += r0
@@ -329,13 +324,15 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
         colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
         sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
         sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var,
-        max_hue_deg=params.max_hue_deg)
+        max_hue_deg=params.max_hue_deg, width_spread=params.width_spread,
+        laser_share_z=params.laser_share_z)
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)
-    ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
+    if params.surface_test:
+        ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(ev.sigma_y),
-                                      params.shape_error, need)
-    return cand, judge.one_crossing(cand, ok), laser
+                                      params.shape_error, need, own_z=params.own_z)
+    return cand, judge.one_crossing(cand, ok) if params.one_crossing else ok, laser
 
 

@@ -29,9 +29,6 @@ COLOUR_SUPPORT = 8
 MAX_LASER_GB = 0.6
 #: colour residual allowed for noise alone, in noise sigmas of the core's mean
 COLOUR_SIGMAS = 3.0
-#: an unclipped candidate may be this many times wider than the median width of the
-#: frame's strong columns (the sheet's width changes with range and incidence)
-WIDTH_SPREAD = 2.5
 #: chromaticity step (any channel) between the surface above and below a candidate
 #: beyond which they are two surfaces; sides darker than SURFACE_MIN_DN are not judged
 SURFACE_STEP = 0.1
@@ -43,7 +40,8 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
                      colour_error: float, channel_sigma_dn: float,
                      sheet_px: np.ndarray | None, sheet_tolerance: float,
                      sheet_support: int = 0, blur_var_px2: float = 0.0,
-                     max_hue_deg: float = 90.0
+                     max_hue_deg: float = 90.0, width_spread: float = np.inf,
+                     laser_share_z: float = 0.0
                      ) -> tuple[np.ndarray, np.ndarray | None]:
     """Which candidates (W, K) can be the laser, and the laser colour used.
 
@@ -56,15 +54,17 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     ``COLOUR_SIGMAS`` noise sigmas; 90: no test) and, where the frame shows the laser's
     colour (the median of its strong unclipped candidates' core contrast over its red,
     from at least ``COLOUR_SUPPORT`` of them), shows the laser's share
-    (:func:`laser_share`) and, with ``colour_error`` < 1, lies in the plane of that
-    colour and the surface's within ``COLOUR_SIGMAS`` noise sigmas plus
-    ``colour_error`` of its size; with ``sheet_px`` (W, K: the sheet's sigma at the
-    candidate's row, px, NaN unknown) a width that implies a sheet at most
-    ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
+    (:func:`laser_share`, at ``laser_share_z``; 0: no test) and, with ``colour_error``
+    < 1, lies in the plane of that colour and the surface's within ``COLOUR_SIGMAS``
+    noise sigmas plus ``colour_error`` of its size; with ``sheet_px`` (W, K: the
+    sheet's sigma at the candidate's row, px, NaN unknown) a width that implies a sheet
+    at most ``sheet_tolerance`` times thicker or thinner (unclipped ones) than the frame's
     strong columns do (when at least ``sheet_support`` of them show it, else the
     parameter), the pixel's extent and ``blur_var_px2`` (px^2: what the image's
     processing adds, :mod:`slitcli.laser.luma`) added to its variance; and at most
-    ``WIDTH_SPREAD`` times the median width of the frame's strong unclipped columns.
+    ``width_spread`` times the median width of the frame's strong unclipped columns
+    (inf: no such test). The levels are :class:`~slitcli.laser.params.LaserParams`'
+    fields of the same names; the defaults here leave the last two tests out.
 
     Returns
     -------
@@ -74,19 +74,15 @@ def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: f
     """
     cand = np.ascontiguousarray(cand, dtype=np.float64)
     ok, laser = shape_tests(cand, sheet_px, height_px, s_max, min_z, max_chi2, min_th,
-                            min_delta_th, sheet_tolerance, sheet_support, WIDTH_SPREAD,
+                            min_delta_th, sheet_tolerance, sheet_support, width_spread,
                             blur_var_px2, max_hue_deg, channel_sigma_dn)
     if laser is None:
         return ok, None
     # (the unit vector of the laser colour as numpy's norm gives it: the tests below
     # compare against it to the last bit, as they always did)
     lu = laser / np.linalg.norm(laser)
-    colour_tests(cand, laser, lu, channel_sigma_dn, colour_error, LASER_SHARE_Z, ok)
+    colour_tests(cand, laser, lu, channel_sigma_dn, colour_error, laser_share_z, ok)
     return ok, laser
-
-
-#: significance of the laser's share of a candidate's light (see :func:`laser_share`)
-LASER_SHARE_Z = 3.0
 
 
 def one_crossing(cand: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -142,29 +138,29 @@ def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
 # (its row and width) in the averaged evidence must show in the column's own evidence:
 # the own peak (weighted least squares of a Gaussian on a straight background, row
 # variance sigma^2 + (shape_error A g)^2 as the profile fit's) may fall short of it by at
-# most OWN_Z standard errors. Inside a stripe the two agree within the noise; at a partly
-# covered end column, whose own light is its coverage's share, the average's missing
-# outward columns lower it by about as much. On a steep stripe the average's centre at
-# an end column leans towards the inner columns' rows (by up to a pixel): the own light
-# is looked for within OWN_REACH_PX of it, the best place kept.
+# most ``own_z`` standard errors (LaserParams.own_z). Inside a stripe the two agree
+# within the noise; at a partly covered end column, whose own light is its coverage's
+# share, the average's missing outward columns lower it by about as much. On a steep
+# stripe the average's centre at an end column leans towards the inner columns' rows
+# (by up to a pixel): the own light is looked for within OWN_REACH_PX of it, the best
+# place kept.
 
-#: the light an averaged fit gives a column must show in the column's own evidence: it
-#: may fall short of it by at most this many standard errors of the own estimate
-#: (one-sided; a column inside a stripe falls short by more 0.13 % of the time)
-OWN_Z = 3.0
 #: rows either side of the averaged fit's centre where the column's own light is sought
 OWN_REACH_PX = 1.0
 
 
 def own_light_candidates(cand: np.ndarray, y: np.ndarray, y_avg: np.ndarray,
                          clipped: np.ndarray, mask: np.ndarray, row0: int, sigma_y: float,
-                         shape_error: float, need: np.ndarray | None = None) -> np.ndarray:
-    """The own-light test (notes above) of every candidate (W, K) fitted on the averaged
-    evidence: True where it holds, and for every other candidate (a fit of the column's
-    own evidence, whose noise ``sigma_y`` its ``F_GNOISE`` holds, measured the column's
-    own light; a clipped core is its own) and where ``need`` (W, K), when given, is
-    False. Rows of ``cand`` count from the image's top, those of ``y`` from ``row0``."""
+                         shape_error: float, need: np.ndarray | None = None, *,
+                         own_z: float) -> np.ndarray:
+    """The own-light test (notes above, at ``own_z`` standard errors: one-sided, a
+    column inside a stripe falls short by more than 3 of them 0.13 % of the time) of
+    every candidate (W, K) fitted on the averaged evidence: True where it holds, and for
+    every other candidate (a fit of the column's own evidence, whose noise ``sigma_y``
+    its ``F_GNOISE`` holds, measured the column's own light; a clipped core is its own)
+    and where ``need`` (W, K), when given, is False. Rows of ``cand`` count from the
+    image's top, those of ``y`` from ``row0``."""
     ok = np.empty(cand.shape[:2], np.bool_)
     need = np.ones(cand.shape[:2], np.bool_) if need is None else need
-    own_light_table(cand, y, y_avg, clipped, mask, row0, sigma_y, shape_error, OWN_Z, need, ok)
+    own_light_table(cand, y, y_avg, clipped, mask, row0, sigma_y, shape_error, own_z, need, ok)
     return ok

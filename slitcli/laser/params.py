@@ -114,6 +114,36 @@ class LaserParams:
         measure 1.4-2.4, through the camera model's presets with JPEG 4:4:4 0.93-1.4,
         its 4:2:0 presets 0.26-0.37 (``webcam``) and 0.72-0.80 (``robot``), the
         development set's robot photographs (4:2:0) 0.54-0.60 (docs/laser.md).
+    strong_share : float
+        A column this many times ``min_z`` significant is strong: a segment shorter
+        than ``min_segment_share`` is kept when each of its columns is, and a fit this
+        significant on its column's own evidence is kept without one on the evidence
+        averaged along the stripe (unitless, at least 1).
+    gap_z_share : float
+        A column inside a segment without a chosen stripe is fitted where the segment
+        says the stripe passes (one place tried, not every row); the fit needs this
+        share of ``weak_z`` (unitless).
+    width_spread : float
+        Frame width test: an unclipped candidate may be at most this many times wider
+        than the median width of the frame's strong columns (the sheet's width changes
+        with range and incidence, not by more); inf: no such test.
+    laser_share_z : float
+        Laser-share test: where the frame shows the laser's colour, the light a
+        candidate adds must show the laser's share across the surface colour at this
+        significance (:func:`slitcli.laser.judge.laser_share`; unitless); 0: no test.
+    own_z : float
+        Own-light test: a fit on the evidence averaged along the stripe stands for its
+        column only where the column's own evidence shows that light, short of it by at
+        most this many standard errors (one-sided; unitless; inf: no test).
+    choice_rounds : int
+        The choice along the stripe is made again without the segments that fail, at
+        most this many times (1: one choice).
+    surface_test : bool
+        Surface test: the surface just above and below a candidate must have one colour
+        (the laser adds light to one surface); False: no test.
+    one_crossing : bool
+        One crossing per column: of two overlapping valid fits of one column the wider,
+        fainter one is out; False: both kept.
     luma_rows : bool
         Under subsampled chroma (above), fit each found column's row again on the luma
         (full resolution) and combine it with the evidence's row by their variances
@@ -157,6 +187,14 @@ class LaserParams:
     chroma_smoothness_max: float = 0.85
     luma_rows: bool = False
     luma_min_z: float = 2.0
+    strong_share: float = 2.0
+    gap_z_share: float = 2.0 / 3.0
+    width_spread: float = 2.5
+    laser_share_z: float = 3.0
+    own_z: float = 3.0
+    choice_rounds: int = 6
+    surface_test: bool = True
+    one_crossing: bool = True
 
     def __post_init__(self) -> None:
         checks = {
@@ -190,6 +228,15 @@ class LaserParams:
             "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
             "luma_rows": isinstance(self.luma_rows, bool),
             "luma_min_z": 0.0 <= self.luma_min_z <= 10.0,
+            "strong_share": 1.0 <= self.strong_share <= 100.0,
+            "gap_z_share": 0.0 < self.gap_z_share <= 10.0,
+            "width_spread": self.width_spread >= 1.0,
+            "laser_share_z": 0.0 <= self.laser_share_z <= 100.0,
+            "own_z": self.own_z > 0.0,
+            "choice_rounds": isinstance(self.choice_rounds, int)
+            and not isinstance(self.choice_rounds, bool) and 1 <= self.choice_rounds <= 100,
+            "surface_test": isinstance(self.surface_test, bool),
+            "one_crossing": isinstance(self.one_crossing, bool),
         }
         for name, ok in checks.items():
             if not ok:
@@ -246,4 +293,12 @@ _RANGES = {
     "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
     "luma_rows": "give true or false",
     "luma_min_z": "give a significance in [0, 10] (0: off)",
+    "strong_share": "give a multiple of min_z in [1, 100]",
+    "gap_z_share": "give a share of weak_z in (0, 10]",
+    "width_spread": "give a factor >= 1 (inf: no frame width test)",
+    "laser_share_z": "give a significance in [0, 100] (0: no laser-share test)",
+    "own_z": "give a significance > 0 (inf: no own-light test)",
+    "choice_rounds": "give a whole number of rounds in 1..100",
+    "surface_test": "give true or false",
+    "one_crossing": "give true or false",
 }

@@ -338,7 +338,7 @@ def choose_stripe(const double[:, :, ::1] cand, const unsigned char[:, ::1] ok,
     one), or when it has a quarter of that (at least two) columns, each ``strong_z``
     significant (a thin object). A candidate of a segment that does not
     stay is not the laser: it is struck out and the choice is made again (up to
-    ``rounds`` times; ``CHOICE_ROUNDS`` by default), so that short clutter, more
+    ``rounds`` times; ``LaserParams.choice_rounds``), so that short clutter, more
     significant column by column, does not take the columns of a weaker but continuous
     stripe. One laser lights one sheet across the view: a frame whose longest kept
     segment spans fewer than ``min_stripe_cols`` columns shows no stripe (clutter makes
