@@ -232,7 +232,7 @@ ABLATIONS = {
     "no own-light test (own_z inf)": {"own_z": float("inf")},
     "no laser-share test (laser_share_z 0)": {"laser_share_z": 0.0},
     "overlapping fits both kept (one_crossing false)": {"one_crossing": False},
-    "no surface test (surface_test false)": {"surface_test": False},
+    "no surface test (surface_step inf)": {"surface_step": float("inf")},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
     "no luma test under 4:2:0 (luma_min_z 0)": {"luma_min_z": 0.0},

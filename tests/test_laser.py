@@ -333,12 +333,13 @@ def test_params_validation():
     for name, bad in (("strong_share", 0.5), ("gap_z_share", 0.0), ("width_spread", 0.9),
                       ("width_spread", math.nan), ("laser_share_z", -1.0), ("own_z", 0.0),
                       ("choice_rounds", 0), ("choice_rounds", 2.5), ("choice_rounds", True),
-                      ("surface_test", 1), ("one_crossing", "no")):
+                      ("surface_step", 0.0), ("surface_min_dn", -1.0),
+                      ("one_crossing", "no")):
         with pytest.raises(SlitcliError, match=name):
             LaserParams(**{name: bad})
     # the switches' "off" values are valid
     LaserParams(width_spread=math.inf, own_z=math.inf, laser_share_z=0.0, choice_rounds=1,
-                surface_test=False, one_crossing=False)
+                surface_step=math.inf, one_crossing=False)
 
 
 def test_rule_levels_reach_the_extractor(monkeypatch):
@@ -358,23 +359,23 @@ def test_rule_levels_reach_the_extractor(monkeypatch):
 
     spy(judge, "valid_candidates", lambda a, k: (k["width_spread"], k["laser_share_z"]))
     spy(judge, "own_light_candidates", lambda a, k: k["own_z"])
-    spy(judge, "surface_continues", lambda a, k: True)
+    spy(judge, "surface_continues", lambda a, k: (k["step"], k["min_dn"]))
     spy(judge, "one_crossing", lambda a, k: True)
     spy(choose, "choose_stripe", lambda a, k: (a[9], a[11]))
     spy(candidates, "fill_gaps", lambda a, k: (a[12], a[15]))
     spy(candidates, "column_candidates", lambda a, k: a[9])
     s = make_frame(RIG, seed=0)
     p = LaserParams(width_spread=3.5, laser_share_z=2.5, own_z=4.5, strong_share=3.0,
-                    gap_z_share=0.5, choice_rounds=2)
+                    gap_z_share=0.5, choice_rounds=2, surface_step=0.2, surface_min_dn=5.0)
     assert np.isfinite(extract_stripe(s.bgr, p).v_px).sum() > 100
     assert seen["valid_candidates"] == (3.5, 2.5)
     assert seen["own_light_candidates"] == 4.5
     assert seen["choose_stripe"] == (3.0 * p.min_z, 2)
     assert seen["fill_gaps"] == (0.5 * p.weak_z, 4.5)
     assert seen["column_candidates"] == 3.0 * p.min_z
-    assert seen["surface_continues"] and seen["one_crossing"]
+    assert seen["surface_continues"] == (0.2, 5.0) and seen["one_crossing"]
     seen.clear()
-    extract_stripe(s.bgr, LaserParams(surface_test=False, one_crossing=False))
+    extract_stripe(s.bgr, LaserParams(surface_step=math.inf, one_crossing=False))
     assert "surface_continues" not in seen and "one_crossing" not in seen
 
 

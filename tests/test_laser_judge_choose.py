@@ -40,6 +40,7 @@ from slitcli.laser.profile import (
 SEEDS = range(6)
 #: the default levels of the tests and the choice (LaserParams)
 DEFAULTS = LaserParams()
+SURFACE = {"step": DEFAULTS.surface_step, "min_dn": DEFAULTS.surface_min_dn}
 
 
 def test_compiled_constants_are_the_python_ones():
@@ -271,22 +272,26 @@ def test_surface_continues_sees_two_surfaces(seed):
     c[:, 0, F_POS] = border - 0.5
     c[:, 1, F_POS] = 12.0  # inside the grey
     c[:, :, F_WIDTH] = 1.0
-    out = judge.surface_continues(c, img_t, 0, 2.0)
+    out = judge.surface_continues(c, img_t, 0, 2.0, **SURFACE)
     assert not out[:, 0].any() and out[:, 1].all()
+    # the levels: grey and red differ by 0.33 in chromaticity; a larger step, or sides
+    # (grey about 100 DN a channel) darker than min_dn, leave the border unjudged
+    assert judge.surface_continues(c, img_t, 0, 2.0, step=0.4, min_dn=10.0).all()
+    assert judge.surface_continues(c, img_t, 0, 2.0, step=0.1, min_dn=115.0).all()
     # rows from row0: the same scene seen from image row 10
     c2 = c.copy()
     c2[..., F_POS] += 10
-    assert np.array_equal(judge.surface_continues(c2, img_t, 10, 2.0), out)
+    assert np.array_equal(judge.surface_continues(c2, img_t, 10, 2.0, **SURFACE), out)
     # a side beyond the image is not judged; nor are candidates not needed
     c[:, 1, F_POS] = 1.0
-    assert judge.surface_continues(c, img_t, 0, 2.0)[:, 1].all()
+    assert judge.surface_continues(c, img_t, 0, 2.0, **SURFACE)[:, 1].all()
     need = np.zeros((w, 2), bool)
-    assert judge.surface_continues(c, img_t, 0, 2.0, need).all()
+    assert judge.surface_continues(c, img_t, 0, 2.0, need, **SURFACE).all()
     # a clipped core (red or white) is not judged: its bloom lights the rows beside it
     for level in (1.0, 2.0):
         clipped = c.copy()
         clipped[:, 0, F_SAT] = level
-        assert judge.surface_continues(clipped, img_t, 0, 2.0)[:, 0].all()
+        assert judge.surface_continues(clipped, img_t, 0, 2.0, **SURFACE)[:, 0].all()
 
 
 def test_links_by_jump_or_slope():

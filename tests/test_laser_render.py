@@ -124,7 +124,7 @@ SAMPLE_FRAMES = [("fig4", 900.0, 0), ("fig4", 500.0, 0), ("distractors", 900.0, 
 @regression("fig4 at 500 DN: a 3.3-sigma fit on the averaged evidence two columns past "
             "a clipped stripe end (column 145, its own light within 3 standard errors); "
             "corridor at 900 DN: a bright reddish first row of the floor under a greenish "
-            "object (chromaticity step 0.04, below SURFACE_STEP) in columns 131-134")
+            "object (chromaticity step 0.04, below the surface test's 0.1) in columns 131-134")
 def test_rendered_sample_scenes_found_and_no_false_columns():
     # the sample scenes at the default laser power (900 DN at 0.6 m) and at 500 DN
     stats = [_stats(*_run(_sample(name, power_dn), frame))

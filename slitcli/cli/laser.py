@@ -160,9 +160,13 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "The choice along the stripe is made again without the segments that fail, at most "
      "this many times (1 = one choice).",
      None),
-    ("surface_test",
-     "Surface test: the surface just above and below a candidate must have one colour "
-     "(false = no test).",
+    ("surface_step",
+     "Surface test: the surface just above and below a candidate has one colour; sides "
+     "whose chromaticity differs by more than this (plus the noise) are two surfaces "
+     "(unitless); inf = no test.",
+     None),
+    ("surface_min_dn",
+     "Surface test: sides darker than this (mean per channel) are not judged, DN.",
      None),
     ("one_crossing",
      "One crossing per column: of two overlapping fits of a column the wider, fainter one "

@@ -329,8 +329,9 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)
-    if params.surface_test:
-        ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need)
+    if math.isfinite(params.surface_step):
+        ok &= judge.surface_continues(cand, img_t, r0, chan_sigma, need,
+                                      step=params.surface_step, min_dn=params.surface_min_dn)
     ok &= judge.own_light_candidates(cand, y, y_avg, clipped, mask_t, r0, float(ev.sigma_y),
                                       params.shape_error, need, own_z=params.own_z)
     return cand, judge.one_crossing(cand, ok) if params.one_crossing else ok, laser

@@ -29,10 +29,6 @@ COLOUR_SUPPORT = 8
 MAX_LASER_GB = 0.6
 #: colour residual allowed for noise alone, in noise sigmas of the core's mean
 COLOUR_SIGMAS = 3.0
-#: chromaticity step (any channel) between the surface above and below a candidate
-#: beyond which they are two surfaces; sides darker than SURFACE_MIN_DN are not judged
-SURFACE_STEP = 0.1
-SURFACE_MIN_DN = 10.0
 
 
 def valid_candidates(cand: np.ndarray, *, height_px: int, s_max: float, min_z: float,
@@ -103,7 +99,8 @@ def one_crossing(cand: np.ndarray, ok: np.ndarray) -> np.ndarray:
 
 
 def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
-                      channel_sigma_dn: float, need: np.ndarray | None = None) -> np.ndarray:
+                      channel_sigma_dn: float, need: np.ndarray | None = None, *,
+                      step: float, min_dn: float) -> np.ndarray:
     """Whether the surface beneath each candidate (W, K) is one surface: the laser adds
     light to the surface it falls on, so the surface's colour (chromaticity) just above
     the stripe and just below it is the same; an edge between two surfaces of different
@@ -112,22 +109,22 @@ def surface_continues(cand: np.ndarray, img_t: np.ndarray, row0: int,
 
     The colour is taken on the image ``img_t`` (W, H', 3, BGR, rows from ``row0``) in
     two rows each side, ``2.5 sigma + 2`` rows from the candidate's centre (beyond its
-    light); the two sides differ when their chromaticities differ by more than
-    ``SURFACE_STEP`` plus four noise sigmas (``channel_sigma_dn``) in any channel.
-    Sides too dark to show a colour (below ``SURFACE_MIN_DN`` per channel on average)
-    are not judged. An edge along the stripe runs on, so the break must show in both
-    neighbouring columns too (at the same rows): where an object's side crosses the
-    stripe, its end column sees two surfaces alone. A clipped core is not judged: its
-    light (the bloom and halo beyond the clip) reaches past its fitted width, unevenly
-    above and below. Returns (W, K) bool, True where the surface continues or where it
-    cannot be told, and where ``need`` (W, K), when given, is False (candidates that
-    are out already are not judged).
+    light); the two sides differ when their chromaticities differ by more than ``step``
+    plus four noise sigmas (``channel_sigma_dn``) in any channel. Sides too dark to show
+    a colour (below ``min_dn`` per channel on average) are not judged
+    (``LaserParams.surface_step``, ``surface_min_dn``). An edge along the stripe runs
+    on, so the break must show in both neighbouring columns too (at the same rows):
+    where an object's side crosses the stripe, its end column sees two surfaces alone. A
+    clipped core is not judged: its light (the bloom and halo beyond the clip) reaches
+    past its fitted width, unevenly above and below. Returns (W, K) bool, True where the
+    surface continues or where it cannot be told, and where ``need`` (W, K), when given,
+    is False (candidates that are out already are not judged).
     """
     need = np.ones(cand.shape[:2], np.bool_) if need is None else \
         np.ascontiguousarray(need, dtype=np.bool_)
     return surface_table(np.ascontiguousarray(cand, dtype=np.float64),
                          np.ascontiguousarray(img_t, dtype=np.uint8), row0, channel_sigma_dn,
-                         need)
+                         need, float(step), float(min_dn))
 
 
 # The own-light test (compiled: slitcli/laser/_c/light.pxd's own_light, inlined where gaps

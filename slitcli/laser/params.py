@@ -138,9 +138,14 @@ class LaserParams:
     choice_rounds : int
         The choice along the stripe is made again without the segments that fail, at
         most this many times (1: one choice).
-    surface_test : bool
-        Surface test: the surface just above and below a candidate must have one colour
-        (the laser adds light to one surface); False: no test.
+    surface_step : float
+        Surface test: the laser adds light to one surface, so the surface just above
+        and below a candidate has one colour; sides whose chromaticity (any channel)
+        differs by more than this plus four noise sigmas are two surfaces (an object's
+        edge), and the candidate is not the laser (unitless; inf: no test).
+    surface_min_dn : float
+        Sides darker than this, DN per channel on average, show no colour and are not
+        judged by the surface test.
     one_crossing : bool
         One crossing per column: of two overlapping valid fits of one column the wider,
         fainter one is out; False: both kept.
@@ -193,7 +198,8 @@ class LaserParams:
     laser_share_z: float = 3.0
     own_z: float = 3.0
     choice_rounds: int = 6
-    surface_test: bool = True
+    surface_step: float = 0.1
+    surface_min_dn: float = 10.0
     one_crossing: bool = True
 
     def __post_init__(self) -> None:
@@ -235,7 +241,8 @@ class LaserParams:
             "own_z": self.own_z > 0.0,
             "choice_rounds": isinstance(self.choice_rounds, int)
             and not isinstance(self.choice_rounds, bool) and 1 <= self.choice_rounds <= 100,
-            "surface_test": isinstance(self.surface_test, bool),
+            "surface_step": self.surface_step > 0.0,
+            "surface_min_dn": 0.0 <= self.surface_min_dn <= 255.0,
             "one_crossing": isinstance(self.one_crossing, bool),
         }
         for name, ok in checks.items():
@@ -299,6 +306,7 @@ _RANGES = {
     "laser_share_z": "give a significance in [0, 100] (0: no laser-share test)",
     "own_z": "give a significance > 0 (inf: no own-light test)",
     "choice_rounds": "give a whole number of rounds in 1..100",
-    "surface_test": "give true or false",
+    "surface_step": "give a chromaticity step > 0 (inf: no surface test)",
+    "surface_min_dn": "give a level in [0, 255] DN",
     "one_crossing": "give true or false",
 }

@@ -45,8 +45,6 @@ cdef extern from *:
     #define SLITCLI_COLOUR_Z 2.0
     #define SLITCLI_MAX_LASER_GB 0.6
     #define SLITCLI_COLOUR_SIGMAS 3.0
-    #define SLITCLI_SURFACE_STEP 0.1
-    #define SLITCLI_SURFACE_MIN_DN 10.0
     """
     const double MIN_SIGMA_PX "SLITCLI_MIN_SIGMA_PX"
     const double EQ_WIDTH "SLITCLI_EQ_WIDTH"
@@ -54,8 +52,6 @@ cdef extern from *:
     const double COLOUR_Z "SLITCLI_COLOUR_Z"
     const double MAX_LASER_GB "SLITCLI_MAX_LASER_GB"
     const double COLOUR_SIGMAS "SLITCLI_COLOUR_SIGMAS"
-    const double SURFACE_STEP "SLITCLI_SURFACE_STEP"
-    const double SURFACE_MIN_DN "SLITCLI_SURFACE_MIN_DN"
 
 cdef enum:
     COLOUR_SUPPORT = 8
@@ -69,7 +65,6 @@ def constants() -> dict:
     return {"MIN_SIGMA_PX": MIN_SIGMA_PX, "EQ_WIDTH": EQ_WIDTH, "PIXEL_VAR": PIXEL_VAR,
             "COLOUR_Z": COLOUR_Z, "COLOUR_SUPPORT": COLOUR_SUPPORT,
             "MAX_LASER_GB": MAX_LASER_GB, "COLOUR_SIGMAS": COLOUR_SIGMAS,
-            "SURFACE_STEP": SURFACE_STEP, "SURFACE_MIN_DN": SURFACE_MIN_DN,
             "F_POS": F_POS, "F_WIDTH": F_WIDTH, "F_Z": F_Z, "F_SE_POS": F_SE_POS,
             "F_CHI2": F_CHI2, "F_SAT": F_SAT, "F_TR": F_TR, "F_TG": F_TG, "F_TB": F_TB,
             "F_KR": F_KR, "F_KG": F_KG, "F_KB": F_KB, "F_NCORE": F_NCORE,
@@ -462,10 +457,12 @@ cdef inline bint _side_colour(const unsigned char* img_t, Py_ssize_t n_rows, Py_
 
 
 cdef bint _breaks(const unsigned char* img_t, Py_ssize_t n_cols, Py_ssize_t n_rows,
-                  Py_ssize_t u, double pos, double off, double channel_sigma_dn) noexcept nogil:
+                  Py_ssize_t u, double pos, double off, double channel_sigma_dn, double step,
+                  double min_dn) noexcept nogil:
     """Whether the surfaces above and below row ``pos`` of column ``u`` of ``img_t``
-    (n_cols, n_rows, 3; ``off`` rows away) differ in colour, in the neighbouring columns
-    too."""
+    (n_cols, n_rows, 3; ``off`` rows away) differ in colour by more than ``step``
+    (chromaticity) plus the noise, in the neighbouring columns too; sides darker than
+    ``min_dn`` per channel on average are not judged."""
     cdef Py_ssize_t col, shift, c
     cdef double up[3]
     cdef double dn[3]
@@ -481,7 +478,7 @@ cdef bint _breaks(const unsigned char* img_t, Py_ssize_t n_cols, Py_ssize_t n_ro
         inside = _side_colour(img_t, n_rows, col, pos, off, dn) and inside
         s_up = up[0] + up[1] + up[2]
         s_dn = dn[0] + dn[1] + dn[2]
-        if not (inside and s_up >= 6.0 * SURFACE_MIN_DN and s_dn >= 6.0 * SURFACE_MIN_DN):
+        if not (inside and s_up >= 6.0 * min_dn and s_dn >= 6.0 * min_dn):
             return False
         d = 0.0
         for c in range(3):
@@ -489,14 +486,14 @@ cdef bint _breaks(const unsigned char* img_t, Py_ssize_t n_cols, Py_ssize_t n_ro
         # a chromaticity of a two-row sum of three channels: noise about sigma sqrt(2) /
         # sum per channel, on each side
         noise = channel_sigma_dn * sqrt(2.0) * (1.0 / s_up + 1.0 / s_dn)
-        if not d > SURFACE_STEP + 4.0 * noise:
+        if not d > step + 4.0 * noise:
             return False
     return True
 
 
 def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] img_t,
                   Py_ssize_t row0, double channel_sigma_dn,
-                  const unsigned char[:, ::1] need):
+                  const unsigned char[:, ::1] need, double step, double min_dn):
     """:func:`slitcli.laser.judge.surface_continues` of the candidates where ``need``.
 
     Parameters
@@ -511,6 +508,10 @@ def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] i
         Noise sigma of one channel, DN.
     need : ndarray, shape (W, K), bool, C-contiguous
         The candidates to judge.
+    step, min_dn : float
+        The chromaticity step beyond which the sides are two surfaces, and the least
+        mean DN per channel of a side that is judged (LaserParams.surface_step,
+        surface_min_dn).
 
     Returns
     -------
@@ -551,7 +552,8 @@ def surface_table(const double[:, :, ::1] cand, const unsigned char[:, :, ::1] i
             wid = c[F_WIDTH]
             # (an integer number of rows, as numba's math.ceil gave)
             off = <double><long long>ceil(EQ_WIDTH * (1.0 if isnan(wid) else wid) + 2.0)
-            o[i] = not _breaks(im, n_cols, n_rows, i // k, pos, off, channel_sigma_dn)
+            o[i] = not _breaks(im, n_cols, n_rows, i // k, pos, off, channel_sigma_dn, step,
+                               min_dn)
     return out_arr
 
 
