@@ -100,6 +100,17 @@ def test_every_mapped_flag_is_a_real_option():
     assert missing == []
 
 
+def test_every_laser_parameter_error_names_its_option():
+    """Each LaserParams field is a `laser` / `detect` option, so an error about it names
+    the option (not the library's name)."""
+    from dataclasses import fields
+
+    from slitcli.laser.params import LaserParams
+
+    names = [f.name for f in fields(LaserParams)]
+    assert [n for n in names if PARAM_FLAGS.get(n) != "--" + n.replace("_", "-")] == []
+
+
 @pytest.mark.parametrize("message,param,expected", [
     ("`num_disparities` 40 must be a multiple of 16 for `matcher` bm (OpenCV)",
      ("num_disparities", "matcher"), "--num-disparities 40 must be a multiple of 16 for "

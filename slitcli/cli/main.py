@@ -80,7 +80,8 @@ PARAM_FLAGS: dict[str, str] = {
     # above): each field's option is its name with dashes
     "method": "--method", "min_th": "--min-th", "min_delta_th": "--min-delta-th",
     "max_width_share": "--max-width-share", "seed_z": "--seed-z", "min_z": "--min-z",
-    "weak_z": "--weak-z", "shape_error": "--shape-error", "colour_error": "--colour-error",
+    "weak_z": "--weak-z", "shape_error": "--shape-error", "max_chi2": "--max-chi2",
+    "colour_error": "--colour-error",
     "max_hue_deg": "--max-hue-deg",
     "min_texture_ratio": "--min-texture-ratio", "max_texture_ratio": "--max-texture-ratio",
     "noise_floor_dn": "--noise-floor-dn", "saturation_dn": "--saturation-dn",
@@ -88,7 +89,11 @@ PARAM_FLAGS: dict[str, str] = {
     "min_segment_share": "--min-segment-share", "min_stripe_share": "--min-stripe-share",
     "sheet_sigma_mm": "--sheet-sigma-mm", "sheet_tolerance": "--sheet-tolerance",
     "chroma_smoothness_max": "--chroma-smoothness-max", "luma_rows": "--luma-rows",
-    "luma_min_z": "--luma-min-z",
+    "luma_min_z": "--luma-min-z", "strong_share": "--strong-share",
+    "gap_z_share": "--gap-z-share", "width_spread": "--width-spread",
+    "laser_share_z": "--laser-share-z", "own_z": "--own-z", "choice_rounds": "--choice-rounds",
+    "surface_step": "--surface-step", "surface_min_dn": "--surface-min-dn",
+    "one_crossing": "--one-crossing",
 }
 
 
