@@ -25,7 +25,7 @@ Not part of `make bench` (a few minutes).
 
     .venv/bin/python bench/detect_eval.py [--cache out/detect_eval] [--random 24]
         [--overhang 0] [--reseed 0] [--plain 0] [--fusion paper] [--camera PRESET]
-        [--laser-power DN] [--details] [--coverage]
+        [--laser-power DN] [--no-sheet-check] [--no-depth-check] [--details] [--coverage]
 
 Prints one line per sequence and the totals per group (markdown table).
 """
@@ -208,20 +208,23 @@ def sequences(n_random: int, n_overhang: int = 0,
     return out
 
 
-def detect_table(seq_dir: Path, fusion: str) -> pd.DataFrame:
+def detect_table(seq_dir: Path, fusion: str, sheet_check: bool = True,
+                 depth_check: bool = True) -> pd.DataFrame:
     """The detector's range table of a rendered sequence (what ranges.csv holds)."""
     seq = StereoSequence(seq_dir)
     rig = seq.rig()
-    det = Detector(rig, DetectParams(fusion_mode=fusion))
+    det = Detector(rig, DetectParams(fusion_mode=fusion, stereo_sheet_check=sheet_check,
+                                     laser_depth_check=depth_check))
     rows = []
     for f in seq.frames(rig):
         rows.append(det(f.left_bgr, f.right_bgr).table(f.index, f.time_s))
     return pd.concat(rows, ignore_index=True)
 
 
-def score(seq_dir: Path, fusion: str) -> tuple[pd.DataFrame, pd.DataFrame, int, int]:
+def score(seq_dir: Path, fusion: str, sheet_check: bool = True,
+          depth_check: bool = True) -> tuple[pd.DataFrame, pd.DataFrame, int, int]:
     """Wrong obstacle bins, phantom free bins, and the two bin counts of a sequence."""
-    table = detect_table(seq_dir, fusion)
+    table = detect_table(seq_dir, fusion, sheet_check, depth_check)
     truth = pd.read_csv(seq_dir / "gt" / "ranges.csv")
     j = table.merge(truth, on=["frame", "bearing_deg"])
     band = j[(j.range_m >= 0.6) & (j.range_m <= 3.0)]
@@ -252,6 +255,12 @@ def main() -> int:
                     help="render every scene with this laser.power_dn (DN at the reference "
                          "range; default: each scene's own, 900); its sequences are cached "
                          "apart")
+    ap.add_argument("--no-sheet-check", action="store_true",
+                    help="detect without its stereo sheet check (DetectParams."
+                         "stereo_sheet_check False), for comparison")
+    ap.add_argument("--no-depth-check", action="store_true",
+                    help="detect without the stripe's depth check (DetectParams."
+                         "laser_depth_check False), for comparison")
     ap.add_argument("--details", action="store_true", help="print every wrong bin")
     ap.add_argument("--coverage", action="store_true",
                     help="print how much of each missed bin's wedge the true obstacle fills")
@@ -271,7 +280,8 @@ def main() -> int:
         out = Path(args.cache) / name
         if not (out / "gt" / "ranges.csv").exists():
             render_sequence(scene_from_dict(d, name), rig, out, overwrite=True)
-        wrong, phantom, n_band, n_free = score(out, args.fusion)
+        wrong, phantom, n_band, n_free = score(out, args.fusion, not args.no_sheet_check,
+                                               not args.no_depth_check)
         totals.setdefault(group, np.zeros(4, int))
         totals[group] += [len(wrong), n_band, len(phantom), n_free]
         print(f"{name}: missed {len(wrong)}/{n_band}, phantom {len(phantom)}/{n_free}",

@@ -35,6 +35,7 @@ from slitcli.fusion import (
     FusionParams,
     fuse,
     laser_reach_m,
+    stereo_reaches_sheet,
     stripe_depth_agrees,
 )
 from slitcli.io.atomic import write_bytes_atomic, write_text_atomic
@@ -97,7 +98,9 @@ class DetectParams:
     obstacle parameters' own bin width so both sensors share the bins.
     ``laser_depth_check``: pieces of stripe whose pixels stereo sees clearly farther
     than the laser plane are dropped before the bins
-    (:func:`slitcli.fusion.stripe_depth_agrees`).
+    (:func:`slitcli.fusion.stripe_depth_agrees`). ``stereo_sheet_check``: the paper
+    fusion's silence rule leaves a stereo return where stereo sees the obstacle reach
+    down to the laser sheet (:func:`slitcli.fusion.stereo_reaches_sheet`).
     """
 
     laser: LaserParams = field(default_factory=LaserParams)
@@ -106,6 +109,7 @@ class DetectParams:
     fusion_mode: str = "paper"
     bin_deg: float = 1.0
     laser_depth_check: bool = True
+    stereo_sheet_check: bool = True
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.bin_deg <= 10.0:
@@ -115,6 +119,9 @@ class DetectParams:
         if not isinstance(self.laser_depth_check, bool):
             raise SlitcliError(f"`laser_depth_check` is {self.laser_depth_check!r}; give "
                                "true or false", param="laser_depth_check")
+        if not isinstance(self.stereo_sheet_check, bool):
+            raise SlitcliError(f"`stereo_sheet_check` is {self.stereo_sheet_check!r}; give "
+                               "true or false", param="stereo_sheet_check")
 
 
 @dataclass(frozen=True)
@@ -213,7 +220,7 @@ class Detector:
             mode=p.fusion_mode, laser_max_range_m=rig.laser.max_range_m,
             stereo_max_range_m=rig.stereo.max_range_m,
             focal_baseline_px_m=self.rectified_rig.left.fx_px * rig.baseline_m,
-            depth_check=p.laser_depth_check)
+            depth_check=p.laser_depth_check, sheet_check=p.stereo_sheet_check)
         self.bins = BearingBins.for_rig(self.rectified_rig, self.params.bin_deg)
         self._laser_geometry = LaserGeometry.from_rig(self.rectified_rig, self.params.laser)
         self._laser_sight_m = laser_sight_range_m(self.rectified_rig, self.bins.centres_deg)
@@ -274,8 +281,14 @@ class Detector:
                                    edges=edges)
         reach = laser_reach_m(self.bins.index(las.bearing_deg), las.range_m, las.strength_dn,
                               las.threshold_dn, las.noise_sigma_dn, len(self.bins), self.fusion)
+        at_sheet = None
+        if self.fusion.sheet_check and self.fusion.mode == "paper":
+            at_sheet = stereo_reaches_sheet(st.points_sensor_xyz, st.obstacle_mask,
+                                            self.bins.index, st.range_m, self.rectified_rig,
+                                            self.fusion)
         fused = fuse(lb.range_m, st.range_m, st.has_features, self.fusion,
-                     laser_sight_m=self._laser_sight_m, laser_reach_m=reach)
+                     laser_sight_m=self._laser_sight_m, laser_reach_m=reach,
+                     stereo_at_sheet=at_sheet)
         table = RangeTable(self.bins.centres_deg, lb.range_m, st.range_m, st.has_features,
                            fused.range_m, fused.source, fused.laser_free_m)
         return FrameDetection(las, st, fused, table)

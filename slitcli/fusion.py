@@ -48,14 +48,19 @@ the laser cannot tell). A steeper ``p`` credits the laser with less reach: the e
 errs towards keeping stereo. The certified range per bin is returned
 (:attr:`FusedRanges.laser_free_m`; ``ranges.csv``'s ``laser_free_m``).
 
-Two more cases where the paper's reading does not hold, and what this module does:
+Three more cases where the paper's reading does not hold, and what this module does:
 
 * the stereo return lies nearer than the laser can see at that bearing (the stripe
   of an obstacle there would fall below the image; ``laser_sight_m``): the laser's
   silence says nothing, so the stereo range is kept as it is;
 * the bin is next to one with a laser return in the band: the lit object's edge can
   enter this bin by less than one stripe column, so the silence is a matter of pixel
-  resolution, not of reach, and the stereo range is kept.
+  resolution, not of reach, and the stereo range is kept;
+* stereo sees the obstacle reach down to the sheet (:func:`stereo_reaches_sheet`:
+  points of its near surface at the sheet's height): the sheet then falls on it, and
+  the silence is the laser's miss (a face turned steeply away, dim under a codec),
+  not free space, so the stereo range is kept. An overhang above the sheet shows no
+  such points and is still moved out, as the paper's reading has it.
 
 Conservative mode: the plain minimum of the two returns.
 
@@ -68,6 +73,7 @@ stripe is not the laser's.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import KW_ONLY, dataclass
 from typing import TYPE_CHECKING
 
@@ -106,6 +112,11 @@ class FusionParams:
     with a stereo disparity, stereo's disparity is the median ``depth_share`` (unitless,
     of the laser plane's) and ``depth_px`` (pixels) smaller than the laser plane's at
     those pixels; the frame's longest piece always stays.
+
+    The sheet check (:func:`stereo_reaches_sheet`; ``sheet_check`` False: none): the
+    laser's silence does not move a stereo return out where at least ``sheet_min_px``
+    points of the bin's nearest stereo surface (within ``sheet_near_share`` of its
+    range, unitless) lie within ``sheet_tolerance_m`` (metres) of the sheet's height.
     """
 
     mode: str = "paper"
@@ -120,6 +131,10 @@ class FusionParams:
     depth_share: float = 0.05
     depth_px: float = 0.5
     depth_columns: int = 3
+    sheet_check: bool = True
+    sheet_tolerance_m: float = 0.05
+    sheet_near_share: float = 0.05
+    sheet_min_px: int = 3
 
     def __post_init__(self) -> None:
         if self.mode not in FUSION_MODES:
@@ -137,6 +152,13 @@ class FusionParams:
                                f"depth_columns >= 1, got {self.depth_share}, "
                                f"{self.depth_px} and {self.depth_columns}",
                                param=("depth_share", "depth_px", "depth_columns"))
+        if not (self.sheet_tolerance_m > 0 and self.sheet_near_share >= 0
+                and self.sheet_min_px >= 1):
+            raise SlitcliError(f"fusion needs sheet_tolerance_m > 0, sheet_near_share >= 0 "
+                               f"and sheet_min_px >= 1, got {self.sheet_tolerance_m}, "
+                               f"{self.sheet_near_share} and {self.sheet_min_px}",
+                               param=("sheet_tolerance_m", "sheet_near_share",
+                                      "sheet_min_px"))
         if not self.falloff_exponent > 0 or not self.certain_z >= 0:
             raise SlitcliError(f"fusion needs falloff_exponent > 0 and certain_z >= 0, got "
                                f"{self.falloff_exponent} and {self.certain_z}",
@@ -195,6 +217,61 @@ def laser_reach_m(column_bin: np.ndarray, column_range_m: np.ndarray,
     from_below = np.fmax.accumulate(own)
     from_above = np.fmax.accumulate(own[::-1])[::-1]
     return np.fmin(from_below, from_above)
+
+
+def stereo_reaches_sheet(points_sensor_xyz: np.ndarray, obstacle_mask: np.ndarray,
+                         bin_of_bearing: Callable[[np.ndarray], np.ndarray],
+                         stereo_range_m: np.ndarray, rig: Rig,
+                         params: FusionParams) -> np.ndarray:
+    """Which bins' nearest stereo obstacle reaches down to the laser sheet.
+
+    The laser sheet lies at a known height; an obstacle that stands in it is lit by it,
+    whatever its colour or angle, and one that overhangs it (a table top, a shelf) is
+    not. Stereo sees which: a bin's nearest surface (its obstacle points within
+    ``sheet_near_share`` of the bin's stereo range, plus 2 cm) reaches the sheet where
+    at least ``sheet_min_px`` of those points lie within ``sheet_tolerance_m`` of the
+    sheet's height above them (the plane ``n . X = d`` in the sensor frame, solved for
+    the height at the point's ground position). Only points up to 10 % beyond the
+    laser's maximum range are looked at: nearer ones alone can meet the paper fusion's
+    silence rule.
+
+    Parameters
+    ----------
+    points_sensor_xyz : ndarray, shape (H, W, 3), float
+        Stereo points, sensor frame (x forward, y left, z up), metres.
+    obstacle_mask : ndarray, shape (H, W), bool
+        Stereo's obstacle pixels.
+    bin_of_bearing : callable
+        Table bin of each bearing, degrees -> int (-1 outside;
+        :meth:`slitcli.ranges.BearingBins.index`).
+    stereo_range_m : ndarray, shape (B,)
+        Stereo's range per bin, metres (NaN none).
+    rig : Rig
+        Its laser plane (:meth:`~slitcli.rig.Rig.laser_plane_sensor`).
+    params : FusionParams
+
+    Returns
+    -------
+    ndarray, shape (B,), bool
+    """
+    stereo = np.asarray(stereo_range_m, dtype=float)
+    out = np.zeros(stereo.shape[0], bool)
+    n, d = rig.laser_plane_sensor()
+    if abs(n[2]) < 1e-6:
+        return out  # a vertical sheet has no height to reach
+    pts = np.asarray(points_sensor_xyz)
+    near = np.asarray(obstacle_mask, bool) & (pts[..., 0] <= 1.1 * params.laser_max_range_m)
+    x, y, z = (pts[..., i][near].astype(float) for i in range(3))
+    # the height test first: few obstacle points lie at the sheet's height
+    at = np.abs(z - (d - n[0] * x - n[1] * y) / n[2]) <= params.sheet_tolerance_m
+    x, y = x[at], y[at]
+    b = np.asarray(bin_of_bearing(np.degrees(np.arctan2(y, x))))
+    inside = b >= 0
+    r_bin = stereo[np.where(inside, b, 0)]
+    with np.errstate(invalid="ignore"):
+        on = inside & (np.hypot(x, y) <= r_bin * (1.0 + params.sheet_near_share) + 0.02)
+    count = np.bincount(b[on], minlength=stereo.shape[0])
+    return count[:stereo.shape[0]] >= params.sheet_min_px
 
 
 def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
@@ -293,7 +370,8 @@ def _piece_median(values: np.ndarray, piece: np.ndarray,
 def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
          stereo_has_features: np.ndarray, params: FusionParams, *,
          laser_sight_m: np.ndarray | None = None,
-         laser_reach_m: np.ndarray | None = None) -> FusedRanges:
+         laser_reach_m: np.ndarray | None = None,
+         stereo_at_sheet: np.ndarray | None = None) -> FusedRanges:
     """Combine laser and stereo ranges per bearing bin (paper Eq. 11).
 
     Parameters
@@ -311,6 +389,9 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
         How far the laser could have seen an obstacle in each bin this frame
         (:func:`laser_reach_m`; NaN: not at all). None: to its maximum range in every
         bin (the paper's reading, for callers without the stripe's evidence).
+    stereo_at_sheet : ndarray of bool, shape (B,), optional
+        Bins whose stereo obstacle reaches down to the sheet (:func:`stereo_reaches_sheet`):
+        the laser's silence does not move their stereo return out. None: none.
 
     Returns
     -------
@@ -344,6 +425,8 @@ def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,
     beside_lit[:-1] |= laser_in_band[1:]
     with np.errstate(invalid="ignore"):
         trust_silence = has_s & (stereo >= sight) & ~beside_lit & (stereo < free)
+    if stereo_at_sheet is not None:
+        trust_silence &= ~np.asarray(stereo_at_sheet, dtype=bool)
     silent_rng = np.where(trust_silence, free, stereo)
     silent_src = np.where(has_s, SOURCE_STEREO, SOURCE_NONE)
     rng = np.where(~feat, laser, np.where(laser_in_band, band_rng, silent_rng))

@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from slitcli.errors import SlitcliError
-from slitcli.fusion import FusionParams, fuse, laser_reach_m, stripe_depth_agrees
+from slitcli.fusion import (
+    FusionParams,
+    fuse,
+    laser_reach_m,
+    stereo_reaches_sheet,
+    stripe_depth_agrees,
+)
 
 NAN = np.nan
 # bins: (laser, stereo, has_features)
@@ -245,5 +251,73 @@ def test_stripe_depth_check_drops_light_on_farther_surfaces(seed):
 def test_stripe_depth_check_parameters_are_checked():
     for bad in ({"depth_share": 0.0}, {"depth_share": 1.0}, {"depth_px": -1.0},
                 {"depth_columns": 0}):
+        with pytest.raises(SlitcliError):
+            FusionParams(**bad)
+
+
+def test_laser_silence_about_an_obstacle_at_the_sheet_is_not_trusted():
+    # bins 0 and 1: stereo sees obstacles at 0.93 m the laser is silent about; bin 0's
+    # reaches down to the sheet (stereo_at_sheet): its range stands, bin 1's is moved out
+    laser, stereo = np.array([NAN, NAN, NAN]), np.array([0.93, 0.93, NAN])
+    at = np.array([True, False, False])
+    f = fuse(laser, stereo, np.ones(3, bool), FusionParams(), stereo_at_sheet=at)
+    np.testing.assert_allclose(f.range_m, [0.93, 1.0, NAN], equal_nan=True)
+    # conservative fusion keeps the nearer return anyway
+    c = fuse(laser, stereo, np.ones(3, bool), FusionParams(mode="conservative"),
+             stereo_at_sheet=at)
+    np.testing.assert_allclose(c.range_m, [0.93, 0.93, NAN], equal_nan=True)
+
+
+def _standing_and_overhang(rng: np.random.Generator):
+    """Stereo points (H, W, 3) and obstacle mask of two obstacles, both 0.9 m ahead
+    with their near faces 0.8-1.2 deg wide: in bins -10 .. -8 a box standing on the
+    floor (points from 6 cm up), in bins 8 .. 10 a slab whose underside is 25 cm up;
+    behind each, 2 m away, a wall reaching down to the floor (farther than the bins'
+    nearest surface)."""
+    h, w = 40, 60
+    pts = np.zeros((h, w, 3), np.float32)
+    mask = np.zeros((h, w), bool)
+    for c, (bearing, z0) in enumerate([(-9.0, 0.06), (9.0, 0.25)]):
+        b = np.radians(bearing + rng.uniform(-1.2, 1.2, (20, 20)))
+        r = 0.9 + rng.normal(0.0, 0.004, (20, 20))
+        z = z0 + np.linspace(0.0, 0.3, 20)[:, None] + rng.normal(0.0, 0.003, (20, 20))
+        block = np.stack([r * np.cos(b), r * np.sin(b), z], axis=-1)
+        pts[:20, c * 30:c * 30 + 20] = block
+        mask[:20, c * 30:c * 30 + 20] = True
+        wall_z = np.broadcast_to(np.linspace(0.0, 0.3, 20)[:, None], b.shape)
+        wall = np.stack([2.0 * np.cos(b), 2.0 * np.sin(b), wall_z], axis=-1)
+        pts[20:, c * 30:c * 30 + 20] = wall
+        mask[20:, c * 30:c * 30 + 20] = True
+    return pts, mask
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_stereo_reaches_sheet_tells_standing_from_overhanging(seed):
+    from slitcli.ranges import BearingBins
+    from slitcli.rig import paper_rig
+
+    rig = paper_rig()
+    n, d = rig.laser_plane_sensor()
+    sheet_z = d / n[2]  # the sheet's height in front of the paper rig (5 cm, level)
+    assert abs(sheet_z - 0.05) < 1e-9
+    pts, mask = _standing_and_overhang(np.random.default_rng(seed))
+    bins = BearingBins.for_rig(rig, 1.0)
+    stereo = np.full(len(bins), np.nan)
+    k = bins.index(np.array([-10.0, -9.0, -8.0, 8.0, 9.0, 10.0]))
+    stereo[k] = 0.9
+    at = stereo_reaches_sheet(pts, mask, bins.index, stereo, rig, FusionParams())
+    # the standing box's bins reach the sheet, the slab's and the empty ones do not (the
+    # wall behind the slab reaches the floor, but it is not the bin's nearest surface)
+    assert at[k[:3]].all() and not at[k[3:]].any()
+    assert at.sum() == 3
+    # the standing box lifted 10 cm off the floor (a cart's shelf): out of the sheet
+    lifted = pts.copy()
+    lifted[:20, :20, 2] += 0.10
+    assert not stereo_reaches_sheet(lifted, mask, bins.index, stereo, rig,
+                                    FusionParams()).any()
+
+
+def test_sheet_check_parameters_are_checked():
+    for bad in ({"sheet_tolerance_m": 0.0}, {"sheet_near_share": -0.1}, {"sheet_min_px": 0}):
         with pytest.raises(SlitcliError):
             FusionParams(**bad)

@@ -42,6 +42,11 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               help="Drop pieces of laser stripe whose pixels stereo sees more than 5 % and "
               "0.5 px of disparity farther than the laser plane (reddish texture below the "
               "sheet; the frame's longest piece always stays).")
+@click.option("--stereo-sheet-check/--no-stereo-sheet-check", default=True, show_default=True,
+              help="--fusion paper: keep a stereo return the laser is silent about where "
+              "stereo sees the obstacle reach down to the laser sheet (3 points within 5 cm "
+              "of its height): the sheet falls on it, so the silence is a miss, not free "
+              "space. Overhangs above the sheet are still moved out.")
 @click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Worker processes, 1-64, about 250 MB each (the table is byte-identical "
                    "for any number).")
@@ -55,7 +60,8 @@ from slitcli.cli.stereo import matcher_options, stereo_params
 def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
                cluster: str | None, chunk_frames: int | None, rig_path: Path | None,
                fusion: str, bin_deg: float, laser_depth_check: bool,
-               jobs: int, save_images: bool, left_topic: str, right_topic: str, max_dt: float,
+               stereo_sheet_check: bool, jobs: int, save_images: bool, left_topic: str,
+               right_topic: str, max_dt: float,
                on_bad_frame: str, overwrite: bool, **tuning: object) -> None:
     """Range obstacles per bearing bin: laser stripe (Eqs. 1-7), Eq. 10 stereo (Eqs. 8-10)
     and their fusion (Eq. 11), for a sequence folder or a ROS 1/2 bag.
@@ -87,7 +93,8 @@ def detect_cmd(sources: tuple[Path, ...], out: Path, inputs_file: Path | None,
     laser = {k: tuning.pop(k) for k in LASER_OPTION_NAMES}
     params = DetectParams(stereo=stereo_params(**tuning), laser=LaserParams(**laser),
                           fusion_mode=fusion, bin_deg=bin_deg,
-                          laser_depth_check=laser_depth_check)
+                          laser_depth_check=laser_depth_check,
+                          stereo_sheet_check=stereo_sheet_check)
     srcs = list(sources)
     if inputs_file is not None:
         from slitcli.multi import read_inputs_file

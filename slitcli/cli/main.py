@@ -29,6 +29,7 @@ PARAM_FLAGS: dict[str, str] = {
     "overwrite": "--overwrite", "max_dt_s": "--max-dt", "left_topic": "--left-topic",
     "right_topic": "--right-topic", "fusion_mode": "--fusion",
     "laser_depth_check": "--laser-depth-check",
+    "stereo_sheet_check": "--stereo-sheet-check",
     "range_column": "--range-column", "memory_s": "--memory-s", "period_s": "--period-s",
     "memory_cell_m": "--memory-cell-m", "goal_xy_m": "--goal",
     "sensing_range_m": "--sensing-range",
