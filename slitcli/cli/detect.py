@@ -44,8 +44,8 @@ from slitcli.cli.stereo import matcher_options, stereo_params
               "sheet; the frame's longest piece always stays).")
 @click.option("--stereo-sheet-check/--no-stereo-sheet-check", default=True, show_default=True,
               help="--fusion paper: keep a stereo return the laser is silent about where "
-              "stereo sees the obstacle reach down to the laser sheet (3 points within 5 cm "
-              "of its height): the sheet falls on it, so the silence is a miss, not free "
+              "stereo sees the obstacle reach down to the laser sheet (3 points at most 8 cm "
+              "above it): the sheet falls on it, so the silence is a miss, not free "
               "space. Overhangs above the sheet are still moved out.")
 @click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Worker processes, 1-64, about 250 MB each (the table is byte-identical "
