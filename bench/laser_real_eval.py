@@ -236,6 +236,7 @@ ABLATIONS = {
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
     "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
     "no luma test under 4:2:0 (luma_min_z 0)": {"luma_min_z": 0.0},
+    "widths on the evidence alone (luma_widths false)": {"luma_widths": False},
     "paper method": {"method": "paper"},
 }
 

@@ -134,6 +134,10 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "Under JPEG 4:2:0 chroma, drop a piece of stripe whose luma shows no light at its rows: "
      "least combined significance of the luma there (unitless); 0 = off.",
      None),
+    ("luma_widths",
+     "Under JPEG 4:2:0 chroma, a strong candidate too wide on its evidence is judged again "
+     "on its width fitted on the luma (the codec widens chroma beside colour edges).",
+     None),
     ("strong_share",
      "A column this many times --min-z significant is strong: a short segment of strong "
      "columns is kept, and such a fit on its own column is kept without the averaged one "

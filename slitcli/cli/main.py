@@ -90,7 +90,7 @@ PARAM_FLAGS: dict[str, str] = {
     "min_segment_share": "--min-segment-share", "min_stripe_share": "--min-stripe-share",
     "sheet_sigma_mm": "--sheet-sigma-mm", "sheet_tolerance": "--sheet-tolerance",
     "chroma_smoothness_max": "--chroma-smoothness-max", "luma_rows": "--luma-rows",
-    "luma_min_z": "--luma-min-z", "strong_share": "--strong-share",
+    "luma_min_z": "--luma-min-z", "luma_widths": "--luma-widths", "strong_share": "--strong-share",
     "gap_z_share": "--gap-z-share", "width_spread": "--width-spread",
     "laser_share_z": "--laser-share-z", "own_z": "--own-z", "choice_rounds": "--choice-rounds",
     "surface_step": "--surface-step", "surface_min_dn": "--surface-min-dn",

@@ -30,7 +30,7 @@ import numpy as np
 
 from slitcli.laser import candidates, choose, evidence, judge, luma, paper
 from slitcli.laser.params import LaserParams
-from slitcli.laser.profile import F_POS, F_Z, N_FIELDS
+from slitcli.laser.profile import F_POS, F_WIDTH, F_Z, N_FIELDS
 
 #: candidates kept per column
 K_BEST = 3
@@ -110,6 +110,7 @@ class _Evidence(NamedTuple):
     chan: np.ndarray       # noise per channel (b, g, r), floored, DN
     blur_var: float        # variance the chroma's processing adds to a profile, px^2
     clip_gb: tuple[int, int]  # green's and blue's clipping levels, DN
+    sigma_luma: float      # noise of the luma, DN (NaN: chroma not subsampled)
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
@@ -153,12 +154,14 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
     chan = np.maximum(chan, params.noise_floor_dn)
     # subsampled chroma (JPEG 4:2:0) blurs the evidence, which is chroma, across rows;
     # told from the image where it matters (the sheet test, the luma's test and rows)
-    subsampled = (sheet_test or params.luma_rows or params.luma_min_z > 0) and \
-        params.chroma_smoothness_max > 0 and \
+    subsampled = (sheet_test or params.luma_rows or params.luma_min_z > 0
+                  or params.luma_widths) and params.chroma_smoothness_max > 0 and \
         luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
+    sigma_luma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn) \
+        if subsampled else math.nan
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
                      float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0,
-                     clip_gb)
+                     clip_gb, sigma_luma)
 
 
 def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
@@ -234,11 +237,10 @@ def extract_stripe(left_bgr: np.ndarray, params: LaserParams, *,
                          sat.view(np.uint8))
     if ev.blur_var > 0.0 and (params.luma_min_z > 0 or params.luma_rows) and \
             np.isfinite(v).any():
-        sigma_luma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn)
         if params.luma_min_z > 0:
-            _luma_checked(v, amp, sat, cand, img_t, r0, ev, s_max, sigma_luma, params)
+            _luma_checked(v, amp, sat, cand, img_t, r0, ev, s_max, ev.sigma_luma, params)
         if params.luma_rows and np.isfinite(v).any():
-            v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, sigma_luma, params)
+            v = _luma_refined(v, sat, cand, img_t, r0, ev, s_max, ev.sigma_luma, params)
     return StripeColumns(v, amp, sat, float(sigma_y), float(seed), ev.chan, laser)
 
 
@@ -274,6 +276,34 @@ def _luma_refined(v: np.ndarray, sat: np.ndarray, cand: np.ndarray, img_t: np.nd
     smooth = np.empty_like(v_l)
     choose.smooth_rows(v_l, se_l, w_l, keep.view(np.uint8), params.max_jump_px, smooth)
     return luma.combined_rows(v, se_ev, smooth, se_l)
+
+
+def _luma_width_valid(cand: np.ndarray, ok: np.ndarray, img_t: np.ndarray, r0: int,
+                      ev: _Evidence, s_max: float, params: LaserParams,
+                      tests: dict) -> np.ndarray:
+    """(W, K) bool: the candidates that fail the tests of ``judge.valid_candidates``
+    (arguments ``tests``) on their evidence's width and pass them on their width fitted
+    on the luma (:func:`slitcli.laser.luma.luma_widths`). The luma's profile is the
+    light's; the tests allow for the evidence's 4:2:0 blur, so the luma's width is
+    compared with that added (``ev.blur_var``). Strong candidates only (``strong_share x
+    min_z``): the codec spreads a strong stripe's chroma beside a colour edge; a weaker
+    hump too wide for the sheet is as often the codec's chroma clutter, whose luma
+    shows the surface's texture (measured: a wall's clutter segment chosen over the
+    stripe through ``webcam``)."""
+    need = ~ok & (cand[..., F_Z] >= params.strong_share * params.min_z)
+    if not need.any():
+        return np.zeros_like(ok)
+    w_luma = luma.luma_widths(
+        img_t, ev.bg_t, cand, need, r0, sigma_dn=ev.sigma_luma, blur_var_px2=ev.blur_var,
+        shape_error=params.shape_error, max_chi2=params.max_chi2, s_max=s_max,
+        min_z=params.weak_z, saturation_dn=params.saturation_dn)
+    fitted = np.isfinite(w_luma)
+    if not fitted.any():
+        return np.zeros_like(ok)
+    as_luma = cand.copy()
+    as_luma[..., F_WIDTH] = np.where(fitted, np.sqrt(w_luma ** 2 + ev.blur_var),
+                                     cand[..., F_WIDTH])
+    return fitted & judge.valid_candidates(as_luma, **tests)[0]
 
 
 def _checked_inputs(left_bgr: np.ndarray, search_mask: np.ndarray | None,
@@ -318,14 +348,17 @@ def _judged_candidates(img_t: np.ndarray, mask_t: np.ndarray, r0: int, ev: _Evid
         # (column-major, as LaserGeometry holds it)
         candidates.sheet_width_px(cand, np.asfortranarray(px_per_m, dtype=np.float64),
                                   params.sheet_sigma_mm, sheet_px)
-    ok, laser = judge.valid_candidates(
-        cand, height_px=h, s_max=s_max, min_z=params.min_z, max_chi2=params.max_chi2,
-        min_th=params.min_th, min_delta_th=params.min_delta_th,
-        colour_error=params.colour_error, channel_sigma_dn=chan_sigma,
-        sheet_px=sheet_px, sheet_tolerance=params.sheet_tolerance,
-        sheet_support=round(params.min_stripe_share * w), blur_var_px2=ev.blur_var,
-        max_hue_deg=params.max_hue_deg, width_spread=params.width_spread,
-        laser_share_z=params.laser_share_z)
+    tests = {"height_px": h, "s_max": s_max, "min_z": params.min_z,
+             "max_chi2": params.max_chi2, "min_th": params.min_th,
+             "min_delta_th": params.min_delta_th, "colour_error": params.colour_error,
+             "channel_sigma_dn": chan_sigma, "sheet_px": sheet_px,
+             "sheet_tolerance": params.sheet_tolerance,
+             "sheet_support": round(params.min_stripe_share * w),
+             "blur_var_px2": ev.blur_var, "max_hue_deg": params.max_hue_deg,
+             "width_spread": params.width_spread, "laser_share_z": params.laser_share_z}
+    ok, laser = judge.valid_candidates(cand, **tests)
+    if params.luma_widths and ev.blur_var > 0.0:
+        ok |= _luma_width_valid(cand, ok, img_t, r0, ev, s_max, params, tests)
     # a candidate less than weak_z significant is never chosen (choose.best_path): the
     # tests on the image around it are spent on the others alone
     need = ok & (cand[..., F_Z] >= params.weak_z)

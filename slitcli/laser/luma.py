@@ -37,6 +37,7 @@ from slitcli.laser._c.luma import lag_medians as _lag_medians
 from slitcli.laser._c.luma import luma_column_z as _luma_column_z
 from slitcli.laser._c.luma import luma_rows as _luma_rows
 from slitcli.laser.choose import stripe_pieces
+from slitcli.laser.profile import F_POS, F_SAT
 
 #: variance the 4:2:0 chain adds to a profile across rows: the two-row mean (1/4 px^2)
 #: and the decoder's linear interpolation between samples two rows apart (a triangle of
@@ -128,6 +129,33 @@ def luma_rows(img_t: np.ndarray, bg_t: np.ndarray, v_px: np.ndarray, saturated: 
                blur_var_px2, shape_error, max_chi2, s_max, min_z, saturation_dn,
                v_out, se_out, w_out, se_ev)
     return v_out, se_out, w_out, se_ev
+
+
+def luma_widths(img_t: np.ndarray, bg_t: np.ndarray, cand: np.ndarray, need: np.ndarray,
+                row0: int, *, sigma_dn: float, blur_var_px2: float, shape_error: float,
+                max_chi2: float, s_max: float, min_z: float, saturation_dn: int
+                ) -> np.ndarray:
+    """The width of each candidate where ``need`` (W, K) bool, fitted on the luma.
+
+    Beside a colour edge a 4:2:0 codec spreads chroma, and with it the evidence, over
+    rows the light does not reach; the luma keeps the light's own profile. Each needed,
+    unclipped candidate of ``cand`` (W, K, N_FIELDS) is fitted on the luma at its row as
+    :func:`luma_rows` fits a found column (same window, tests and arguments).
+
+    Returns
+    -------
+    width_px : ndarray, shape (W, K), float64
+        The luma's sigma, px; NaN where not needed or no fit is kept.
+    """
+    out = np.full(need.shape, np.nan)
+    sat = np.asarray(cand[..., F_SAT] > 0)
+    for k in np.flatnonzero(need.any(axis=0)):
+        v = np.where(need[:, k], cand[:, k, F_POS], np.nan)
+        out[:, k] = luma_rows(img_t, bg_t, v, sat[:, k], cand, row0, sigma_dn=sigma_dn,
+                              blur_var_px2=blur_var_px2, shape_error=shape_error,
+                              max_chi2=max_chi2, s_max=s_max, min_z=min_z,
+                              saturation_dn=saturation_dn)[2]
+    return out
 
 
 #: median of chi-square with one degree of freedom: median(d^2) / this estimates the

@@ -161,6 +161,12 @@ class LaserParams:
         (``sum(z) / sqrt(n)``, :func:`slitcli.laser.luma.luma_segments`; unitless). The
         codec's chroma makes red bumps on colourful texture with no light behind them
         (docs/laser.md). 0 turns the test off.
+    luma_widths : bool
+        Under subsampled chroma (above), a strong candidate (``strong_share x min_z``)
+        that fails the width tests (the sheet's thickness, the frame's width spread) on
+        its evidence is judged again on its width fitted on the luma (full resolution;
+        :func:`slitcli.laser.luma.luma_widths`): beside a colour edge the codec's chroma
+        widens the evidence, not the light. False: the evidence's width alone.
     """
 
     method: str = "model"
@@ -192,6 +198,7 @@ class LaserParams:
     chroma_smoothness_max: float = 0.85
     luma_rows: bool = False
     luma_min_z: float = 2.0
+    luma_widths: bool = True
     strong_share: float = 2.0
     gap_z_share: float = 2.0 / 3.0
     width_spread: float = 2.5
@@ -234,6 +241,7 @@ class LaserParams:
             "chroma_smoothness_max": 0.0 <= self.chroma_smoothness_max <= 10.0,
             "luma_rows": isinstance(self.luma_rows, bool),
             "luma_min_z": 0.0 <= self.luma_min_z <= 10.0,
+            "luma_widths": isinstance(self.luma_widths, bool),
             "strong_share": 1.0 <= self.strong_share <= 100.0,
             "gap_z_share": 0.0 < self.gap_z_share <= 10.0,
             "width_spread": self.width_spread >= 1.0,
@@ -300,6 +308,7 @@ _RANGES = {
     "chroma_smoothness_max": "give a ratio in [0, 10] (0: off)",
     "luma_rows": "give true or false",
     "luma_min_z": "give a significance in [0, 10] (0: off)",
+    "luma_widths": "give true or false",
     "strong_share": "give a multiple of min_z in [1, 100]",
     "gap_z_share": "give a share of weak_z in (0, 10]",
     "width_spread": "give a factor >= 1 (inf: no frame width test)",
