@@ -291,9 +291,9 @@ def test_webcam_corridor_stripe_ends_judged_on_the_luma_widths():
     # silhouettes: the stripe's evidence there is 3-5 px wide and fails the sheet test,
     # its luma is the light's width. Near stripe columns (within 1.05 m) found within
     # 2 px, seeds 21-28, three frames each: with the luma widths never fewer on a seed,
-    # over the eight at least 3 % of them more (measured 999 against 929 of 1128,
-    # 6.2 %), and the near columns more than 3 px off grow by at most a quarter of the
-    # gain (measured 22 against 10)
+    # over the eight at least 3 % of them more (measured 1000 against 929 of 1128,
+    # 6.3 %), and the near columns more than 3 px off grow by at most a tenth of the
+    # gain (measured 13 against 14; given to weak candidates or to any colour, 22)
     on, off = LaserParams(), LaserParams(luma_widths=False)
     found = {"on": 0, "off": 0}
     wrong = {"on": 0, "off": 0}
@@ -318,4 +318,4 @@ def test_webcam_corridor_stripe_ends_judged_on_the_luma_widths():
             found[k] += seed_found[k]
     gain = found["on"] - found["off"]
     assert gain >= 0.03 * n_near
-    assert wrong["on"] - wrong["off"] <= 0.25 * gain
+    assert wrong["on"] - wrong["off"] <= 0.1 * gain

@@ -163,10 +163,11 @@ class LaserParams:
         (docs/laser.md). 0 turns the test off.
     luma_widths : bool
         Under subsampled chroma (above), a strong candidate (``strong_share x min_z``)
-        that fails the width tests (the sheet's thickness, the frame's width spread) on
-        its evidence is judged again on its width fitted on the luma (full resolution;
-        :func:`slitcli.laser.luma.luma_widths`): beside a colour edge the codec's chroma
-        widens the evidence, not the light. False: the evidence's width alone.
+        of the frame's laser colour that fails the width tests (the sheet's thickness,
+        the frame's width spread) on its evidence is judged again on its width fitted on
+        the luma (full resolution; :func:`slitcli.laser.luma.luma_widths`): beside a
+        colour edge the codec's chroma widens the evidence, not the light. False: the
+        evidence's width alone.
     """
 
     method: str = "model"
