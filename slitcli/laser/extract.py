@@ -110,7 +110,7 @@ class _Evidence(NamedTuple):
     chan: np.ndarray       # noise per channel (b, g, r), floored, DN
     blur_var: float        # variance the chroma's processing adds to a profile, px^2
     clip_gb: tuple[int, int]  # green's and blue's clipping levels, DN
-    sigma_luma: float      # noise of the luma, DN (NaN: chroma not subsampled)
+    sigma_luma: float      # noise of the luma, DN (NaN: not subsampled, or not used)
 
 
 def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.ndarray,
@@ -157,8 +157,9 @@ def _evidence(sub: np.ndarray, img_t: np.ndarray, mask_t: np.ndarray, chan: np.n
     subsampled = (sheet_test or params.luma_rows or params.luma_min_z > 0
                   or params.luma_widths) and params.chroma_smoothness_max > 0 and \
         luma.chroma_smoothness(img_t, luma.SMOOTHNESS_STEP) < params.chroma_smoothness_max
+    luma_used = params.luma_rows or params.luma_min_z > 0 or params.luma_widths
     sigma_luma = max(luma.luma_sigma(img_t, evidence.NOISE_STEP), params.noise_floor_dn) \
-        if subsampled else math.nan
+        if subsampled and luma_used else math.nan
     return _Evidence(y, y_avg, clipped, bg_t, float(sigma_y), float(sigma_avg),
                      float(noise_avg), chan, luma.CHAIN_VAR_PX2 if subsampled else 0.0,
                      clip_gb, sigma_luma)
