@@ -80,7 +80,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from slitcli.errors import SlitcliError
-from slitcli.ranges import bin_min
+from slitcli.ranges import bin_median, bin_min, median_of_finite
 
 if TYPE_CHECKING:
     from slitcli.rig import Rig
@@ -330,47 +330,20 @@ def stripe_depth_agrees(v_px: np.ndarray, disparity_px: np.ndarray, rig: Rig,
     disp = np.asarray(disparity_px)
     rows = np.clip(np.rint(v).astype(np.intp)[None, :] + np.arange(-2, 3)[:, None], 0,
                    disp.shape[0] - 1)
-    d_stereo = _finite_median(disp[rows, cols[None, :]].astype(float))
+    d_stereo = median_of_finite(disp[rows, cols[None, :]], axis=0)
     n_pieces = int(piece[-1]) + 1
-    ratio, n = _piece_median(d_stereo / d_laser, piece, n_pieces)
+    ratio, n = bin_median(piece, d_stereo / d_laser, n_pieces)
     seen = n >= params.depth_columns
     keep[cols] = True
     if not seen.any():
         return keep
-    diff, _ = _piece_median(d_stereo - d_laser, piece, n_pieces)
+    diff, _ = bin_median(piece, d_stereo - d_laser, n_pieces)
     with np.errstate(invalid="ignore"):
         wrong = seen & (ratio < 1.0 - params.depth_share) & (diff < -params.depth_px)
     length = np.bincount(piece, minlength=n_pieces)
     wrong[np.argmax(length)] = False
     keep[cols] = ~wrong[piece]
     return keep
-
-
-def _finite_median(values: np.ndarray) -> np.ndarray:
-    """Median of the finite entries of each column of ``values`` (K, N); NaN where none
-    (as ``np.nanmedian``, without its warning per empty column)."""
-    k = np.isfinite(values).sum(axis=0)
-    srt = np.sort(np.where(np.isfinite(values), values, np.inf), axis=0)
-    idx = np.arange(values.shape[1])
-    lo = srt[np.maximum((k - 1) // 2, 0), idx]
-    hi = srt[np.maximum(k // 2, 0), idx]
-    return np.where(k > 0, 0.5 * (lo + hi), np.nan)
-
-
-def _piece_median(values: np.ndarray, piece: np.ndarray,
-                  n_pieces: int) -> tuple[np.ndarray, np.ndarray]:
-    """Median of the finite ``values`` (N,) of each piece (``piece`` (N,), 0 ..
-    ``n_pieces - 1``) and how many there are; NaN where none."""
-    ok = np.isfinite(values)
-    p, x = piece[ok], values[ok]
-    order = np.lexsort((x, p))
-    p, x = p[order], x[order]
-    count = np.bincount(p, minlength=n_pieces)
-    start = np.concatenate(([0], np.cumsum(count)[:-1]))
-    med = np.full(n_pieces, np.nan)
-    has = count > 0
-    med[has] = 0.5 * (x[start[has] + (count[has] - 1) // 2] + x[start[has] + count[has] // 2])
-    return med, count
 
 
 def fuse(laser_range_m: np.ndarray, stereo_range_m: np.ndarray,

@@ -67,6 +67,41 @@ def bin_min(index: np.ndarray, values: np.ndarray, n_bins: int) -> np.ndarray:
     return np.where(np.isfinite(out), out, np.nan)
 
 
+def bin_median(index: np.ndarray, values: np.ndarray, n_bins: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Median of the finite values per bin, (n_bins,), NaN where a bin has none, and how
+    many finite values each bin holds, (n_bins,) int.
+
+    ``index`` holds table bins (``-1`` or out of range: ignored), same shape as
+    ``values``.
+    """
+    idx = np.asarray(index, dtype=np.int64).ravel()
+    v = np.asarray(values, dtype=np.float64).ravel()
+    ok = (idx >= 0) & (idx < n_bins) & np.isfinite(v)
+    idx, v = idx[ok], v[ok]
+    order = np.lexsort((v, idx))
+    idx, v = idx[order], v[order]
+    count = np.bincount(idx, minlength=n_bins)
+    start = np.concatenate(([0], np.cumsum(count)[:-1]))
+    med = np.full(n_bins, np.nan)
+    has = count > 0
+    med[has] = 0.5 * (v[start[has] + (count[has] - 1) // 2] + v[start[has] + count[has] // 2])
+    return med, count
+
+
+def median_of_finite(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Median of the finite entries of ``values`` along ``axis``, NaN where there are none
+    (``np.nanmedian`` without its per-call overhead and its warning per empty slice:
+    sorting puts NaN last)."""
+    a = np.moveaxis(np.asarray(values, dtype=np.float64), axis, 0)
+    srt = np.sort(a, axis=0)
+    n = np.isfinite(a).sum(axis=0)
+    last = max(a.shape[0] - 1, 0)
+    lo = np.take_along_axis(srt, np.clip((n - 1) // 2, 0, last)[None], axis=0)[0]
+    hi = np.take_along_axis(srt, np.clip(n // 2, 0, last)[None], axis=0)[0]
+    return np.where(n > 0, 0.5 * (lo + hi), np.nan)
+
+
 def bin_count(index: np.ndarray, n_bins: int, weights: np.ndarray | None = None
               ) -> np.ndarray:
     """Number of entries (or sum of ``weights``) per bin, (n_bins,)."""

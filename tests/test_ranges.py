@@ -14,9 +14,11 @@ from slitcli.ranges import (
     RangeTable,
     absolute_bin,
     bin_count,
+    bin_median,
     bin_min,
     boundary_deg,
     format_time_s,
+    median_of_finite,
     times_as_text,
 )
 from slitcli.rig import paper_rig
@@ -93,6 +95,27 @@ def test_bin_reductions_match_a_per_bin_loop(seed):
         want = v[sel].min() if sel.any() else np.nan
         assert got_min[k] == want or (math.isnan(want) and math.isnan(got_min[k]))
         assert got_n[k] == (idx == k).sum()
+    med, n_finite = bin_median(idx, v, n_bins)
+    for k in range(n_bins):
+        sel = (idx == k) & np.isfinite(v)
+        assert n_finite[k] == sel.sum()
+        if sel.any():
+            assert med[k] == pytest.approx(float(np.median(v[sel])), abs=0, rel=1e-15)
+        else:
+            assert math.isnan(med[k])
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_median_of_finite_along_either_axis(seed):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(7, 30))
+    a[rng.random(a.shape) < 0.3] = np.nan
+    a[:, 3] = np.nan  # a column without finite entries
+    for axis, slices in ((0, a.T), (1, a)):
+        got = median_of_finite(a, axis=axis)
+        for g, s in zip(got, slices, strict=True):
+            f = s[np.isfinite(s)]
+            assert (math.isnan(g) and f.size == 0) or g == pytest.approx(np.median(f))
 
 
 @pytest.mark.parametrize("seed", range(5))

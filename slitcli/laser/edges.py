@@ -16,6 +16,7 @@ import numpy as np
 
 from slitcli.laser._c.geometry import covered_shift
 from slitcli.laser.geometry import triangulate_stripe
+from slitcli.ranges import median_of_finite
 from slitcli.rig import Rig
 
 if TYPE_CHECKING:
@@ -72,16 +73,6 @@ class LaserEdges:
     bearing_deg: np.ndarray
 
 
-def _median_of_finite(a: np.ndarray) -> np.ndarray:
-    """Row medians of the finite entries of ``a`` (E, 3), NaN where a row has none
-    (``np.nanmedian`` without its per-call overhead: sorting puts NaN last)."""
-    srt = np.sort(a, axis=1)
-    n = np.isfinite(a).sum(axis=1)
-    lo = np.take_along_axis(srt, np.clip((n - 1) // 2, 0, 2)[:, None], axis=1)[:, 0]
-    hi = np.take_along_axis(srt, np.clip(n // 2, 0, 2)[:, None], axis=1)[:, 0]
-    return np.where(n > 0, 0.5 * (lo + hi), np.nan)
-
-
 def edge_reach_px(strength_dn: np.ndarray, saturated: np.ndarray,
                   params: EdgeParams | None = None) -> tuple[np.ndarray, np.ndarray]:
     """How far past the end column's centre a lit surface ends, from stripe strengths.
@@ -131,7 +122,7 @@ def edge_reach_px(strength_dn: np.ndarray, saturated: np.ndarray,
     s0, s1, s2, s3 = s[:, 0], s[:, 1], s[:, 2], s[:, 3]
     enough = np.isfinite(s[:, 1:p.min_inner_cols + 1]).all(axis=1)
     inner = np.where(sat[:, 1:4] | ~np.isfinite(s[:, 1:4]), np.nan, s[:, 1:4])
-    ref = _median_of_finite(inner)
+    ref = median_of_finite(inner, axis=1)
     has_ref = np.isfinite(ref)
     with np.errstate(invalid="ignore", divide="ignore"):
         cover = np.clip(s0 / ref, 0.0, 1.0) - 0.5
