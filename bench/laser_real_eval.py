@@ -234,7 +234,7 @@ ABLATIONS = {
     "overlapping fits both kept (one_crossing false)": {"one_crossing": False},
     "no surface test (surface_step inf)": {"surface_step": float("inf")},
     "fixed width limit 8 px (max_width_share 8/H)": {"max_width_share": None},
-    "rows refitted on the luma under 4:2:0 (luma_rows)": {"luma_rows": True},
+    "rows on the evidence alone (luma_rows false)": {"luma_rows": False},
     "no luma test under 4:2:0 (luma_min_z 0)": {"luma_min_z": 0.0},
     "widths on the evidence alone (luma_widths false)": {"luma_widths": False},
     "paper method": {"method": "paper"},

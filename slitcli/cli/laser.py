@@ -127,8 +127,8 @@ _LASER_OPTIONS: tuple[tuple[str, str, list[str] | None], ...] = (
      "taken for JPEG 4:2:0: the sheet test adds its blur; 0 = off (unitless).",
      None),
     ("luma_rows",
-     "Under JPEG 4:2:0 chroma, refit the rows on the luma and combine (helps on plain "
-     "surfaces, hurts on fine texture).",
+     "Under JPEG 4:2:0 chroma, fit the rows again on the luma (full resolution; from its "
+     "own peak within two of the evidence's sigmas) and combine them with the evidence's.",
      None),
     ("luma_min_z",
      "Under JPEG 4:2:0 chroma, drop a piece of stripe whose luma shows no light at its rows: "

@@ -151,9 +151,11 @@ class LaserParams:
         fainter one is out; False: both kept.
     luma_rows : bool
         Under subsampled chroma (above), fit each found column's row again on the luma
-        (full resolution) and combine it with the evidence's row by their variances
-        (:func:`slitcli.laser.luma.combined_rows`). Off by default: it helps where the
-        surface under the stripe is plain and hurts on fine texture (docs/laser.md).
+        (full resolution), from the luma's own peak within two of the evidence's sigmas
+        of its row (:func:`slitcli.laser.luma.luma_rows`), and combine it with the
+        evidence's row by their variances (:func:`slitcli.laser.luma.combined_rows`): the
+        camera's chroma processing blurs and can displace the evidence's hump, the luma
+        marks the light. False: the evidence's rows.
     luma_min_z : float
         Under subsampled chroma (above), a piece of stripe whose luma does not show the
         laser's light is dropped: the luma's matched filter at the stripe's rows, over
@@ -197,7 +199,7 @@ class LaserParams:
     sheet_sigma_mm: float = 4.0
     sheet_tolerance: float = 1.6
     chroma_smoothness_max: float = 0.85
-    luma_rows: bool = False
+    luma_rows: bool = True
     luma_min_z: float = 2.0
     luma_widths: bool = True
     strong_share: float = 2.0

@@ -10,7 +10,8 @@ import numpy as np
 from libc.math cimport NAN, ceil, fabs, isfinite, rint, sqrt
 
 from slitcli.laser._c.fields cimport F_POS, F_SE_POS, F_WIDTH
-from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, linear_z, pmax, pmin
+from slitcli.laser._c.profile cimport (MIN_SIGMA_PX, fit_gaussian, flat_top, imax, imin,
+                                       linear_z, pmax, pmin)
 
 #: rows either side whose luma gives a fit's local noise; residuals beyond CLIP_SIGMAS
 #: global sigmas count as that many (an edge); the mean absolute lag-2 residual over
@@ -18,6 +19,9 @@ from slitcli.laser._c.profile cimport fit_gaussian, imax, imin, linear_z, pmax, 
 cdef Py_ssize_t NOISE_HALF = 24
 cdef double CLIP_SIGMAS = 5.0
 cdef double MEAN_TO_SIGMA = sqrt(3.141592653589793 / 2.0) / sqrt(1.5)
+#: narrowest width a sought fit starts from (the candidates' seeds', slitcli.laser.
+#: candidates.SEED_MIN_SIGMA_PX)
+cdef double SEEK_MIN_SIGMA_PX = 0.6
 
 # the luma's weights of (b, g, r), ITU-R BT.601 as JPEG's YCbCr (JFIF)
 cdef double W_B = 0.114
@@ -81,18 +85,44 @@ cdef inline void _luma_window(const unsigned char[:, :, ::1] img,
         use[jj] = px[0] < sat_dn and px[1] < sat_dn and px[2] < sat_dn
 
 
+cdef inline Py_ssize_t _luma_peak(const float* yl, const unsigned char* use, Py_ssize_t m,
+                                  Py_ssize_t j0, double v, double reach) noexcept nogil:
+    """The used row of the window ``yl`` (m rows from image row ``j0``) of the largest
+    luma contrast within ``reach`` rows of ``v``; -1 none."""
+    cdef Py_ssize_t jj, k = -1
+    for jj in range(m):
+        if use[jj] and fabs(j0 + jj - v) <= reach and (k < 0 or yl[jj] > yl[k]):
+            k = jj
+    return k
+
+
+cdef inline double _half_width(const float* yl, const unsigned char* use, Py_ssize_t m,
+                               Py_ssize_t k) noexcept nogil:
+    """The half-maximum width over 2.355 of the hump whose peak is row ``k`` of the
+    window (the rows at or above half its peak, used and contiguous), px."""
+    cdef Py_ssize_t lo = k, hi = k
+    cdef double half = 0.5 * yl[k]
+    while lo > 0 and use[lo - 1] and yl[lo - 1] >= half:
+        lo -= 1
+    while hi < m - 1 and use[hi + 1] and yl[hi + 1] >= half:
+        hi += 1
+    return (hi - lo + 1) / 2.355
+
+
 cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
                            const unsigned char[:, ::1] bg, Py_ssize_t i, double v,
                            double s_ev, Py_ssize_t row0, double sigma_dn, double blur_var_px2,
                            double shape_error, double max_chi2, double s_max, double min_z,
-                           int sat_dn, float* yl, unsigned char* use, double* ebuf,
-                           double* out) noexcept nogil:
+                           int sat_dn, double reach_sigmas, bint seek, float* yl,
+                           unsigned char* use, double* ebuf, double* out) noexcept nogil:
     """The luma's fit of column ``i`` near row ``v`` (image rows) from the evidence's
     width ``s_ev`` (module function :func:`luma_rows`); ``out`` (6,) as
     :func:`fit_gaussian`'s; False where none is kept."""
-    cdef Py_ssize_t h = img.shape[1], j, a, b, m
-    cdef double s0
+    cdef Py_ssize_t h = img.shape[1], j, a, b, m, k, jj
+    cdef double s0, start = v, reach, base
+    cdef bint ok
     s_ev = pmin(s_ev if isfinite(s_ev) else 1.0, s_max)
+    reach = reach_sigmas * pmax(1.0, s_ev)
     s0 = sqrt(pmax(s_ev * s_ev - blur_var_px2, 0.36))
     j = <Py_ssize_t>rint(v) - row0
     a = imax(j - <Py_ssize_t>ceil(3.0 * s_ev) - 3, 0)
@@ -102,19 +132,40 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
         return False
     sigma_dn = _local_sigma(img, i, j, j - a, sigma_dn)
     _luma_window(img, bg, i, a, m, sat_dn, yl, use)
-    if not fit_gaussian(yl, use, m, row0 + a, v, s0, sigma_dn, shape_error, s_max, out,
-                        ebuf, NULL):
-        return False
-    return out[3] >= min_z and out[5] <= max_chi2 and out[2] <= s_max and \
-        fabs(out[0] - v) <= pmax(1.0, s_ev)
+    if seek:
+        # from the luma's own peak in reach, at that hump's width
+        k = _luma_peak(yl, use, m, row0 + a, v, reach)
+        if k < 0:
+            return False
+        start = row0 + a + k
+        s0 = pmin(pmax(_half_width(yl, use, m, k), SEEK_MIN_SIGMA_PX), s_max)
+    ok = fit_gaussian(yl, use, m, row0 + a, start, s0, sigma_dn, shape_error, s_max, out,
+                      ebuf, NULL)
+    if seek and not (ok and out[5] <= max_chi2 and out[3] >= min_z
+                     and out[2] >= MIN_SIGMA_PX):
+        # a hump the Gaussian does not describe, centred by its upper half as the
+        # evidence's flat tops: one that fails the shape test (a camera's sharpening
+        # rings beside a thin line), or a line thinner than a row, whose width and peak
+        # the rows cannot tell apart (the fit narrows below a pixel's own extent and
+        # its peak's error grows without bound); a centre of gravity over so few rows is
+        # no better than the rows' own extent allows
+        base = 1e300
+        for jj in range(m):
+            if use[jj]:
+                base = pmin(base, yl[jj])
+        ok = flat_top(yl, use, m, row0 + a, start, base, sigma_dn, out)
+        if ok:
+            out[4] = pmax(out[4], MIN_SIGMA_PX / pmax(1.0, 2.355 * out[2]))
+    return ok and out[3] >= min_z and out[5] <= max_chi2 and out[2] <= s_max and \
+        fabs(out[0] - v) <= reach
 
 
 def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg,
               const double[::1] v, const unsigned char[::1] sat,
               const double[:, :, ::1] cand, Py_ssize_t row0, double sigma_dn,
               double blur_var_px2, double shape_error, double max_chi2, double s_max,
-              double min_z, int sat_dn, double[::1] v_out, double[::1] se_out,
-              double[::1] w_out, double[::1] se_ev_out) -> Py_ssize_t:
+              double min_z, int sat_dn, double reach_sigmas, bint seek, double[::1] v_out,
+              double[::1] se_out, double[::1] w_out, double[::1] se_ev_out) -> Py_ssize_t:
     """Each found column's row fitted again on the luma's contrast; returns how many.
 
     Parameters
@@ -143,10 +194,17 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
         Least significance of the luma's peak.
     sat_dn : int
         Rows with any channel at or above this are left out.
+    reach_sigmas : float
+        The luma's row is kept within this many of the evidence's sigmas (at least a
+        pixel each) of ``v``.
+    seek : bool
+        Start from the luma's own peak within that reach (at its hump's half-maximum
+        width), and centre a hump that is no Gaussian by its upper half; False: the
+        Gaussian from ``v`` at the evidence's width less the blur.
     v_out, se_out, w_out : ndarray, shape (W,), float64
         Out: the luma's row, its standard error and its sigma, px (NaN where no fit is
-        kept: not significant, not a Gaussian within the model error, or more than the
-        evidence's sigma (at least a pixel) away from ``v``).
+        kept: not significant, not a Gaussian within the model error (without ``seek``),
+        or beyond the reach).
     se_ev_out : ndarray, shape (W,), float64
         Out: the standard error of the evidence's fit nearest ``v``, px (NaN none).
     """
@@ -177,8 +235,8 @@ def luma_rows(const unsigned char[:, :, ::1] img, const unsigned char[:, ::1] bg
             if best >= 0:
                 se_ev_out[i] = cand[i, best, F_SE_POS]
             if not _luma_fit(img, bg, i, v[i], s_ev, row0, sigma_dn, blur_var_px2,
-                             shape_error, max_chi2, s_max, min_z, sat_dn, &yl[0], &use[0],
-                             &ebuf[0], out):
+                             shape_error, max_chi2, s_max, min_z, sat_dn, reach_sigmas, seek,
+                             &yl[0], &use[0], &ebuf[0], out):
                 continue
             v_out[i] = out[0]
             se_out[i] = out[4]
