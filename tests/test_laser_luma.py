@@ -87,6 +87,34 @@ def test_combined_rows_follow_the_luma_where_the_evidence_is_off(seed):
     assert np.array_equal(out3[:50], v_ev[:50])
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_consistent_offsets_keep_a_pieces_own_displacement(seed):
+    rng = np.random.default_rng(seed)
+    w = 120
+    v_ev = np.full(w, np.nan)
+    # two pieces: rows 100 + a slope on columns 5-54, rows 150 on 65-114 (apart by more
+    # than a gap, and by far more than a jump)
+    v_ev[5:55] = 100.0 + 0.05 * np.arange(50)
+    v_ev[65:115] = 150.0
+    # the luma displaced by the chroma's offset, one per piece and slowly varying, plus
+    # the fits' noise (0.1 px) ...
+    v_l = v_ev.copy()
+    v_l[5:55] += -2.5 + 0.3 * np.sin(np.arange(50) / 8.0) + rng.normal(0.0, 0.1, 50)
+    v_l[65:115] += 1.5 + rng.normal(0.0, 0.1, 50)
+    # ... but for scattered columns drawn to luma texture, 1.5-3 px off their piece's
+    # offset, and a few without a luma row
+    odd = rng.choice(np.r_[5:55, 65:115], 10, replace=False)
+    v_l[odd] += rng.choice([-1.0, 1.0], 10) * rng.uniform(1.5, 3.0, 10)
+    none = rng.choice(np.setdiff1d(np.r_[5:55, 65:115], odd), 4, replace=False)
+    v_l[none] = np.nan
+    keep = luma.consistent_offsets(v_ev, v_l, max_gap=2, max_jump_px=3.0)
+    good = np.isfinite(v_ev) & np.isfinite(v_l)
+    good[odd] = False
+    # each piece's own displacement is kept (the other piece's, 4 px away, is not
+    # mixed into its medians), the odd columns are not, nor columns without both rows
+    assert np.array_equal(keep, good)
+
+
 def _wall(seed, contrast, camera=None, forward_m=0.8):
     d = {"slitcli_scene": 1, "name": "wall", "seed": seed,
          "objects": [{"type": "wall", "from_xy_m": [forward_m, -3.0],

@@ -266,14 +266,17 @@ def _luma_refined(v: np.ndarray, sat: np.ndarray, cand: np.ndarray, img_t: np.nd
                   params: LaserParams) -> np.ndarray:
     """The rows ``v`` (W,) found on the evidence of an image with subsampled chroma, fitted
     again on the luma (noise ``sigma_luma``, DN) where it shows the stripe
-    (:func:`slitcli.laser.luma.luma_rows`), smoothed along the segments as the evidence's
-    rows are, and combined with them by their variances
-    (:func:`slitcli.laser.luma.combined_rows`)."""
+    (:func:`slitcli.laser.luma.luma_rows`) and its offset from the evidence's row
+    agrees with its neighbours' (:func:`slitcli.laser.luma.consistent_offsets`),
+    smoothed along the segments as the evidence's rows are, and combined with them by
+    their variances (:func:`slitcli.laser.luma.combined_rows`)."""
     v_l, se_l, w_l, se_ev = luma.luma_rows(
         img_t, ev.bg_t, v, sat, cand, r0, sigma_dn=sigma_luma, blur_var_px2=ev.blur_var,
         shape_error=params.shape_error, max_chi2=params.max_chi2, s_max=s_max,
         min_z=params.weak_z, saturation_dn=params.saturation_dn)
-    keep = np.isfinite(v_l)
+    keep = luma.consistent_offsets(v, v_l, max_gap=choose.MAX_GAP,
+                                   max_jump_px=params.max_jump_px)
+    v_l[~keep] = np.nan
     smooth = np.empty_like(v_l)
     choose.smooth_rows(v_l, se_l, w_l, keep.view(np.uint8), params.max_jump_px, smooth)
     return luma.combined_rows(v, se_ev, smooth, se_l)

@@ -57,6 +57,13 @@ _BIN_DN = 0.25
 #: the camera's processing, and the light lies within it (inside two sigmas of a
 #: Gaussian hump: where it is above 1/e^2 of its peak)
 ROW_REACH_SIGMAS = 2.0
+#: :func:`consistent_offsets`: the columns either side of a column whose offsets give its
+#: local median (within one piece of stripe)
+OFFSET_HALF_COLS = 8
+#: :func:`consistent_offsets`: a column's offset may differ from the local median by at
+#: most this much, px (the evidence's own row error, the 4:2:0 grid's phase, reaches
+#: about half a pixel)
+OFFSET_TOL_PX = 1.0
 
 
 def chroma_smoothness(img_t: np.ndarray, step: int) -> float:
@@ -175,6 +182,44 @@ def luma_widths(img_t: np.ndarray, bg_t: np.ndarray, cand: np.ndarray, need: np.
                               max_chi2=max_chi2, s_max=s_max, min_z=min_z,
                               saturation_dn=saturation_dn, seek=False)[2]
     return out
+
+
+def consistent_offsets(v_ev: np.ndarray, v_luma: np.ndarray, *, max_gap: int,
+                       max_jump_px: float) -> np.ndarray:
+    """Which columns' luma rows (W,) follow the light: their offset from the evidence's
+    row ``v_ev`` (W,) agrees with the offsets of their neighbours on the stripe.
+
+    The evidence's hump is displaced from the light by the camera's chroma processing,
+    the same way along a piece of stripe (one surface, one camera) but for the grid's
+    phase; the luma's peak within reach of a piece of codec clutter, or on strong
+    texture, is wherever the luma's texture puts it. So a column keeps its luma row
+    only where its offset ``v_luma - v_ev`` lies within :data:`OFFSET_TOL_PX` of the
+    median offset of its piece's columns (:func:`~slitcli.laser.choose.stripe_pieces`
+    of ``v_ev`` with ``max_gap`` and ``max_jump_px``) within :data:`OFFSET_HALF_COLS`
+    either side, itself included.
+
+    Returns
+    -------
+    keep : ndarray, shape (W,), bool
+        False where ``v_luma`` or ``v_ev`` is NaN or the offset disagrees.
+    """
+    keep = np.zeros(v_ev.shape[0], bool)
+    cols, piece = stripe_pieces(v_ev, max_gap, max_jump_px)
+    d = v_luma[cols] - v_ev[cols]
+    has = np.isfinite(d)
+    if not has.any():
+        return keep
+    h = OFFSET_HALF_COLS
+    d_pad = np.concatenate([np.full(h, np.nan), d, np.full(h, np.nan)])
+    p_pad = np.concatenate([np.full(h, -1), piece, np.full(h, -1)])
+    # the window of each found column with a luma row: its piece's offsets only (a row
+    # holds at least its own, so no median is of nothing)
+    win = np.lib.stride_tricks.sliding_window_view(d_pad, 2 * h + 1)[has].copy()
+    win[np.lib.stride_tricks.sliding_window_view(p_pad, 2 * h + 1)[has]
+        != piece[has, None]] = np.nan
+    local = np.nanmedian(win, axis=1)
+    keep[cols[has]] = np.abs(d[has] - local) <= OFFSET_TOL_PX
+    return keep
 
 
 #: median of chi-square with one degree of freedom: median(d^2) / this estimates the
