@@ -18,15 +18,14 @@ from slitcli.laser._c.fields cimport (F_AMP, F_CHI2, F_FLAT, F_GNOISE, F_KB, F_K
                                       F_NCORE, F_NOISE, F_POS, F_SAT, F_SE_POS, F_TB, F_TG,
                                       F_TR, F_WIDTH, F_Z, N_FIELDS)
 from slitcli.laser._c.profile cimport (CONVERGED_PX, MAX_ITER, MIN_ROWS, MIN_SIGMA_PX, N_PAR,
-                                       clip_plateau, fit_gaussian, flat_top, gaussian_rows,
-                                       imax, imin, linear_z, pmax, pmin, real,
-                                       screen_sums)
+                                       SEED_MIN_SIGMA_PX, clip_plateau, fit_gaussian,
+                                       flat_top, gaussian_rows, half_max_sigma, imax, imin,
+                                       linear_z, pmax, pmin, real, screen_sums, used_min)
 from slitcli.laser._c.seeds cimport (CLIP_SIGMAS, FLANK_ROWS, MEAN_TO_SIGMA, N_SEEDS, NMS_HALF,
                                      NOISE_HALF, _local_sigma, _seeds)
 
 # (slitcli.laser.candidates' constants, as seeds.pxd's; tests/test_laser_kernels.py checks
 # that they agree)
-cdef double SEED_MIN_SIGMA_PX = 0.6
 cdef double SEED_EFFICIENCY = exp(-0.25 / (4.0 * (SEED_MIN_SIGMA_PX * SEED_MIN_SIGMA_PX)))
 
 
@@ -212,14 +211,10 @@ cdef inline bint _flat_if_needed(const float* yi, const unsigned char* use, Py_s
                                  bint* flat) noexcept nogil:
     """A held fit ``res`` whose reduced chi-square exceeds ``max_chi2`` tried as a flat
     top (``flat``, in place); returns ``ok``."""
-    cdef double base
     cdef Py_ssize_t jj
     if ok and res[5] > pr.max_chi2:
-        base = 1e300
-        for jj in range(m):
-            if use[jj]:
-                base = pmin(base, yi[j0 + jj])
-        if flat_top(yi + j0, use, m, j0, centre, base, sig[0], scratch):
+        if flat_top(yi + j0, use, m, j0, centre, used_min(yi + j0, use, m), sig[0],
+                    scratch):
             for jj in range(6):
                 res[jj] = scratch[jj]
             flat[0] = True
@@ -254,19 +249,11 @@ cdef inline double _seed_width(const float* ya, const unsigned char* mi, Py_ssiz
                                double s_max) noexcept nogil:
     """The width a seed's fit starts from: a clipped core's half length, else the
     averaged evidence's half-maximum width over 2.355; at most ``s_max``."""
-    cdef double s0, half
-    cdef Py_ssize_t lo, hi
+    cdef double s0
     if sat:
         s0 = pmax(0.5 * (b - a), 0.8)
     else:
-        half = 0.5 * ya[a]
-        lo = a
-        while lo > 0 and ya[lo - 1] >= half and mi[lo - 1]:
-            lo -= 1
-        hi = a
-        while hi < n - 1 and ya[hi + 1] >= half and mi[hi + 1]:
-            hi += 1
-        s0 = pmax((hi - lo + 1) / 2.355, SEED_MIN_SIGMA_PX)
+        s0 = pmax(half_max_sigma(ya, mi, n, a), SEED_MIN_SIGMA_PX)
     return pmin(s0, s_max)
 
 

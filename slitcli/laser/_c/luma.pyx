@@ -10,8 +10,9 @@ import numpy as np
 from libc.math cimport NAN, ceil, fabs, isfinite, rint, sqrt
 
 from slitcli.laser._c.fields cimport F_POS, F_SE_POS, F_WIDTH
-from slitcli.laser._c.profile cimport (MIN_SIGMA_PX, fit_gaussian, flat_top, imax, imin,
-                                       linear_z, pmax, pmin)
+from slitcli.laser._c.profile cimport (MIN_SIGMA_PX, SEED_MIN_SIGMA_PX, fit_gaussian,
+                                       flat_top, half_max_sigma, imax, imin, linear_z, pmax,
+                                       pmin, used_min)
 
 #: rows either side whose luma gives a fit's local noise; residuals beyond CLIP_SIGMAS
 #: global sigmas count as that many (an edge); the mean absolute lag-2 residual over
@@ -19,9 +20,6 @@ from slitcli.laser._c.profile cimport (MIN_SIGMA_PX, fit_gaussian, flat_top, ima
 cdef Py_ssize_t NOISE_HALF = 24
 cdef double CLIP_SIGMAS = 5.0
 cdef double MEAN_TO_SIGMA = sqrt(3.141592653589793 / 2.0) / sqrt(1.5)
-#: narrowest width a sought fit starts from (the candidates' seeds', slitcli.laser.
-#: candidates.SEED_MIN_SIGMA_PX)
-cdef double SEEK_MIN_SIGMA_PX = 0.6
 
 # the luma's weights of (b, g, r), ITU-R BT.601 as JPEG's YCbCr (JFIF)
 cdef double W_B = 0.114
@@ -96,19 +94,6 @@ cdef inline Py_ssize_t _luma_peak(const float* yl, const unsigned char* use, Py_
     return k
 
 
-cdef inline double _half_width(const float* yl, const unsigned char* use, Py_ssize_t m,
-                               Py_ssize_t k) noexcept nogil:
-    """The half-maximum width over 2.355 of the hump whose peak is row ``k`` of the
-    window (the rows at or above half its peak, used and contiguous), px."""
-    cdef Py_ssize_t lo = k, hi = k
-    cdef double half = 0.5 * yl[k]
-    while lo > 0 and use[lo - 1] and yl[lo - 1] >= half:
-        lo -= 1
-    while hi < m - 1 and use[hi + 1] and yl[hi + 1] >= half:
-        hi += 1
-    return (hi - lo + 1) / 2.355
-
-
 cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
                            const unsigned char[:, ::1] bg, Py_ssize_t i, double v,
                            double s_ev, Py_ssize_t row0, double sigma_dn, double blur_var_px2,
@@ -118,8 +103,8 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
     """The luma's fit of column ``i`` near row ``v`` (image rows) from the evidence's
     width ``s_ev`` (module function :func:`luma_rows`); ``out`` (6,) as
     :func:`fit_gaussian`'s; False where none is kept."""
-    cdef Py_ssize_t h = img.shape[1], j, a, b, m, k, jj
-    cdef double s0, start = v, reach, base
+    cdef Py_ssize_t h = img.shape[1], j, a, b, m, k
+    cdef double s0, start = v, reach
     cdef bint ok
     s_ev = pmin(s_ev if isfinite(s_ev) else 1.0, s_max)
     reach = reach_sigmas * pmax(1.0, s_ev)
@@ -138,7 +123,7 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
         if k < 0:
             return False
         start = row0 + a + k
-        s0 = pmin(pmax(_half_width(yl, use, m, k), SEEK_MIN_SIGMA_PX), s_max)
+        s0 = pmin(pmax(half_max_sigma(yl, use, m, k), SEED_MIN_SIGMA_PX), s_max)
     ok = fit_gaussian(yl, use, m, row0 + a, start, s0, sigma_dn, shape_error, s_max, out,
                       ebuf, NULL)
     if seek and not (ok and out[5] <= max_chi2 and out[3] >= min_z
@@ -149,11 +134,7 @@ cdef inline bint _luma_fit(const unsigned char[:, :, ::1] img,
         # the rows cannot tell apart (the fit narrows below a pixel's own extent and
         # its peak's error grows without bound); a centre of gravity over so few rows is
         # no better than the rows' own extent allows
-        base = 1e300
-        for jj in range(m):
-            if use[jj]:
-                base = pmin(base, yl[jj])
-        ok = flat_top(yl, use, m, row0 + a, start, base, sigma_dn, out)
+        ok = flat_top(yl, use, m, row0 + a, start, used_min(yl, use, m), sigma_dn, out)
         if ok:
             out[4] = pmax(out[4], MIN_SIGMA_PX / pmax(1.0, 2.355 * out[2]))
     return ok and out[3] >= min_z and out[5] <= max_chi2 and out[2] <= s_max and \

@@ -22,9 +22,12 @@ cdef extern from *:
     """
     #define SLITCLI_CONVERGED_PX 0.005
     #define SLITCLI_MIN_SIGMA_PX 0.3
+    #define SLITCLI_SEED_MIN_SIGMA_PX 0.6
     """
     const double CONVERGED_PX "SLITCLI_CONVERGED_PX"
     const double MIN_SIGMA_PX "SLITCLI_MIN_SIGMA_PX"
+    # narrowest width a fit starts from at a seed (slitcli.laser.candidates')
+    const double SEED_MIN_SIGMA_PX "SLITCLI_SEED_MIN_SIGMA_PX"
 
 # The sums of the normal equations over a window's rows, with the 20 accumulators in five
 # 4-lane GCC vectors: each lane sums its own product row after row, the same IEEE
@@ -99,6 +102,30 @@ cdef inline Py_ssize_t imax(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
 
 cdef inline Py_ssize_t imin(Py_ssize_t a, Py_ssize_t b) noexcept nogil:
     return b if b < a else a
+
+
+cdef inline double half_max_sigma(const float* y, const unsigned char* use, Py_ssize_t n,
+                                  Py_ssize_t k) noexcept nogil:
+    """The half-maximum width over 2.355 of the hump of ``y`` (n rows) whose peak is row
+    ``k``: the contiguous used rows at or above half its peak, px."""
+    cdef Py_ssize_t lo = k, hi = k
+    cdef double half = 0.5 * y[k]
+    while lo > 0 and y[lo - 1] >= half and use[lo - 1]:
+        lo -= 1
+    while hi < n - 1 and y[hi + 1] >= half and use[hi + 1]:
+        hi += 1
+    return (hi - lo + 1) / 2.355
+
+
+cdef inline double used_min(const float* y, const unsigned char* use,
+                            Py_ssize_t m) noexcept nogil:
+    """The least of ``y`` (m rows) over the used rows (1e300 none): a flat top's base."""
+    cdef double base = 1e300
+    cdef Py_ssize_t jj
+    for jj in range(m):
+        if use[jj]:
+            base = pmin(base, y[jj])
+    return base
 
 
 cdef inline bint _solve(double* a, const double* b, double* x,
