@@ -595,3 +595,12 @@ def test_core_white_where_green_clips_low_is_one_stripe(seed):
     found = np.isfinite(res.v_px)
     assert found.mean() >= 0.95
     assert np.mean(np.abs(res.v_px[found] - c[found]) <= 1.0) >= 0.98
+
+
+@pytest.mark.parametrize("bad", [None, np.zeros((240, 320), np.uint8),
+                                 np.zeros((240, 320, 3), np.float32)])
+def test_detect_laser_names_an_input_that_is_no_colour_image(bad):
+    # cv2.imread's None for an unreadable file, a grey image, a float image: a ValueError
+    # naming the argument, not an IndexError from formatting the size message
+    with pytest.raises(ValueError, match="left_bgr must be an"):
+        detect_laser(bad, paper_rig())
