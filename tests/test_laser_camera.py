@@ -26,7 +26,7 @@ import yaml
 
 from slitcli.laser import LaserGeometry, LaserParams, detect_laser
 from slitcli.rig import paper_rig
-from slitcli.sim.render import render_frame
+from slitcli.sim.render import render_left
 from slitcli.sim.scene import scene_from_dict
 
 RIG = paper_rig()
@@ -64,7 +64,7 @@ def _scored(seed, camera, forward_m, box):
     absolute row errors of the found columns."""
     scene = scene_from_dict(yaml.safe_load(yaml.safe_dump(
         _scene(seed, camera, forward_m, box))))
-    r = render_frame(scene, RIG, scene.poses(1)[0])
+    r = render_left(scene, RIG, scene.poses(1)[0])
     f = detect_laser(r.left_bgr, RIG, PARAMS, geometry=GEOM)
     t = r.truth.stripe_v_px
     vis = np.isfinite(t)
@@ -128,6 +128,6 @@ def test_camera_no_stripe_without_laser(camera, seed):
     d = _scene(seed, camera, 0.8, True)
     d["laser"] = {**d["laser"], "enabled": False}
     scene = scene_from_dict(d)
-    r = render_frame(scene, RIG, scene.poses(1)[0])
+    r = render_left(scene, RIG, scene.poses(1)[0])
     f = detect_laser(r.left_bgr, RIG, PARAMS, geometry=GEOM)
     assert not f.found.any()

@@ -17,7 +17,7 @@ import yaml
 from slitcli.laser import LaserGeometry, LaserParams, detect_laser, extract_stripe, luma
 from slitcli.laser.profile import F_POS, F_WIDTH, N_FIELDS
 from slitcli.rig import paper_rig
-from slitcli.sim.render import render_frame
+from slitcli.sim.render import render_left
 from slitcli.sim.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -126,7 +126,7 @@ def _wall(seed, contrast, camera=None, forward_m=0.8):
     if camera:
         d["image"] = {"camera": camera}
     scene = scene_from_dict(d)
-    return render_frame(scene, RIG, scene.poses(1)[0])
+    return render_left(scene, RIG, scene.poses(1)[0])
 
 
 @cache
@@ -192,7 +192,7 @@ def test_webcam_corridor_sheet_test_and_luma_test():
         false = {"on": 0, "off": 0, "no_luma": 0}
         n_vis = 0
         for i, pose in enumerate(scene.poses(3)):
-            r = render_frame(scene, RIG, pose, frame_index=i)
+            r = render_left(scene, RIG, pose, frame_index=i)
             t = r.truth.stripe_v_px
             vis = np.isfinite(t)
             n_vis += int(vis.sum())
@@ -332,7 +332,7 @@ def test_webcam_corridor_stripe_ends_judged_on_the_luma_widths():
         scene = scene_from_dict(d)
         seed_found = {"on": 0, "off": 0}
         for i, pose in enumerate(scene.poses(3)):
-            r = render_frame(scene, RIG, pose, frame_index=i)
+            r = render_left(scene, RIG, pose, frame_index=i)
             t = r.truth.stripe_v_px
             xyz = r.truth.stripe_sensor_xyz
             near = np.isfinite(t) & (np.hypot(xyz[:, 0], xyz[:, 1]) < 1.05)

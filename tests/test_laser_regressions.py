@@ -13,7 +13,7 @@ import pytest
 from test_laser_render import GEOM, GREY, PARAMS, RIG, _run, _sample, _stats, regression
 
 from slitcli.laser import detect_laser
-from slitcli.sim.render import frame_truth, render_frame
+from slitcli.sim.render import frame_truth, render_left
 from slitcli.sim.scene import scene_from_dict
 
 
@@ -58,8 +58,8 @@ def test_rendered_stripe_between_a_red_objects_edges():
     # Eq. 4), as `slitcli laser` runs a sequence
     scene = scene_from_dict(d)
     poses = scene.poses(2)
-    r0 = render_frame(scene, RIG, poses[0], frame_index=0)
-    r = render_frame(scene, RIG, poses[1], frame_index=1)
+    r0 = render_left(scene, RIG, poses[0], frame_index=0)
+    r = render_left(scene, RIG, poses[1], frame_index=1)
     prev = detect_laser(r0.left_bgr, RIG, PARAMS, geometry=GEOM)
     f = detect_laser(r.left_bgr, RIG, PARAMS, previous=prev, geometry=GEOM)
     d["laser"] = {**d["laser"], "visible_min_dn": 1.0}
@@ -178,8 +178,8 @@ def test_rendered_floor_wall_crease_is_not_the_laser():
     d["seed"] = 22
     scene = scene_from_dict(d)
     poses = scene.poses(2)
-    r0 = render_frame(scene, RIG, poses[0], frame_index=0)
-    r = render_frame(scene, RIG, poses[1], frame_index=1)
+    r0 = render_left(scene, RIG, poses[0], frame_index=0)
+    r = render_left(scene, RIG, poses[1], frame_index=1)
     prev = detect_laser(r0.left_bgr, RIG, PARAMS, geometry=GEOM)
     f = detect_laser(r.left_bgr, RIG, PARAMS, previous=prev, geometry=GEOM)
     d["laser"] = {**d["laser"], "visible_min_dn": 1.0}

@@ -18,7 +18,7 @@ import yaml
 
 from slitcli.laser import LaserGeometry, LaserParams, detect_laser
 from slitcli.rig import paper_rig
-from slitcli.sim.render import frame_truth, render_frame
+from slitcli.sim.render import frame_truth, render_left
 from slitcli.sim.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,7 +65,7 @@ def _frame(key):
     d = yaml.safe_load(text)
     scene = scene_from_dict(d)
     pose = scene.poses(frame + 1)[frame]
-    r = render_frame(scene, RIG, pose, frame_index=frame)
+    r = render_left(scene, RIG, pose, frame_index=frame)
     d["laser"] = {**d.get("laser", {}), "visible_min_dn": 1.0}
     lit_v = frame_truth(scene_from_dict(d), RIG, pose).stripe_v_px
     return r, detect_laser(r.left_bgr, RIG, PARAMS, geometry=GEOM), lit_v

@@ -15,7 +15,7 @@ import yaml
 
 from slitcli.laser import LaserGeometry, LaserParams, detect_laser
 from slitcli.rig import paper_rig
-from slitcli.sim.render import frame_truth, render_frame
+from slitcli.sim.render import frame_truth, render_left
 from slitcli.sim.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -33,9 +33,9 @@ def _render(d, frame):
     poses = scene.poses(frame + 1)
     prev = None
     if frame > 0:
-        r0 = render_frame(scene, RIG, poses[frame - 1], frame_index=frame - 1)
+        r0 = render_left(scene, RIG, poses[frame - 1], frame_index=frame - 1)
         prev = detect_laser(r0.left_bgr, RIG, PARAMS, geometry=GEOM)
-    r = render_frame(scene, RIG, poses[frame], frame_index=frame)
+    r = render_left(scene, RIG, poses[frame], frame_index=frame)
     f = detect_laser(r.left_bgr, RIG, PARAMS, previous=prev, geometry=GEOM)
     lit_d = {**d, "laser": {**d.get("laser", {}), "visible_min_dn": 1.0}}
     lit = frame_truth(scene_from_dict(lit_d), RIG, poses[frame]).stripe_v_px

@@ -96,6 +96,15 @@ class RenderedFrame:
     truth: FrameTruth
 
 
+@dataclass(frozen=True)
+class RenderedView:
+    """The left image of a rendered pair (BGR uint8, (H, W, 3)) with the pair's ground
+    truth (:func:`render_left`)."""
+
+    left_bgr: np.ndarray
+    truth: FrameTruth
+
+
 # ------------------------------------------------------------------ placement
 def _rot_z(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
@@ -469,3 +478,17 @@ def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) 
     left = _render_camera(scene, rig, pose, left_cam, rng)
     right = _render_camera(scene, rig, pose, right_cam, rng)
     return RenderedFrame(left, right, frame_truth(scene, rig, pose))
+
+
+def render_left(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -> RenderedView:
+    """The left image of :func:`render_frame` and its ground truth, without the right
+    image: bit for bit the left image and truth of that call, in a little more than half
+    its time. For work that looks through the left camera alone (the laser stripe).
+
+    Parameters are :func:`render_frame`'s.
+    """
+    left_cam, _ = camera_poses(rig, pose)
+    # (the left image takes the first draws of the frame's noise, as in render_frame)
+    rng = np.random.default_rng([scene.seed, frame_index])
+    left = _render_camera(scene, rig, pose, left_cam, rng)
+    return RenderedView(left, frame_truth(scene, rig, pose))
