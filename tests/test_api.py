@@ -158,7 +158,7 @@ WEBCAM_FOUND_SEEDS = (1, 3, 4, 11, 12, 17, 34)
 def webcam_distractors():
     import yaml
 
-    from slitcli.sim.render import render_frame
+    from slitcli.sim.render import render_left
     from slitcli.sim.scene import scene_from_dict
 
     d = yaml.safe_load((ROOT / "sample_data" / "distractors.yaml").read_text())
@@ -168,7 +168,7 @@ def webcam_distractors():
 
     def left_bgr(seed: int) -> np.ndarray:
         if seed not in frames:
-            frames[seed] = render_frame(scene, RIG, pose, frame_index=seed).left_bgr
+            frames[seed] = render_left(scene, RIG, pose, frame_index=seed).left_bgr
         return frames[seed]
     return left_bgr
 
@@ -222,7 +222,7 @@ def _blue_cylinder_frame(seed: int) -> np.ndarray:
     """A blue textured cylinder on a brown textured floor, 1.0-1.6 m ahead: the laser
     crosses it a few rows above its foot, so the band the colour check sums holds the
     cylinder above the stripe and the floor below it."""
-    from slitcli.sim.render import render_frame
+    from slitcli.sim.render import render_left
     from slitcli.sim.scene import scene_from_dict
 
     rng = np.random.default_rng(seed)
@@ -234,7 +234,7 @@ def _blue_cylinder_frame(seed: int) -> np.ndarray:
          "floor": {"colour_rgb": [0.55, 0.5, 0.45], "texture": "noise", "scale_m": 0.03,
                    "contrast": 0.5}}
     scene = scene_from_dict(d, "foot")
-    return render_frame(scene, RIG, scene.poses(1)[0]).left_bgr
+    return render_left(scene, RIG, scene.poses(1)[0]).left_bgr
 
 
 @pytest.mark.parametrize("seed", range(8))

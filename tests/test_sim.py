@@ -28,8 +28,8 @@ def test_stripe_on_wall_at_1m_truth_and_rendered_centre(seed):
     rig = paper_rig()
     lit = scene_from_dict(wall_scene(1.0, seed=seed))
     dark = scene_from_dict(wall_scene(1.0, laser={"enabled": False}, seed=seed))
-    a = render_frame(lit, rig, Pose2D(0, 0, 0))
-    b = render_frame(dark, rig, Pose2D(0, 0, 0))
+    a = render_left(lit, rig, Pose2D(0, 0, 0))
+    b = render_left(dark, rig, Pose2D(0, 0, 0))
     # truth from geometry
     assert a.truth.stripe_v_px[159] == pytest.approx(167.93, abs=0.05)
     assert a.truth.stripe_v_px[160] == pytest.approx(167.93, abs=0.05)
