@@ -9,7 +9,7 @@ import pytest
 
 from slitcli.errors import SlitcliError
 from slitcli.rig import paper_rig
-from slitcli.sim.render import frame_truth, render_frame, render_left
+from slitcli.sim.render import frame_truth, render_frame, render_left, render_pair
 from slitcli.sim.scene import Pose2D, scene_from_dict
 from slitcli.sim.truth import true_ranges
 
@@ -44,16 +44,21 @@ def test_stripe_on_wall_at_1m_truth_and_rendered_centre(seed):
 
 
 @pytest.mark.parametrize(("seed", "camera"), [(1, None), (2, "webcam"), (3, "robot")])
-def test_render_left_is_render_frames_left_image_and_truth(seed, camera):
-    # the left view alone: the same noise draws, so the same image and truth to the bit,
-    # through a camera model too (its own noise, mosaic and codec), on a noisy plain wall
-    # and a textured floor, at the second frame of a sequence
+def test_render_left_and_render_pair_are_render_frames_parts(seed, camera):
+    # the left view alone, and the two images without the truth: the same noise draws,
+    # so the same images and truth to the bit, through a camera model too (its own
+    # noise, mosaic and codec), on a noisy plain wall and a textured floor, at the second
+    # frame of a sequence
     rig = paper_rig()
     extra = {"image": {"noise_sigma_dn": 2.0, **({"camera": camera} if camera else {})}}
     scene = scene_from_dict(wall_scene(1.3, seed=seed, **extra))
     pose = Pose2D(0.1, -0.05, 0.02)
     pair = render_frame(scene, rig, pose, frame_index=1)
     view = render_left(scene, rig, pose, frame_index=1)
+    left, right = render_pair(scene, rig, pose, frame_index=1)
+    assert np.array_equal(left, pair.left_bgr)
+    assert np.array_equal(right, pair.right_bgr)
+    assert not np.array_equal(left, right)
     assert np.array_equal(view.left_bgr, pair.left_bgr)
     assert not np.array_equal(render_left(scene, rig, pose, frame_index=2).left_bgr,
                               pair.left_bgr)

@@ -459,6 +459,23 @@ def frame_truth(scene: Scene, rig: Rig, pose: Pose2D, *, bin_deg: float = 1.0) -
                       centres, ranges, pose)
 
 
+def _frame_rng(scene: Scene, frame_index: int) -> np.random.Generator:
+    """The sensor noise of frame ``frame_index``: the left image takes its first draws,
+    the right image the next (:func:`render_pair`, :func:`render_left`)."""
+    return np.random.default_rng([scene.seed, frame_index])
+
+
+def render_pair(scene: Scene, rig: Rig, pose: Pose2D, *,
+                frame_index: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The two images of :func:`render_frame` (BGR uint8, (H, W, 3)), without the ground
+    truth: for the closed loop's vision sensing, which needs none (the truth is about a
+    fifth of such a step). Parameters are :func:`render_frame`'s."""
+    left_cam, right_cam = camera_poses(rig, pose)
+    rng = _frame_rng(scene, frame_index)
+    left = _render_camera(scene, rig, pose, left_cam, rng)
+    return left, _render_camera(scene, rig, pose, right_cam, rng)
+
+
 def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -> RenderedFrame:
     """Render one stereo pair and its ground truth.
 
@@ -473,10 +490,7 @@ def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) 
         Seeds the sensor noise together with ``scene.seed`` (textures depend on the
         scene seed only, so they stay fixed in the world across frames).
     """
-    left_cam, right_cam = camera_poses(rig, pose)
-    rng = np.random.default_rng([scene.seed, frame_index])
-    left = _render_camera(scene, rig, pose, left_cam, rng)
-    right = _render_camera(scene, rig, pose, right_cam, rng)
+    left, right = render_pair(scene, rig, pose, frame_index=frame_index)
     return RenderedFrame(left, right, frame_truth(scene, rig, pose))
 
 
@@ -488,7 +502,5 @@ def render_left(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -
     Parameters are :func:`render_frame`'s.
     """
     left_cam, _ = camera_poses(rig, pose)
-    # (the left image takes the first draws of the frame's noise, as in render_frame)
-    rng = np.random.default_rng([scene.seed, frame_index])
-    left = _render_camera(scene, rig, pose, left_cam, rng)
+    left = _render_camera(scene, rig, pose, left_cam, _frame_rng(scene, frame_index))
     return RenderedView(left, frame_truth(scene, rig, pose))

@@ -15,7 +15,7 @@ import numpy as np
 
 from slitcli.detect import Detector, DetectParams
 from slitcli.rig import Rig
-from slitcli.sim.render import render_frame
+from slitcli.sim.render import render_pair
 from slitcli.sim.scene import Pose2D, Scene
 from slitcli.sim.sensing import RangeScan
 
@@ -35,8 +35,8 @@ class VisionSensor:
     def __call__(self, pose: Pose2D, step: int, t_s: float = 0.0) -> RangeScan:
         # moving objects are rendered where they are at t_s; a missed return (free_m 0)
         # never clears the obstacle memory
-        frame = render_frame(self.scene.at_time(t_s), self.rig, pose, frame_index=step)
-        det = self.detector(frame.left_bgr, frame.right_bgr)
+        left, right = render_pair(self.scene.at_time(t_s), self.rig, pose, frame_index=step)
+        det = self.detector(left, right)
         r = det.ranges.fused_range_m
         return RangeScan(det.ranges.bearing_deg, np.where(r <= self.sensing_range_m, r, np.nan),
                          self.rig.mount.forward_m)
