@@ -5,6 +5,7 @@ that rendering and planning load no numba."""
 from __future__ import annotations
 
 import json
+import pickle
 import subprocess
 import sys
 import textwrap
@@ -15,7 +16,7 @@ import pytest
 
 from slitcli._prediction_kernel import contact_kernel
 from slitcli.sim.camera import bloom
-from slitcli.sim.texture import TILE, _lattice_table, value_noise
+from slitcli.sim.texture import TILE, TextureTables, _lattice_table, value_noise
 from slitcli.sim.texture import _octaves as octaves
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -46,6 +47,25 @@ def test_value_noise_midway_is_the_mean_of_the_corners(seed):
     want = [tb[i % TILE, j % TILE], tb[(i + 1) % TILE, j % TILE],
             tb[i % TILE, (j + 1) % TILE], tb[(i + 1) % TILE, (j + 1) % TILE]]
     np.testing.assert_allclose(got, np.mean(want, axis=0), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_kept_texture_tables_give_the_same_noise(seed):
+    """Tables kept across calls (a sequence's TextureTables) give the values drawn
+    without them, to the bit, for several patterns and octave counts; each pattern's
+    tables are drawn once; a pickled copy holds none and draws them again."""
+    rng = np.random.default_rng(seed)
+    s, t = rng.uniform(-20.0, 20.0, (2, 500))
+    kept = TextureTables()
+    for pattern, n_oct in ((seed, 3), (seed + 7, 3), (seed, 2), (seed, 3)):
+        want = value_noise(s, t, seed=pattern, scale_m=0.03, octaves=n_oct)
+        got = value_noise(s, t, seed=pattern, scale_m=0.03, octaves=n_oct, textures=kept)
+        assert np.array_equal(got, want)
+    assert kept.tables(seed, 3) is kept.tables(seed, 3)
+    assert len(kept._by_pattern) == 3
+    copy = pickle.loads(pickle.dumps(kept))
+    assert copy._by_pattern == {}
+    assert np.array_equal(copy.tables(seed, 2), kept.tables(seed, 2))
 
 
 def test_octaves_refuse_mismatched_inputs():

@@ -159,7 +159,7 @@ def dwa_cmd(ranges: Path, goal: tuple[float, float], out: Path, rig: Path | None
               help="Sensing mode: 'perfect' = true ranges per 1-deg bearing bin over the "
                    "camera's field of view, cut at the sensing range (the paper's Matlab "
                    "simulation); 'vision' = render both cameras, detect and fuse at every "
-                   "step (the full pipeline; about 0.25 s a step).")
+                   "step (the full pipeline; about 0.2 s a step).")
 @click.option("--sensing-range", "sensing_range", metavar="R[,R...]",
               callback=_floats(None, "comma-separated ranges in metres"), default=None,
               help="Sensing range(s), m, one run each, e.g. 0.6,1,1.5,2. Default: the "

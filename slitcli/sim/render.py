@@ -30,7 +30,7 @@ from slitcli.sim.raycast import (
     object_hull,
 )
 from slitcli.sim.scene import Pose2D, Scene, Surface
-from slitcli.sim.texture import value_noise
+from slitcli.sim.texture import TextureTables, value_noise
 from slitcli.sim.truth import true_ranges
 
 SKY_DN = 0.7 * 255.0
@@ -217,7 +217,8 @@ def _surface_seed(scene: Scene, obj_id: int) -> int:
 
 
 # ------------------------------------------------------------------ shading
-def _shade(scene: Scene, hits: Hits, points: np.ndarray) -> np.ndarray:
+def _shade(scene: Scene, hits: Hits, points: np.ndarray,
+           textures: TextureTables | None = None) -> np.ndarray:
     """Radiance of every hit in digital numbers before noise, (N, 3) RGB."""
     surfaces = _surfaces(scene)
     albedo = np.array([s.colour_rgb for s in surfaces])
@@ -235,7 +236,8 @@ def _shade(scene: Scene, hits: Hits, points: np.ndarray) -> np.ndarray:
         if not np.any(sel):
             continue
         noise = value_noise(hits.st_m[sel, 0], hits.st_m[sel, 1],
-                            seed=_surface_seed(scene, oid), scale_m=s.scale_m)
+                            seed=_surface_seed(scene, oid), scale_m=s.scale_m,
+                            textures=textures)
         # value noise concentrates near 0.5: stretch it so `contrast` is the usual swing
         tex[sel] = np.clip(1.0 + 2.5 * s.contrast * (noise - 0.5), 0.05, 2.0)
     ids = np.where(hit, hits.obj, 0)
@@ -286,17 +288,22 @@ def _add_laser(scene: Scene, rig: Rig, pose: Pose2D, hits: Hits, points: np.ndar
     return out
 
 
-def _cast_and_shade(scene: Scene, rig: Rig, cam: CameraPose
+def _cast_and_shade(scene: Scene, rig: Rig, cam: CameraPose,
+                    textures: TextureTables | None = None
                     ) -> tuple[Hits, np.ndarray, np.ndarray]:
     hits, dirs = _cast_grid(scene, rig, cam, scene.image.supersample)
     t = np.where(np.isfinite(hits.t), hits.t, 0.0)
     points = cam.origin_xyz + t[:, None] * dirs
-    return hits, points, _shade(scene, hits, points)
+    return hits, points, _shade(scene, hits, points, textures)
 
 
-def linear_radiance(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose
+def linear_radiance(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose, *,
+                    textures: TextureTables | None = None
                     ) -> tuple[np.ndarray, np.ndarray]:
     """The light reaching one camera, before any camera model: the scene's and the laser's.
+
+    ``textures``: texture tables kept by the caller
+    (:class:`~slitcli.sim.texture.TextureTables`), as for :func:`render_frame`.
 
     Returns
     -------
@@ -307,17 +314,17 @@ def linear_radiance(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose
     """
     ss = scene.image.supersample
     w, h = rig.image_size_px
-    hits, points, rgb = _cast_and_shade(scene, rig, cam)
+    hits, points, rgb = _cast_and_shade(scene, rig, cam, textures)
     laser = _add_laser(scene, rig, pose, hits, points, np.zeros_like(rgb))
     return (rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)),
             laser.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)))
 
 
 def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
-                   rng: np.random.Generator) -> np.ndarray:
+                   rng: np.random.Generator, textures: TextureTables | None) -> np.ndarray:
     if scene.image.camera is not None:
         # the camera model needs the laser's light apart (speckle is on it alone)
-        scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, cam)
+        scene_rgb, laser_rgb = linear_radiance(scene, rig, pose, cam, textures=textures)
         # speckle is fixed by the geometry: the same view gives the same pattern
         view = np.r_[cam.origin_xyz, cam.R_world_from_cam.ravel()].round(9) + 0.0
         speckle_rng = np.random.default_rng([scene.seed, *np.frombuffer(view.tobytes(),
@@ -326,7 +333,7 @@ def _render_camera(scene: Scene, rig: Rig, pose: Pose2D, cam: CameraPose,
                             speckle_rng=speckle_rng)
     ss = scene.image.supersample
     w, h = rig.image_size_px
-    hits, points, rgb = _cast_and_shade(scene, rig, cam)
+    hits, points, rgb = _cast_and_shade(scene, rig, cam, textures)
     rgb = _add_laser(scene, rig, pose, hits, points, rgb)
     img = rgb.reshape(h, ss, w, ss, 3).mean(axis=(1, 3))
     if scene.image.noise_sigma_dn > 0:
@@ -465,18 +472,19 @@ def _frame_rng(scene: Scene, frame_index: int) -> np.random.Generator:
     return np.random.default_rng([scene.seed, frame_index])
 
 
-def render_pair(scene: Scene, rig: Rig, pose: Pose2D, *,
-                frame_index: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def render_pair(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0,
+                textures: TextureTables | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The two images of :func:`render_frame` (BGR uint8, (H, W, 3)), without the ground
     truth: for the closed loop's vision sensing, which needs none (the truth is about a
     fifth of such a step). Parameters are :func:`render_frame`'s."""
     left_cam, right_cam = camera_poses(rig, pose)
     rng = _frame_rng(scene, frame_index)
-    left = _render_camera(scene, rig, pose, left_cam, rng)
-    return left, _render_camera(scene, rig, pose, right_cam, rng)
+    left = _render_camera(scene, rig, pose, left_cam, rng, textures)
+    return left, _render_camera(scene, rig, pose, right_cam, rng, textures)
 
 
-def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -> RenderedFrame:
+def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0,
+                 textures: TextureTables | None = None) -> RenderedFrame:
     """Render one stereo pair and its ground truth.
 
     Parameters
@@ -489,12 +497,17 @@ def render_frame(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) 
     frame_index : int
         Seeds the sensor noise together with ``scene.seed`` (textures depend on the
         scene seed only, so they stay fixed in the world across frames).
+    textures : TextureTables, optional
+        Texture tables kept from earlier frames of the scene
+        (:class:`~slitcli.sim.texture.TextureTables`): the same images, without drawing
+        the textures' random tables again for each frame.
     """
-    left, right = render_pair(scene, rig, pose, frame_index=frame_index)
+    left, right = render_pair(scene, rig, pose, frame_index=frame_index, textures=textures)
     return RenderedFrame(left, right, frame_truth(scene, rig, pose))
 
 
-def render_left(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -> RenderedView:
+def render_left(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0,
+                textures: TextureTables | None = None) -> RenderedView:
     """The left image of :func:`render_frame` and its ground truth, without the right
     image: bit for bit the left image and truth of that call, in a little more than half
     its time. For work that looks through the left camera alone (the laser stripe).
@@ -502,5 +515,5 @@ def render_left(scene: Scene, rig: Rig, pose: Pose2D, *, frame_index: int = 0) -
     Parameters are :func:`render_frame`'s.
     """
     left_cam, _ = camera_poses(rig, pose)
-    left = _render_camera(scene, rig, pose, left_cam, _frame_rng(scene, frame_index))
+    left = _render_camera(scene, rig, pose, left_cam, _frame_rng(scene, frame_index), textures)
     return RenderedView(left, frame_truth(scene, rig, pose))

@@ -18,6 +18,7 @@ from slitcli.rig import Rig
 from slitcli.sim.render import render_pair
 from slitcli.sim.scene import Pose2D, Scene
 from slitcli.sim.sensing import RangeScan
+from slitcli.sim.texture import TextureTables
 
 # one ray per pixel-quarter is enough for the planner; rendering dominates a step
 VISION_SUPERSAMPLE = 2
@@ -31,11 +32,14 @@ class VisionSensor:
     rig: Rig
     detector: Detector
     sensing_range_m: float
+    #: the scene's texture tables, drawn at the first step and kept for the run
+    textures: TextureTables
 
     def __call__(self, pose: Pose2D, step: int, t_s: float = 0.0) -> RangeScan:
         # moving objects are rendered where they are at t_s; a missed return (free_m 0)
         # never clears the obstacle memory
-        left, right = render_pair(self.scene.at_time(t_s), self.rig, pose, frame_index=step)
+        left, right = render_pair(self.scene.at_time(t_s), self.rig, pose, frame_index=step,
+                                  textures=self.textures)
         det = self.detector(left, right)
         r = det.ranges.fused_range_m
         return RangeScan(det.ranges.bearing_deg, np.where(r <= self.sensing_range_m, r, np.nan),
@@ -48,5 +52,4 @@ def vision_sensor(scene: Scene, rig: Rig, sensing_range_m: float, *,
     fast = replace(scene, image=replace(scene.image, supersample=VISION_SUPERSAMPLE))
     # the renderer writes BGR: its channel order is checked until a frame shows the stripe
     det = Detector(rig, DetectParams(bin_deg=bin_deg), colour_check="once")
-    return VisionSensor(fast, rig, det,
-                        sensing_range_m)
+    return VisionSensor(fast, rig, det, sensing_range_m, TextureTables())
