@@ -1,12 +1,18 @@
-"""Renderer speed: one stereo frame (both cameras and the truth) at 320x240."""
+"""Renderer speed: one stereo frame (both cameras and the truth) at 320x240; and the
+closed loop's vision sensing renders (the two images alone at 2 x 2 rays a pixel,
+``slitcli.sim.vision``), with the textures' tables drawn per frame and kept for the run
+(``TextureTables``)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from slitcli.rig import paper_rig
-from slitcli.sim.render import frame_truth, render_frame
+from slitcli.sim.render import frame_truth, render_frame, render_pair
 from slitcli.sim.scene import load_scene
+from slitcli.sim.texture import TextureTables
+from slitcli.sim.vision import VISION_SUPERSAMPLE
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data"
 
@@ -25,4 +31,14 @@ def bench(timer) -> list[dict]:
         rows.append({"name": f"ground truth only ({name})", **truth,
                      "ratio": truth["median_s"] / full["median_s"],
                      "note": f"{100 * truth['median_s'] / full['median_s']:.0f} % of a frame"})
+        fast = replace(scene, image=replace(scene.image, supersample=VISION_SUPERSAMPLE))
+        kept = TextureTables()
+        drawn = timer(lambda s=fast, p=pose: render_pair(s, rig, p), runs=21)
+        held = timer(lambda s=fast, p=pose, k=kept: render_pair(s, rig, p, textures=k), runs=21)
+        rows.append({"name": f"vision step images ({name}, supersample {VISION_SUPERSAMPLE})",
+                     **drawn, "note": "render_pair, textures drawn every frame"})
+        rows.append({"name": f"vision step images, textures kept ({name})", **held,
+                     "ratio": held["median_s"] / drawn["median_s"],
+                     "note": "render_pair with the run's TextureTables (simulate-dwa "
+                             "--sensing vision)"})
     return rows
