@@ -322,15 +322,22 @@ def _luma_width_valid(cand: np.ndarray, ok: np.ndarray, img_t: np.ndarray, r0: i
     return fitted & judge.valid_candidates(as_luma, **tests)[0]
 
 
+def checked_image(left_bgr: np.ndarray) -> np.ndarray:
+    """``left_bgr`` as an array, or ValueError where it is no (H, W, 3) uint8 image (a
+    grey or float image, or ``cv2.imread``'s None)."""
+    img = np.asarray(left_bgr)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    return img
+
+
 def _checked_inputs(left_bgr: np.ndarray, search_mask: np.ndarray | None,
                     previous_v_px: np.ndarray | None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`extract_stripe`'s inputs as arrays of the layout its kernels read: the image
     (H, W, 3) uint8, the search mask (H, W) bool (everywhere if none) and the previous
     rows (W,) float64 (empty if none); ValueError naming the one that does not fit."""
-    img = np.asarray(left_bgr)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    img = checked_image(left_bgr)
     h, w = img.shape[:2]
     mask = np.ones((h, w), bool) if search_mask is None else \
         np.asarray(search_mask, dtype=bool)

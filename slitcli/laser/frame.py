@@ -27,7 +27,7 @@ from slitcli.laser.edges import (
     edge_reach_px,
     segment_edges,
 )
-from slitcli.laser.extract import extract_stripe
+from slitcli.laser.extract import checked_image, extract_stripe
 from slitcli.laser.geometry import (
     LaserGeometry,
     laser_sight_range_m,
@@ -131,9 +131,7 @@ def detect_laser(left_bgr: np.ndarray, rig: Rig, params: LaserParams | None = No
     """
     params = LaserParams() if params is None else params
     edges = EdgeParams() if edges is None else edges
-    img = np.asarray(left_bgr)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError("left_bgr must be an (H, W, 3) uint8 BGR image")
+    img = checked_image(left_bgr)
     if img.shape[:2] != (rig.height_px, rig.width_px):
         raise ValueError(f"image is {img.shape[1]}x{img.shape[0]}, the rig's is "
                          f"{rig.width_px}x{rig.height_px}")
